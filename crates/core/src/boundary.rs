@@ -1,0 +1,108 @@
+//! Wall conditions on the faces of the grid domain, applied to nodal velocities.
+
+use crate::grid::Grid;
+use crate::scalar::Scalar;
+use crate::tensor::Vector;
+use serde::{Deserialize, Serialize};
+
+/// What a wall does to the velocity `v` of a node on or beyond it (outward normal `n`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WallKind {
+    /// No condition (the grid simply ends; a particle that reaches the ghost layer stops the run).
+    #[default]
+    Free,
+    /// Clamped: `v = 0` whatever the motion.
+    Fixed,
+    /// Frictionless roller: `v·n = 0`, tangential velocity free.
+    Slip,
+    /// Sticking wall: `v = 0` for nodes in contact (see [`Wall::separable`]).
+    NoSlip,
+}
+
+/// One face's condition.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Wall {
+    /// The kind of wall.
+    pub kind: WallKind,
+    /// For `slip` and `no_slip`: apply the condition only while the node moves into the wall
+    /// (`v·n > 0`), so material may leave the wall (free-surface flows). Without it the
+    /// condition is bilateral (and `no_slip` is the same as `fixed`).
+    #[serde(default)]
+    pub separable: bool,
+}
+
+impl Wall {
+    /// A wall of the given kind, bilateral.
+    pub fn new(kind: WallKind) -> Self {
+        Self {
+            kind,
+            separable: false,
+        }
+    }
+}
+
+/// The walls of all `2·D` faces: `walls[axis][0]` is the lower face, `walls[axis][1]` the upper.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Boundary<const D: usize> {
+    /// Per axis, the (lower, upper) walls.
+    pub walls: [[Wall; 2]; D],
+}
+
+impl<const D: usize> Boundary<D> {
+    /// The same wall on every face.
+    pub fn all(wall: Wall) -> Self {
+        Self {
+            walls: [[wall; 2]; D],
+        }
+    }
+
+    /// Applies every wall whose face the node lies on (corners get all of theirs).
+    #[inline]
+    pub fn apply<T: Scalar>(&self, grid: &Grid<D>, node: [usize; D], v: &mut Vector<T, D>) {
+        for axis in 0..D {
+            for side in 0..2 {
+                let wall = self.walls[axis][side];
+                if wall.kind == WallKind::Free || !grid.on_face(node, axis, side) {
+                    continue;
+                }
+                // Outward normal is −e_axis on the lower face, +e_axis on the upper one.
+                let vn = if side == 0 { -v[axis] } else { v[axis] };
+                let active = !wall.separable || vn.re() > 0.0;
+                match wall.kind {
+                    WallKind::Fixed => *v = Vector::zeros(),
+                    WallKind::Slip if active => v[axis] = T::zero(),
+                    WallKind::NoSlip if active => *v = Vector::zeros(),
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn walls_act_on_face_nodes_only() {
+        let g = Grid::<2>::new([0.0, 0.0], [4, 4], 1.0, 2);
+        let mut b = Boundary::<2>::all(Wall::new(WallKind::Slip));
+        b.walls[1][0] = Wall { kind: WallKind::NoSlip, separable: true };
+        // Lower x face, slip: normal component removed, tangential kept.
+        let mut v = Vector::<f64, 2>::new(-1.0, 0.5);
+        b.apply(&g, [1, 4], &mut v);
+        assert_eq!(v, Vector::<f64, 2>::new(0.0, 0.5));
+        // Interior node untouched.
+        let mut v = Vector::<f64, 2>::new(-1.0, 0.5);
+        b.apply(&g, [3, 4], &mut v);
+        assert_eq!(v, Vector::<f64, 2>::new(-1.0, 0.5));
+        // Separable no-slip floor: approaching node stops, leaving node is free.
+        let mut v = Vector::<f64, 2>::new(0.3, -0.2);
+        b.apply(&g, [4, 2], &mut v);
+        assert_eq!(v, Vector::<f64, 2>::zeros());
+        let mut v = Vector::<f64, 2>::new(0.3, 0.2);
+        b.apply(&g, [4, 2], &mut v);
+        assert_eq!(v, Vector::<f64, 2>::new(0.3, 0.2));
+    }
+}

@@ -1,0 +1,192 @@
+//! Constitutive models behind one trait.
+//!
+//! Models work on the 3×3 deformation gradient: in plane strain (`D = 2`) the solver embeds
+//! the in-plane `F` with `F_zz = 1` ([`crate::tensor::to3`]), so `σ_zz` comes out of the same
+//! code. Parameters are generic over `T` so a derivative with respect to a material parameter
+//! is the same code run with a dual parameter.
+
+mod hencky;
+mod linear_elastic;
+mod neo_hookean;
+
+pub use hencky::Hencky;
+pub use linear_elastic::LinearElastic;
+pub use neo_hookean::NeoHookean;
+
+use crate::scalar::Scalar;
+use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
+
+/// Lamé parameters `μ`, `λ` of an isotropic elastic law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lame<T> {
+    /// Shear modulus `μ = E / (2(1 + ν))`.
+    pub mu: T,
+    /// First Lamé parameter `λ = E ν / ((1 + ν)(1 − 2ν))`.
+    pub lambda: T,
+}
+
+impl<T: Scalar> Lame<T> {
+    /// From Young's modulus `E` and Poisson's ratio `ν` (−1 < ν < ½).
+    pub fn from_young_poisson(e: T, nu: T) -> Self {
+        let one = T::one();
+        Self {
+            mu: e / (T::cst(2.0) * (one + nu)),
+            lambda: e * nu / ((one + nu) * (one - T::cst(2.0) * nu)),
+        }
+    }
+
+    /// P-wave (constrained) modulus `M = λ + 2μ`, which sets the elastic wave speed
+    /// `c = √(M/ρ)`.
+    pub fn p_wave_modulus(&self) -> T {
+        self.lambda + self.mu * T::cst(2.0)
+    }
+}
+
+/// History variables a particle carries for its constitutive model (unused by elastic
+/// models; plasticity stores its equivalent plastic strain and a tensor state here).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialState<T> {
+    /// Equivalent (accumulated) plastic strain.
+    pub plastic_strain: T,
+    /// A tensor-valued internal variable (e.g. the elastic left Cauchy–Green tensor).
+    pub tensor: Matrix3<T>,
+}
+
+impl<T: Scalar> Default for MaterialState<T> {
+    fn default() -> Self {
+        Self {
+            plastic_strain: T::zero(),
+            tensor: Matrix3::identity(),
+        }
+    }
+}
+
+/// What a stress update sees of the motion over one step.
+#[derive(Clone, Copy, Debug)]
+pub struct Kinematics<'a, T> {
+    /// Deformation gradient at the end of the step (3×3, `F_zz = 1` in plane strain).
+    pub f: &'a Matrix3<T>,
+    /// Velocity gradient `L = ∇v` over the step (3×3, zero out-of-plane row/column in 2D).
+    pub velocity_gradient: &'a Matrix3<T>,
+    /// Time step.
+    pub dt: T,
+    /// Cauchy stress at the start of the step (rate models integrate from it).
+    pub stress: &'a Matrix3<T>,
+}
+
+/// A constitutive model: kinematics and history in, Cauchy stress and new history out.
+pub trait Constitutive<T: Scalar>: Send + Sync {
+    /// Cauchy stress `σ` at the end of the step; updates `state` in place.
+    fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T>;
+
+    /// The constrained modulus `M` at small strain (real part), for the time-step bound
+    /// `Δt ≤ h / (√(M/ρ) + |v|)`.
+    fn p_wave_modulus(&self) -> f64;
+}
+
+/// A hyperelastic model: stress derives from a stored energy `ψ(F)`.
+pub trait Hyperelastic<T: Scalar>: Send + Sync {
+    /// Stored energy per unit reference volume `ψ(F)`.
+    fn energy_density(&self, f: &Matrix3<T>) -> T;
+
+    /// Kirchhoff stress `τ = P Fᵀ = J σ`, with `P = ∂ψ/∂F`.
+    fn kirchhoff_stress(&self, f: &Matrix3<T>) -> Matrix3<T>;
+
+    /// Lamé parameters (for the wave speed).
+    fn lame(&self) -> Lame<T>;
+
+    /// First Piola–Kirchhoff stress `P = τ F⁻ᵀ`.
+    fn first_piola(&self, f: &Matrix3<T>) -> Matrix3<T> {
+        let finv = crate::tensor::inverse::<T, 3>(f).expect("deformation gradient is singular");
+        self.kirchhoff_stress(f) * finv.transpose()
+    }
+
+    /// Cauchy stress `σ = τ / J`, `J = det F`.
+    fn cauchy_stress(&self, f: &Matrix3<T>) -> Matrix3<T> {
+        self.kirchhoff_stress(f) / crate::tensor::det::<T, 3>(f)
+    }
+}
+
+impl<T: Scalar, M: Hyperelastic<T>> Constitutive<T> for M {
+    fn update(&self, kin: &Kinematics<'_, T>, _state: &mut MaterialState<T>) -> Matrix3<T> {
+        self.cauchy_stress(kin.f)
+    }
+
+    fn p_wave_modulus(&self) -> f64 {
+        self.lame().p_wave_modulus().re()
+    }
+}
+
+/// The names of the available models (what a scene file may ask for).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelKind {
+    /// [`LinearElastic`].
+    LinearElastic,
+    /// [`NeoHookean`].
+    NeoHookean,
+    /// [`Hencky`].
+    Hencky,
+}
+
+/// A material: density plus one constitutive model. The solver dispatches on the variant
+/// once per particle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material<T> {
+    /// Reference mass density `ρ₀`.
+    pub density: f64,
+    /// The constitutive model and its parameters.
+    pub model: Model<T>,
+}
+
+/// The constitutive models, as one enum for run-time selection.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Model<T> {
+    /// Small-strain linear elasticity.
+    LinearElastic(LinearElastic<T>),
+    /// Compressible Neo-Hookean hyperelasticity.
+    NeoHookean(NeoHookean<T>),
+    /// Hencky (logarithmic-strain) hyperelasticity.
+    Hencky(Hencky<T>),
+}
+
+impl<T: Scalar> Material<T> {
+    /// An isotropic elastic material of the given kind from `E`, `ν` and `ρ₀`.
+    pub fn elastic(kind: ModelKind, young: T, poisson: T, density: f64) -> Self {
+        let lame = Lame::from_young_poisson(young, poisson);
+        let model = match kind {
+            ModelKind::LinearElastic => Model::LinearElastic(LinearElastic { lame }),
+            ModelKind::NeoHookean => Model::NeoHookean(NeoHookean { lame }),
+            ModelKind::Hencky => Model::Hencky(Hencky { lame }),
+        };
+        Self { density, model }
+    }
+
+    /// Elastic P-wave speed `c = √(M/ρ₀)` (real part).
+    pub fn wave_speed(&self) -> f64 {
+        (self.constitutive().p_wave_modulus() / self.density).sqrt()
+    }
+
+    /// The model as a trait object (for code that does not need static dispatch).
+    pub fn constitutive(&self) -> &dyn Constitutive<T> {
+        match &self.model {
+            Model::LinearElastic(m) => m,
+            Model::NeoHookean(m) => m,
+            Model::Hencky(m) => m,
+        }
+    }
+
+    /// Stress update by static dispatch on the model.
+    #[inline]
+    pub fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
+        match &self.model {
+            Model::LinearElastic(m) => m.update(kin, state),
+            Model::NeoHookean(m) => m.update(kin, state),
+            Model::Hencky(m) => m.update(kin, state),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

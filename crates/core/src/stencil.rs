@@ -1,0 +1,178 @@
+//! The `b^D` tensor-product stencil of one particle.
+
+use crate::grid::Grid;
+use crate::scalar::Scalar;
+use crate::shape::{MAX_SUPPORT, Shape, ShapeFunction, Weights1D};
+use crate::tensor::Vector;
+
+/// Weights `w_ip` and gradients `∇w_ip` of one particle on its `b^D` nodes.
+#[derive(Clone, Copy, Debug)]
+pub struct Stencil<T, const D: usize> {
+    /// Support width `b` per axis.
+    pub b: usize,
+    /// Multi-index of the first node.
+    pub base: [isize; D],
+    /// Per-axis 1D weights.
+    pub axes: [Weights1D<T>; D],
+}
+
+impl<T: Scalar, const D: usize> Stencil<T, D> {
+    /// Stencil of a particle at `x`; `half_width` is the particle half-length per axis in
+    /// physical units (used by GIMP only).
+    #[inline]
+    pub fn new(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>, half_width: &Vector<T, D>) -> Self {
+        let o = grid.origin();
+        let inv_h = T::cst(1.0 / grid.h);
+        let axes: [Weights1D<T>; D] = std::array::from_fn(|a| {
+            let xi = (x[a] - T::cst(o[a])) * inv_h;
+            shape.weights_1d(xi, half_width[a] * inv_h, inv_h)
+        });
+        Self {
+            b: shape.support_width(),
+            base: std::array::from_fn(|a| axes[a].base),
+            axes,
+        }
+    }
+
+    /// Number of nodes, `b^D`.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.b.pow(D as u32)
+    }
+
+    /// Always `false`: a stencil has at least 2^D nodes (present for API completeness).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// `true` when every node of the stencil exists on `grid`.
+    #[inline]
+    pub fn on_grid(&self, grid: &Grid<D>) -> bool {
+        grid.contains_stencil(self.base, self.b)
+    }
+
+    /// Local multi-index (`0..b` per axis) of stencil entry `k < b^D` (axis 0 fastest).
+    #[inline]
+    pub fn local(&self, mut k: usize) -> [usize; D] {
+        std::array::from_fn(|_| {
+            let l = k % self.b;
+            k /= self.b;
+            l
+        })
+    }
+
+    /// Grid multi-index of stencil entry `k`. The stencil must be on the grid.
+    #[inline]
+    pub fn node(&self, k: usize) -> [usize; D] {
+        let l = self.local(k);
+        std::array::from_fn(|a| (self.base[a] + l[a] as isize) as usize)
+    }
+
+    /// Weight `w = Π_a N_a` and gradient `∂w/∂x_a = N'_a Π_{c≠a} N_c` of stencil entry `k`.
+    #[inline]
+    pub fn weight_gradient(&self, k: usize) -> (T, Vector<T, D>) {
+        let l = self.local(k);
+        let mut w = T::one();
+        for a in 0..D {
+            w *= self.axes[a].w[l[a]];
+        }
+        let g = Vector::<T, D>::from_fn(|a, _| {
+            let mut p = self.axes[a].dw[l[a]];
+            for c in 0..D {
+                if c != a {
+                    p *= self.axes[c].w[l[c]];
+                }
+            }
+            p
+        });
+        (w, g)
+    }
+
+    /// Calls `f(node multi-index, w, ∇w)` for every node of the stencil.
+    #[inline]
+    pub fn for_each(&self, mut f: impl FnMut([usize; D], T, Vector<T, D>)) {
+        for k in 0..self.len() {
+            let (w, g) = self.weight_gradient(k);
+            f(self.node(k), w, g);
+        }
+    }
+}
+
+/// Upper bound on the stencil size of any shape in 3D (`4³`).
+pub const MAX_STENCIL: usize = MAX_SUPPORT * MAX_SUPPORT * MAX_SUPPORT;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::SMatrix;
+
+    fn check_completeness<const D: usize>(shape: Shape, x: Vector<f64, D>) {
+        let grid = Grid::<D>::new([0.0; D], [8; D], 0.5, 2);
+        // GIMP half-length: 2×2 particles per cell → l_p = h/4.
+        let hw = Vector::<f64, D>::repeat(0.125);
+        let s = Stencil::new(shape, &grid, &x, &hw);
+        assert!(s.on_grid(&grid));
+        let (mut sw, mut sg) = (0.0, Vector::<f64, D>::zeros());
+        let mut sx = Vector::<f64, D>::zeros();
+        let mut sxg = SMatrix::<f64, D, D>::zeros();
+        s.for_each(|n, w, g| {
+            let xi: Vector<f64, D> = grid.node_position(n);
+            sw += w;
+            sg += g;
+            sx += xi * w;
+            sxg += xi * g.transpose();
+        });
+        // Round-off only: sums of ≤ 64 terms of size ≤ 1 (times x ≤ 4) in f64.
+        let tol = 1e-13;
+        assert!((sw - 1.0).abs() < tol, "{shape:?} D={D}: Σw = {sw}");
+        assert!(sg.norm() < tol * 10.0, "{shape:?} D={D}: Σ∇w = {sg}");
+        assert!((sx - x).norm() < tol * 10.0, "{shape:?} D={D}: Σ x_i w = {sx} vs {x}");
+        assert!(
+            (sxg - SMatrix::<f64, D, D>::identity()).norm() < tol * 10.0,
+            "{shape:?} D={D}: Σ x_i ⊗ ∇w = {sxg}"
+        );
+    }
+
+    #[test]
+    fn partition_of_unity_and_linear_completeness_2d_3d() {
+        let pts2 = [[1.13, 2.71], [2.5, 2.5], [1.999, 3.001], [0.77, 0.31]];
+        let pts3 = [[1.13, 2.71, 0.58], [2.5, 2.25, 2.0], [3.9, 0.26, 1.49]];
+        for shape in Shape::ALL {
+            for p in pts2 {
+                check_completeness::<2>(shape, Vector::<f64, 2>::from(p));
+            }
+            for p in pts3 {
+                check_completeness::<3>(shape, Vector::<f64, 3>::from(p));
+            }
+        }
+    }
+
+    #[test]
+    fn stencil_gradients_match_finite_differences() {
+        // Central differences with ε = 1e-6 h; truncation O(ε²) plus round-off ~1e-10.
+        let grid = Grid::<3>::new([0.0; 3], [8; 3], 0.5, 2);
+        let hw = Vector::<f64, 3>::repeat(0.125);
+        let x = Vector::<f64, 3>::new(1.13, 2.21, 0.58);
+        let eps = 5e-7;
+        for shape in Shape::ALL {
+            let s = Stencil::new(shape, &grid, &x, &hw);
+            for k in 0..s.len() {
+                let (_, g) = s.weight_gradient(k);
+                for a in 0..3 {
+                    let mut xp = x;
+                    xp[a] += eps;
+                    let mut xm = x;
+                    xm[a] -= eps;
+                    let (sp, sm) = (
+                        Stencil::new(shape, &grid, &xp, &hw),
+                        Stencil::new(shape, &grid, &xm, &hw),
+                    );
+                    assert_eq!(sp.base, sm.base);
+                    let fd = (sp.weight_gradient(k).0 - sm.weight_gradient(k).0) / (2.0 * eps);
+                    assert!((fd - g[a]).abs() < 1e-7, "{shape:?} k={k} a={a}: {fd} vs {}", g[a]);
+                }
+            }
+        }
+    }
+}

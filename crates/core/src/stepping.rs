@@ -1,0 +1,42 @@
+//! Time-integration choices shared by the solvers and the scene files (plain data).
+
+use serde::{Deserialize, Serialize};
+
+/// Order of the explicit update within a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    /// Update Stress Last: the velocity gradient comes from the grid velocity of the step.
+    Usl,
+    /// Modified USL: particle velocities are mapped back to the grid (second P2G) and the
+    /// velocity gradient is taken from that smoother field; the usual default.
+    #[default]
+    Musl,
+}
+
+/// How the time step is chosen.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum TimeStep {
+    /// A constant `Δt`; the run stops if it exceeds the stability bound
+    /// `h / (c + |v|_max)` (times `safety`, see [`TimeStep::limit_factor`]).
+    Fixed {
+        /// The step size.
+        dt: f64,
+    },
+    /// `Δt = cfl · h / (c + |v|_max)` every step, capped by `max_dt`.
+    Adaptive {
+        /// Courant number (0 < cfl ≤ 1; 0.3–0.5 usual).
+        cfl: f64,
+        /// Upper bound on `Δt`.
+        max_dt: f64,
+    },
+}
+
+impl TimeStep {
+    /// A fixed step is accepted up to this multiple of `h / (c + |v|_max)`; beyond it the
+    /// explicit update is unstable.
+    pub fn limit_factor() -> f64 {
+        1.0
+    }
+}
