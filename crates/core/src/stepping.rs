@@ -19,7 +19,7 @@ pub enum Scheme {
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum TimeStep {
     /// A constant `Δt`; the run stops if it exceeds the stability bound
-    /// `h / (c + |v|_max)` (times `safety`, see [`TimeStep::limit_factor`]).
+    /// `h / (c + |v|_max)` (`c` the elastic P-wave speed).
     Fixed {
         /// The step size.
         dt: f64,
@@ -31,12 +31,4 @@ pub enum TimeStep {
         /// Upper bound on `Δt`.
         max_dt: f64,
     },
-}
-
-impl TimeStep {
-    /// A fixed step is accepted up to this multiple of `h / (c + |v|_max)`; beyond it the
-    /// explicit update is unstable.
-    pub fn limit_factor() -> f64 {
-        1.0
-    }
 }

@@ -177,6 +177,17 @@ impl<T: Scalar> Material<T> {
         }
     }
 
+    /// Stored energy per unit reference volume `ψ(F)` (every model in the table is
+    /// hyperelastic).
+    #[inline]
+    pub fn energy_density(&self, f: &Matrix3<T>) -> T {
+        match &self.model {
+            Model::LinearElastic(m) => m.energy_density(f),
+            Model::NeoHookean(m) => m.energy_density(f),
+            Model::Hencky(m) => m.energy_density(f),
+        }
+    }
+
     /// Stress update by static dispatch on the model.
     #[inline]
     pub fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
