@@ -1,1 +1,130 @@
-//! placeholder
+//! # loam-verification
+//!
+//! Verification of loam against analytical and classic reference solutions. Each case builds
+//! its problem, runs it, measures an error norm against the reference, and writes a CSV of the
+//! histories and a PNG plot of simulated vs reference. `loam verify` runs the cases at full
+//! size; the test suite runs them at reduced size.
+
+pub mod axial_bar;
+pub mod disk_collision;
+mod output;
+
+pub use output::{Series, write_csv, write_plot};
+
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// One measured quantity of a case, with its acceptance threshold.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Metric {
+    /// Case name (e.g. `axial-bar`).
+    pub case: String,
+    /// What is measured (e.g. `max_rel_error_vcm`).
+    pub metric: String,
+    /// Measured value.
+    pub value: f64,
+    /// Acceptance threshold (`value ≤ tolerance` passes).
+    pub tolerance: f64,
+    /// Whether the value is within tolerance.
+    pub passed: bool,
+}
+
+impl Metric {
+    /// A metric that passes when `value ≤ tolerance` (and is finite).
+    pub fn at_most(case: &str, metric: &str, value: f64, tolerance: f64) -> Self {
+        Self {
+            case: case.into(),
+            metric: metric.into(),
+            value,
+            tolerance,
+            passed: value.is_finite() && value <= tolerance,
+        }
+    }
+}
+
+/// Problem size: the test suite runs `Reduced` (seconds), `loam verify` runs `Full`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Size {
+    /// Coarse resolution for the test suite.
+    Reduced,
+    /// The resolution the documented figures come from.
+    Full,
+}
+
+/// What a case produced.
+#[derive(Clone, Debug)]
+pub struct CaseReport {
+    /// Metrics with tolerances.
+    pub metrics: Vec<Metric>,
+    /// Files written (CSV, PNG, Markdown tables).
+    pub files: Vec<PathBuf>,
+}
+
+/// Errors of a verification run.
+#[derive(Debug, Error)]
+pub enum VerifyError {
+    /// The simulation stopped.
+    #[error("{case}: simulation failed: {source}")]
+    Solver {
+        /// Case name.
+        case: String,
+        /// The solver's error.
+        #[source]
+        source: loam_explicit::StepError,
+    },
+    /// The solver rejected the set-up (a bug in the case).
+    #[error("{case}: invalid set-up: {source}")]
+    Config {
+        /// Case name.
+        case: String,
+        /// The solver's error.
+        #[source]
+        source: loam_explicit::ConfigError,
+    },
+    /// Writing CSV or plots failed.
+    #[error("{path}: {msg}")]
+    Output {
+        /// File.
+        path: PathBuf,
+        /// What went wrong.
+        msg: String,
+    },
+    /// No case of that name.
+    #[error("unknown verification case \"{0}\"; run `loam verify --list` to see the cases")]
+    UnknownCase(String),
+}
+
+/// A verification case.
+pub struct Case {
+    /// Name used on the command line.
+    pub name: &'static str,
+    /// One-line description with the reference.
+    pub description: &'static str,
+    /// Runs the case, writing its files under the given directory.
+    pub run: fn(Size, &Path) -> Result<CaseReport, VerifyError>,
+}
+
+/// Every case, in the order `loam verify` runs them.
+pub fn cases() -> Vec<Case> {
+    vec![
+        Case {
+            name: "axial-bar",
+            description: "1D axial vibration of a fixed-free elastic bar vs the modal solution v_cm(t) = v0/(β1 L) cos(ω1 t)",
+            run: axial_bar::run,
+        },
+        Case {
+            name: "disk-collision",
+            description: "Sulsky's two elastic disks: total energy drift through the collision (APIC)",
+            run: disk_collision::run,
+        },
+    ]
+}
+
+/// Looks a case up by name.
+pub fn case(name: &str) -> Result<Case, VerifyError> {
+    cases()
+        .into_iter()
+        .find(|c| c.name == name)
+        .ok_or_else(|| VerifyError::UnknownCase(name.into()))
+}

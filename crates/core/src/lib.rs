@@ -12,8 +12,8 @@ pub mod particles;
 pub mod scalar;
 pub mod shape;
 pub mod spectral;
-pub mod stepping;
 pub mod stencil;
+pub mod stepping;
 pub mod tensor;
 pub mod transfer;
 

@@ -135,7 +135,12 @@ fn quadratic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
     let z = T::zero();
     Weights1D {
         base,
-        w: [c::<T>(0.5) * a * a, c::<T>(0.75) - m * m, c::<T>(0.5) * p * p, z],
+        w: [
+            c::<T>(0.5) * a * a,
+            c::<T>(0.75) - m * m,
+            c::<T>(0.5) * p * p,
+            z,
+        ],
         dw: [-a * inv_h, c::<T>(-2.0) * m * inv_h, p * inv_h, z],
     }
 }
@@ -215,7 +220,10 @@ mod tests {
                 let wm = shape.weights_1d::<f64>(xi - eps, l, 1.0);
                 let wp = shape.weights_1d::<f64>(xi + eps, l, 1.0);
                 let w = shape.weights_1d::<f64>(xi, l, 1.0);
-                assert_eq!(wm.base, wp.base, "{shape:?} at {xi}: sample too close to a knot");
+                assert_eq!(
+                    wm.base, wp.base,
+                    "{shape:?} at {xi}: sample too close to a knot"
+                );
                 for k in 0..shape.support_width() {
                     let fd = (wp.w[k] - wm.w[k]) / (2.0 * eps);
                     assert!(

@@ -125,7 +125,8 @@ pub fn symmetric_fn<T: Scalar, const D: usize>(
     let a0 = a.map(|x| x.re());
     let (lam, q) = symmetric_eigen(&a0);
     let fl: [f64; D] = std::array::from_fn(|i| f.value(lam[i]));
-    let real = q * SMatrix::<f64, D, D>::from_fn(|i, j| if i == j { fl[i] } else { 0.0 }) * q.transpose();
+    let real =
+        q * SMatrix::<f64, D, D>::from_fn(|i, j| if i == j { fl[i] } else { 0.0 }) * q.transpose();
     // Perturbation part: Ȧ = A − A₀ has zero real part (only derivative lanes).
     let qt = q.map(T::cst);
     let adot = a - a0.map(T::cst);

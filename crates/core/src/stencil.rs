@@ -127,7 +127,10 @@ mod tests {
         let tol = 1e-13;
         assert!((sw - 1.0).abs() < tol, "{shape:?} D={D}: Σw = {sw}");
         assert!(sg.norm() < tol * 10.0, "{shape:?} D={D}: Σ∇w = {sg}");
-        assert!((sx - x).norm() < tol * 10.0, "{shape:?} D={D}: Σ x_i w = {sx} vs {x}");
+        assert!(
+            (sx - x).norm() < tol * 10.0,
+            "{shape:?} D={D}: Σ x_i w = {sx} vs {x}"
+        );
         assert!(
             (sxg - SMatrix::<f64, D, D>::identity()).norm() < tol * 10.0,
             "{shape:?} D={D}: Σ x_i ⊗ ∇w = {sxg}"
@@ -170,7 +173,11 @@ mod tests {
                     );
                     assert_eq!(sp.base, sm.base);
                     let fd = (sp.weight_gradient(k).0 - sm.weight_gradient(k).0) / (2.0 * eps);
-                    assert!((fd - g[a]).abs() < 1e-7, "{shape:?} k={k} a={a}: {fd} vs {}", g[a]);
+                    assert!(
+                        (fd - g[a]).abs() < 1e-7,
+                        "{shape:?} k={k} a={a}: {fd} vs {}",
+                        g[a]
+                    );
                 }
             }
         }

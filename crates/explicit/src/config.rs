@@ -28,9 +28,17 @@ pub struct Config<T: Scalar, const D: usize> {
 impl<T: Scalar, const D: usize> Config<T, D> {
     /// Checks the parameters for values the solver cannot run with.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let bad = |field: &str, msg: String| Err(ConfigError::Invalid { field: field.into(), msg });
+        let bad = |field: &str, msg: String| {
+            Err(ConfigError::Invalid {
+                field: field.into(),
+                msg,
+            })
+        };
         if !(self.grid.h > 0.0 && self.grid.h.is_finite()) {
-            return bad("grid.h", format!("must be positive and finite, got {}", self.grid.h));
+            return bad(
+                "grid.h",
+                format!("must be positive and finite, got {}", self.grid.h),
+            );
         }
         if self.grid.cells.contains(&0) {
             return bad("grid.cells", "every axis needs at least one cell".into());
@@ -61,9 +69,10 @@ impl<T: Scalar, const D: usize> Config<T, D> {
             TimeStep::Adaptive { cfl, .. } if !(cfl > 0.0 && cfl <= 1.0) => {
                 bad("time_step.cfl", format!("must be in (0, 1], got {cfl}"))
             }
-            TimeStep::Adaptive { max_dt, .. } if !(max_dt > 0.0 && max_dt.is_finite()) => {
-                bad("time_step.max_dt", format!("must be positive, got {max_dt}"))
-            }
+            TimeStep::Adaptive { max_dt, .. } if !(max_dt > 0.0 && max_dt.is_finite()) => bad(
+                "time_step.max_dt",
+                format!("must be positive, got {max_dt}"),
+            ),
             _ => Ok(()),
         }
     }

@@ -14,7 +14,9 @@ pub enum ConfigError {
         msg: String,
     },
     /// A particle refers to a material that does not exist.
-    #[error("particle {particle}: material index {material} is out of range (there are {count} materials)")]
+    #[error(
+        "particle {particle}: material index {material} is out of range (there are {count} materials)"
+    )]
     UnknownMaterial {
         /// Particle id.
         particle: usize,

@@ -148,7 +148,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             })
             .reduce(
                 || (f64::INFINITY, usize::MAX, 0.0, 0.0),
-                |a, b| if b.0 < a.0 || (b.0 == a.0 && b.1 < a.1) { b } else { a },
+                |a, b| {
+                    if b.0 < a.0 || (b.0 == a.0 && b.1 < a.1) {
+                        b
+                    } else {
+                        a
+                    }
+                },
             )
     }
 
@@ -175,7 +181,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     }
 
     /// Advances the particles by one step of at most `max_dt` (use `f64::INFINITY` for no cap).
-    pub fn step(&mut self, particles: &mut Particles<T, D>, max_dt: f64) -> Result<StepInfo, StepError> {
+    pub fn step(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        max_dt: f64,
+    ) -> Result<StepInfo, StepError> {
         let dt = self.choose_dt(particles, max_dt)?;
         self.locate(particles)?;
         self.blocks.sort(&self.bases);
@@ -233,7 +243,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         Err(StepError::LeftGrid {
             step: self.steps + 1,
             time: self.time,
-            positions: ids.iter().take(3).map(|&i| p.x[i].iter().map(|v| v.re()).collect()).collect(),
+            positions: ids
+                .iter()
+                .take(3)
+                .map(|&i| p.x[i].iter().map(|v| v.re()).collect())
+                .collect(),
             ids,
         })
     }
@@ -248,34 +262,63 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             let volume = p.volume0[i] * det(&p.f[i]);
             let sv = from3::<T, D>(&p.stress[i]) * volume;
             let c = affine.then_some(&p.c[i]);
-            p2g(&st, &cfg.grid, &p.x[i], &p.v[i], c, p.mass[i], &sv, |n, m, mom, f| {
-                sink.add(n, m, mom, f)
-            });
+            p2g(
+                &st,
+                &cfg.grid,
+                &p.x[i],
+                &p.v[i],
+                c,
+                p.mass[i],
+                &sv,
+                |n, m, mom, f| sink.add(n, m, mom, f),
+            );
         };
         self.blocks.accumulate(contribute);
         self.mass_floor = MASS_EPS * p.mass.iter().fold(0.0f64, |a, m| a.max(m.re()));
         let floor = self.mass_floor;
-        let (grid, boundary, gravity) = (&self.config.grid, &self.config.boundary, self.config.gravity);
+        let (grid, boundary, gravity) = (
+            &self.config.grid,
+            &self.config.boundary,
+            self.config.gravity,
+        );
+        // Gather the block buffers: momentum goes to `velocity_old`, force to `velocity`
+        // until the velocities are formed below.
         let blocks = &self.blocks;
-        let dtt = T::cst(dt);
         self.mass
             .par_iter_mut()
-            .zip(self.velocity.par_iter_mut())
             .zip(self.velocity_old.par_iter_mut())
+            .zip(self.velocity.par_iter_mut())
             .enumerate()
-            .for_each(|(n, ((m, v), v_old))| {
-                let node = grid.multi(n);
-                let acc = blocks.gather(node);
-                *m = acc.m;
-                if acc.m.re() > floor {
-                    *v_old = acc.p / acc.m;
-                    *v = *v_old + (acc.f / acc.m + gravity) * dtt;
-                    boundary.apply(grid, node, v);
+            .for_each(|(n, ((m, mom), force))| {
+                let acc = blocks.gather(grid.multi(n));
+                (*m, *mom, *force) = (acc.m, acc.p, acc.f);
+            });
+        boundary.fold_ghosts(
+            grid,
+            &mut self.mass,
+            &mut self.velocity_old,
+            Some(&mut self.velocity),
+        );
+        let dtt = T::cst(dt);
+        self.mass
+            .par_iter()
+            .zip(self.velocity_old.par_iter_mut())
+            .zip(self.velocity.par_iter_mut())
+            .enumerate()
+            .for_each(|(n, ((&m, v_old), v))| {
+                if m.re() > floor {
+                    *v_old /= m;
+                    *v = *v_old + (*v / m + gravity) * dtt;
+                    boundary.apply(grid, grid.multi(n), v);
                 } else {
                     *v_old = Vector::zeros();
                     *v = Vector::zeros();
                 }
             });
+        boundary.reflect_ghosts(grid, &mut self.velocity);
+        if self.config.transfer.needs_old_grid_velocity() {
+            boundary.reflect_ghosts(grid, &mut self.velocity_old);
+        }
     }
 
     /// USL: G2P velocity, position, then `F ← (I + Δt L) F` and the stress update with the
@@ -284,18 +327,41 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let cfg = &self.config;
         let dtt = T::cst(dt);
         let (vel, vel_old) = (&self.velocity, &self.velocity_old);
-        let Particles { x, v, f, c, stress, material, half_width0, state, .. } = p;
+        let Particles {
+            x,
+            v,
+            f,
+            c,
+            stress,
+            material,
+            half_width0,
+            state,
+            ..
+        } = p;
         (x, v, f, c, stress, state)
             .into_par_iter()
             .zip(material.par_iter().zip(half_width0.par_iter()))
             .for_each(|((x, v, f, c, stress, state), (&mat, hw0))| {
                 let st = stencil(cfg, x, hw0, f);
-                let g = g2p(&st, &cfg.grid, cfg.shape, cfg.transfer, x, |n| vel[cfg.grid.flat(n)], |n| {
-                    vel_old[cfg.grid.flat(n)]
-                });
+                let g = g2p(
+                    &st,
+                    &cfg.grid,
+                    cfg.shape,
+                    cfg.transfer,
+                    x,
+                    |n| vel[cfg.grid.flat(n)],
+                    |n| vel_old[cfg.grid.flat(n)],
+                );
                 (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                 *x += g.v * dtt;
-                update_stress(&cfg.materials[mat as usize], &g.grad_v, dtt, f, stress, state);
+                update_stress(
+                    &cfg.materials[mat as usize],
+                    &g.grad_v,
+                    dtt,
+                    f,
+                    stress,
+                    state,
+                );
             });
     }
 
@@ -307,15 +373,28 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         {
             let cfg = &self.config;
             let (vel, vel_old) = (&self.velocity, &self.velocity_old);
-            let Particles { x, v, f, c, half_width0, .. } = &mut *p;
+            let Particles {
+                x,
+                v,
+                f,
+                c,
+                half_width0,
+                ..
+            } = &mut *p;
             (x, v, c)
                 .into_par_iter()
                 .zip(f.par_iter().zip(half_width0.par_iter()))
                 .for_each(|((x, v, c), (f, hw0))| {
                     let st = stencil(cfg, x, hw0, f);
-                    let g = g2p(&st, &cfg.grid, cfg.shape, cfg.transfer, x, |n| vel[cfg.grid.flat(n)], |n| {
-                        vel_old[cfg.grid.flat(n)]
-                    });
+                    let g = g2p(
+                        &st,
+                        &cfg.grid,
+                        cfg.shape,
+                        cfg.transfer,
+                        x,
+                        |n| vel[cfg.grid.flat(n)],
+                        |n| vel_old[cfg.grid.flat(n)],
+                    );
                     (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                     *x += g.v * dtt;
                 });
@@ -336,26 +415,49 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         }
         {
             let (grid, boundary, blocks) = (&self.config.grid, &self.config.boundary, &self.blocks);
+            self.velocity
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(n, v)| *v = blocks.gather(grid.multi(n)).p);
+            // Fold with a scratch mass (the mass itself was folded already).
+            let mut mass = std::mem::take(&mut self.mass);
+            let mut scratch = vec![T::zero(); mass.len()];
+            boundary.fold_ghosts(grid, &mut scratch, &mut self.velocity, None);
             let floor = self.mass_floor;
             self.velocity
                 .par_iter_mut()
-                .zip(self.mass.par_iter())
+                .zip(mass.par_iter_mut())
                 .enumerate()
                 .for_each(|(n, (v, m))| {
-                    let node = grid.multi(n);
                     if m.re() > floor {
-                        *v = blocks.gather(node).p / *m;
-                        boundary.apply(grid, node, v);
+                        *v /= *m;
+                        boundary.apply(grid, grid.multi(n), v);
+                    } else {
+                        *v = Vector::zeros();
                     }
                 });
+            self.mass = mass;
+            boundary.reflect_ghosts(grid, &mut self.velocity);
         }
         let cfg = &self.config;
         let vel = &self.velocity;
         let x_old = &self.x_old;
-        let Particles { f, stress, material, half_width0, state, .. } = p;
+        let Particles {
+            f,
+            stress,
+            material,
+            half_width0,
+            state,
+            ..
+        } = p;
         (f, stress, state)
             .into_par_iter()
-            .zip(material.par_iter().zip(half_width0.par_iter()).zip(x_old.par_iter()))
+            .zip(
+                material
+                    .par_iter()
+                    .zip(half_width0.par_iter())
+                    .zip(x_old.par_iter()),
+            )
             .for_each(|((f, stress, state), ((&mat, hw0), xo))| {
                 let st = stencil(cfg, xo, hw0, f);
                 let mut l = Tensor::<T, D>::zeros();
@@ -388,9 +490,17 @@ fn update_stress<T: Scalar, const D: usize>(
 }
 
 /// Stops the run on NaN/Inf in any particle field or an inverted particle.
-fn check_particles<T: Scalar, const D: usize>(p: &Particles<T, D>, step: usize, time: f64) -> Result<(), StepError> {
+fn check_particles<T: Scalar, const D: usize>(
+    p: &Particles<T, D>,
+    step: usize,
+    time: f64,
+) -> Result<(), StepError> {
     fn bad<X: Sync>(v: &[X], pred: impl Fn(&X) -> bool + Sync) -> Vec<usize> {
-        v.par_iter().enumerate().filter(|(_, x)| pred(x)).map(|(i, _)| i).collect()
+        v.par_iter()
+            .enumerate()
+            .filter(|(_, x)| pred(x))
+            .map(|(i, _)| i)
+            .collect()
     }
     let fin_v = |x: &Vector<T, D>| !x.iter().all(|s| s.is_finite_all());
     let fin_t = |x: &Tensor<T, D>| !x.iter().all(|s| s.is_finite_all());
@@ -398,16 +508,28 @@ fn check_particles<T: Scalar, const D: usize>(p: &Particles<T, D>, step: usize, 
         ("position", bad(&p.x, fin_v)),
         ("velocity", bad(&p.v, fin_v)),
         ("deformation gradient", bad(&p.f, fin_t)),
-        ("stress", bad(&p.stress, |s| !s.iter().all(|s| s.is_finite_all()))),
+        (
+            "stress",
+            bad(&p.stress, |s| !s.iter().all(|s| s.is_finite_all())),
+        ),
     ];
     for (field, ids) in checks {
         if !ids.is_empty() {
-            return Err(StepError::NonFinite { step, time, field, ids });
+            return Err(StepError::NonFinite {
+                step,
+                time,
+                field,
+                ids,
+            });
         }
     }
     let inverted = bad(&p.f, |f| det(f).re() <= 0.0);
     if !inverted.is_empty() {
-        return Err(StepError::Inverted { step, time, ids: inverted });
+        return Err(StepError::Inverted {
+            step,
+            time,
+            ids: inverted,
+        });
     }
     Ok(())
 }

@@ -1,1 +1,61 @@
-//! placeholder
+//! # loam-scene
+//!
+//! Scene files for loam: reading and validating them, filling bodies with particles, and
+//! writing what a run produces.
+//!
+//! A scene is a TOML file (JSON is accepted too, chosen by the `.json` extension) with the
+//! sections `[grid]`, `[[materials]]`, `[[bodies]]`, `[boundaries]`, `[loads]`, `[solver]`
+//! and `[output]`; `docs/scene-format.md` documents every field. A small 2D example:
+//!
+//! ```toml
+//! [grid]
+//! lo = [0.0, 0.0]
+//! hi = [1.0, 1.0]
+//! cell_size = 0.02
+//!
+//! [[materials]]
+//! name = "rubber"
+//! model = "neo_hookean"
+//! density = 1000.0
+//! youngs_modulus = 1.0e6
+//! poisson_ratio = 0.3
+//!
+//! [[bodies]]
+//! material = "rubber"
+//! shape = { type = "disk", centre = [0.5, 0.5], radius = 0.2 }
+//!
+//! [boundaries]
+//! y_min = "slip"
+//!
+//! [loads]
+//! gravity = [0.0, -9.81]
+//!
+//! [solver]
+//! time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }
+//! end_time = 1.0
+//! ```
+//!
+//! - [`Scene::from_path`], [`Scene::from_toml_str`], [`Scene::from_json_str`] parse and
+//!   [validate](Scene::validate); every error ([`SceneError`]) names the field path and what
+//!   was expected.
+//! - [`Scene::build`] returns a [`Built`] of plain `loam-core` structs (grid, boundary,
+//!   materials, particles) for a solver; dispatch on [`Scene::dim`] to pick `D`.
+//! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
+//!
+//! This crate depends on `loam-core` only: solvers take the plain structs it builds.
+
+mod build;
+mod error;
+mod geometry;
+mod load;
+pub mod output;
+mod schema;
+mod strict;
+mod validate;
+
+pub use build::{Built, OutputPlan};
+pub use error::{Issue, Location, SceneError, SceneFormat};
+pub use schema::{
+    BodyShape, BodySpec, BoundarySpec, GridSpec, LoadSpec, MaterialSpec, OutputSpec, Scene,
+    SolverKind, SolverSpec,
+};

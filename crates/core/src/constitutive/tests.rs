@@ -21,7 +21,11 @@ fn sample_f() -> Matrix3<f64> {
 /// |P| ~ 1e5 Pa), hence the 1e-9 relative tolerance.
 #[test]
 fn stress_is_the_energy_derivative_for_every_hyperelastic_model() {
-    for f in [sample_f(), Matrix3::identity(), Matrix3::from_diagonal(&nalgebra::vector![1.2, 1.2, 0.9])] {
+    for f in [
+        sample_f(),
+        Matrix3::identity(),
+        Matrix3::from_diagonal(&nalgebra::vector![1.2, 1.2, 0.9]),
+    ] {
         for ((name, m), (_, md)) in models::<f64>().into_iter().zip(models::<Dual64>()) {
             let p = m.first_piola(&f);
             let scale = p.norm().max(1.0e3);
@@ -73,7 +77,9 @@ fn finite_strain_models_are_objective() {
 fn hencky_dual_tangent_is_finite_and_exact_at_repeated_stretches() {
     let lame = Lame::from_young_poisson(1.0e6, 0.3);
     let m = Hencky { lame };
-    let md = Hencky { lame: Lame::from_young_poisson(Dual64::from_re(1.0e6), Dual64::from_re(0.3)) };
+    let md = Hencky {
+        lame: Lame::from_young_poisson(Dual64::from_re(1.0e6), Dual64::from_re(0.3)),
+    };
     let rot = nalgebra::Rotation3::from_euler_angles(0.3, 0.2, -0.5).into_inner();
     let cases = [
         Matrix3::identity(),
@@ -89,7 +95,8 @@ fn hencky_dual_tangent_is_finite_and_exact_at_repeated_stretches() {
                 let fdual = Matrix3::from_fn(|a, b| Dual64::new(f[(a, b)], df[(a, b)]));
                 let dtau = md.kirchhoff_stress(&fdual).map(|x| x.eps);
                 assert!(dtau.iter().all(|x| x.is_finite()), "NaN tangent at F = {f}");
-                let fdiff = (m.kirchhoff_stress(&(f + df * eps)) - m.kirchhoff_stress(&(f - df * eps)))
+                let fdiff = (m.kirchhoff_stress(&(f + df * eps))
+                    - m.kirchhoff_stress(&(f - df * eps)))
                     / (2.0 * eps);
                 assert!(
                     (dtau - fdiff).norm() < 1e-2,

@@ -4,7 +4,9 @@ use super::*;
 
 /// Deterministic pseudo-random numbers in [0, 1) (a tiny LCG keeps the test self-contained).
 fn rng(seed: &mut u64) -> f64 {
-    *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (*seed >> 11) as f64 / (1u64 << 53) as f64
 }
 
@@ -19,35 +21,70 @@ struct Cloud<const D: usize> {
 fn cloud<const D: usize>(n: usize, seed: u64) -> Cloud<D> {
     let mut s = seed;
     let grid = Grid::<D>::new([0.0; D], [6; D], 0.25, 2);
-    let x = (0..n).map(|_| Vector::<f64, D>::from_fn(|_, _| 0.2 + 1.1 * rng(&mut s))).collect();
-    let v = (0..n).map(|_| Vector::<f64, D>::from_fn(|_, _| rng(&mut s) - 0.5)).collect();
-    let c = (0..n).map(|_| Tensor::<f64, D>::from_fn(|_, _| 2.0 * rng(&mut s) - 1.0)).collect();
+    let x = (0..n)
+        .map(|_| Vector::<f64, D>::from_fn(|_, _| 0.2 + 1.1 * rng(&mut s)))
+        .collect();
+    let v = (0..n)
+        .map(|_| Vector::<f64, D>::from_fn(|_, _| rng(&mut s) - 0.5))
+        .collect();
+    let c = (0..n)
+        .map(|_| Tensor::<f64, D>::from_fn(|_, _| 2.0 * rng(&mut s) - 1.0))
+        .collect();
     let m = (0..n).map(|_| 0.5 + rng(&mut s)).collect();
     Cloud { grid, x, v, c, m }
 }
 
 /// P2G of mass and momentum on a dense grid; returns (mass, velocity) per node.
-fn to_grid<const D: usize>(cl: &Cloud<D>, shape: Shape, affine: bool) -> (Vec<f64>, Vec<Vector<f64, D>>) {
+fn to_grid<const D: usize>(
+    cl: &Cloud<D>,
+    shape: Shape,
+    affine: bool,
+) -> (Vec<f64>, Vec<Vector<f64, D>>) {
     let n = cl.grid.num_nodes();
     let (mut m, mut p) = (vec![0.0; n], vec![Vector::<f64, D>::zeros(); n]);
     let hw = Vector::<f64, D>::repeat(cl.grid.h / 4.0);
     for k in 0..cl.x.len() {
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
         let c = affine.then_some(&cl.c[k]);
-        p2g_momentum(&st, &cl.grid, &cl.x[k], &cl.v[k], c, cl.m[k], |node, mw, mv| {
-            let f = cl.grid.flat(node);
-            m[f] += mw;
-            p[f] += mv;
-        });
+        p2g_momentum(
+            &st,
+            &cl.grid,
+            &cl.x[k],
+            &cl.v[k],
+            c,
+            cl.m[k],
+            |node, mw, mv| {
+                let f = cl.grid.flat(node);
+                m[f] += mw;
+                p[f] += mv;
+            },
+        );
     }
-    let v = m.iter().zip(&p).map(|(&mi, pi)| if mi > 0.0 { pi / mi } else { *pi }).collect();
+    let v = m
+        .iter()
+        .zip(&p)
+        .map(|(&mi, pi)| if mi > 0.0 { pi / mi } else { *pi })
+        .collect();
     (m, v)
 }
 
-fn gather<const D: usize>(cl: &Cloud<D>, shape: Shape, vel: &[Vector<f64, D>], k: usize) -> Gathered<f64, D> {
+fn gather<const D: usize>(
+    cl: &Cloud<D>,
+    shape: Shape,
+    vel: &[Vector<f64, D>],
+    k: usize,
+) -> Gathered<f64, D> {
     let hw = Vector::<f64, D>::repeat(cl.grid.h / 4.0);
     let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
-    g2p(&st, &cl.grid, shape, Transfer::Apic, &cl.x[k], |n| vel[cl.grid.flat(n)], |_| Vector::zeros())
+    g2p(
+        &st,
+        &cl.grid,
+        shape,
+        Transfer::Apic,
+        &cl.x[k],
+        |n| vel[cl.grid.flat(n)],
+        |_| Vector::zeros(),
+    )
 }
 
 /// Angular momentum `Σ m x × v` as a vector with `D(D−1)/2` components (z only in 2D).
@@ -55,7 +92,11 @@ fn cross<const D: usize>(a: &Vector<f64, D>, b: &Vector<f64, D>) -> [f64; 3] {
     if D == 2 {
         [a[0] * b[1] - a[1] * b[0], 0.0, 0.0]
     } else {
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
     }
 }
 
@@ -67,7 +108,12 @@ fn add(acc: &mut [f64; 3], s: f64, v: [f64; 3]) {
 
 /// Particle angular momentum including the APIC affine part `Σ_i w_ip r × (C_p r)`,
 /// `r = x_i − x_p` (Jiang et al. 2015, eq. for `L_p`).
-fn particle_angular_momentum<const D: usize>(cl: &Cloud<D>, shape: Shape, v: &[Vector<f64, D>], c: &[Tensor<f64, D>]) -> [f64; 3] {
+fn particle_angular_momentum<const D: usize>(
+    cl: &Cloud<D>,
+    shape: Shape,
+    v: &[Vector<f64, D>],
+    c: &[Tensor<f64, D>],
+) -> [f64; 3] {
     let hw = Vector::<f64, D>::repeat(cl.grid.h / 4.0);
     let mut l = [0.0; 3];
     for k in 0..cl.x.len() {
@@ -93,8 +139,15 @@ fn check_apic<const D: usize>(shape: Shape) {
     let (_, vel) = to_grid(&cl, shape, true);
     for k in 0..cl.x.len() {
         let g = gather(&cl, shape, &vel, k);
-        assert!((g.v - cl.v[k]).norm() < 1e-12, "{shape:?}: affine velocity not reproduced");
-        assert!((g.affine - a).norm() < 1e-11, "{shape:?}: affine matrix {} vs {a}", g.affine);
+        assert!(
+            (g.v - cl.v[k]).norm() < 1e-12,
+            "{shape:?}: affine velocity not reproduced"
+        );
+        assert!(
+            (g.affine - a).norm() < 1e-11,
+            "{shape:?}: affine matrix {} vs {a}",
+            g.affine
+        );
     }
     // 2. Arbitrary v_p, C_p: angular momentum particles → grid → particles is conserved.
     let cl = cloud::<D>(300, 99 + D as u64);
@@ -102,7 +155,11 @@ fn check_apic<const D: usize>(shape: Shape) {
     let (m, vel) = to_grid(&cl, shape, true);
     let mut lg = [0.0; 3];
     for (i, (&mi, vi)) in m.iter().zip(&vel).enumerate() {
-        add(&mut lg, mi, cross(&cl.grid.node_position::<f64>(cl.grid.multi(i)), vi));
+        add(
+            &mut lg,
+            mi,
+            cross(&cl.grid.node_position::<f64>(cl.grid.multi(i)), vi),
+        );
     }
     let (mut v1, mut c1) = (cl.v.clone(), cl.c.clone());
     for k in 0..cl.x.len() {
@@ -113,8 +170,14 @@ fn check_apic<const D: usize>(shape: Shape) {
     let scale = l0.iter().map(|x| x.abs()).sum::<f64>().max(1.0);
     for i in 0..3 {
         // Sums of ~300·27 terms of O(1): round-off well below 1e-12 relative.
-        assert!((lg[i] - l0[i]).abs() < 1e-12 * scale, "{shape:?}: P2G changed L: {lg:?} vs {l0:?}");
-        assert!((l1[i] - l0[i]).abs() < 1e-12 * scale, "{shape:?}: G2P changed L: {l1:?} vs {l0:?}");
+        assert!(
+            (lg[i] - l0[i]).abs() < 1e-12 * scale,
+            "{shape:?}: P2G changed L: {lg:?} vs {l0:?}"
+        );
+        assert!(
+            (l1[i] - l0[i]).abs() < 1e-12 * scale,
+            "{shape:?}: G2P changed L: {l1:?} vs {l0:?}"
+        );
     }
 }
 

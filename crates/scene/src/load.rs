@@ -1,0 +1,127 @@
+//! Reading scenes from TOML or JSON text; every loader validates what it read.
+//!
+//! Parsing goes through `serde_path_to_error`, so a field that is missing, unknown or of the
+//! wrong type is reported with its path (`solver.sheme: unknown field ...`) and, where the
+//! parser knows it, its line and column.
+
+use crate::error::{Issue, Location, SceneError, SceneFormat};
+use crate::schema::Scene;
+use std::path::Path;
+
+impl Scene {
+    /// Reads, parses and validates a scene file; the format follows the extension
+    /// (`.toml` or `.json`).
+    pub fn from_path(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
+            path: path.to_path_buf(),
+        })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut scene = parse(&text, format).map_err(|e| e.in_file(path))?;
+        scene.source = Some(path.to_path_buf());
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Parses and validates a scene written in TOML.
+    pub fn from_toml_str(text: &str) -> Result<Self, SceneError> {
+        Self::from_str_in(text, SceneFormat::Toml)
+    }
+
+    /// Parses and validates a scene written in JSON.
+    pub fn from_json_str(text: &str) -> Result<Self, SceneError> {
+        Self::from_str_in(text, SceneFormat::Json)
+    }
+
+    /// Parses and validates a scene written in the given format.
+    pub fn from_str_in(text: &str, format: SceneFormat) -> Result<Self, SceneError> {
+        let scene = parse(text, format)?;
+        scene.validate()?;
+        Ok(scene)
+    }
+}
+
+/// Parses without validating.
+fn parse(text: &str, format: SceneFormat) -> Result<Scene, SceneError> {
+    match format {
+        SceneFormat::Toml => parse_toml(text),
+        SceneFormat::Json => parse_json(text),
+    }
+}
+
+fn parse_toml(text: &str) -> Result<Scene, SceneError> {
+    let location = |e: &toml::de::Error| e.span().map(|s| Location::from_offset(text, s.start));
+    let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Syntax {
+        file: None,
+        format: SceneFormat::Toml,
+        location: location(&e),
+        message: e.message().trim_end().to_owned(),
+    })?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let at = location(e.inner());
+        field_error(e.path(), e.inner().message(), at)
+    })
+}
+
+fn parse_json(text: &str) -> Result<Scene, SceneError> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    let scene: Scene = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let inner = e.inner();
+        if inner.is_data() {
+            field_error(e.path(), &json_message(inner), json_location(inner))
+        } else {
+            json_syntax_error(inner)
+        }
+    })?;
+    // Nothing but whitespace may follow the document.
+    de.end().map_err(|e| json_syntax_error(&e))?;
+    Ok(scene)
+}
+
+fn json_syntax_error(e: &serde_json::Error) -> SceneError {
+    SceneError::Syntax {
+        file: None,
+        format: SceneFormat::Json,
+        location: json_location(e),
+        message: json_message(e),
+    }
+}
+
+fn json_location(e: &serde_json::Error) -> Option<Location> {
+    (e.line() > 0).then(|| Location {
+        line: e.line(),
+        column: e.column(),
+    })
+}
+
+/// serde_json's message without the " at line L column C" it appends (reported separately).
+fn json_message(e: &serde_json::Error) -> String {
+    let message = e.to_string();
+    match message.rfind(" at line ") {
+        Some(i) => message[..i].to_owned(),
+        None => message,
+    }
+}
+
+/// A missing, unknown or mistyped field, as one issue naming its path.
+fn field_error(
+    path: &serde_path_to_error::Path,
+    message: &str,
+    at: Option<Location>,
+) -> SceneError {
+    // The root (a missing or unknown section) has no useful path or location.
+    let path = path.to_string();
+    let (path, at) = if path == "." {
+        (String::new(), None)
+    } else {
+        (path, at)
+    };
+    let message = match at {
+        Some(at) => format!("{message} ({at})"),
+        None => message.to_owned(),
+    };
+    SceneError::invalid(vec![Issue::new(path, message)])
+}

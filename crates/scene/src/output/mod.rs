@@ -1,0 +1,141 @@
+//! Run output: particle frames for ParaView and the JSON run summary.
+//!
+//! - [`FrameWriter`] writes one `.vtu` file per frame ([`write_vtu`]) into an output folder
+//!   and, after every frame, rewrites the `.pvd` collection ([`write_pvd`]) that lists them
+//!   with their times, so a run that stops early still leaves a valid series.
+//! - [`write_summary`] writes a [`RunSummary`] as JSON.
+//!
+//! Files that are rewritten (the `.pvd`, the summary) are written to a temporary file in the
+//! same folder and renamed over the old one, so readers never see a half-written file.
+
+mod field;
+mod pvd;
+mod summary;
+mod vtu;
+
+pub use field::{Field, hencky_strain, pressure, von_mises};
+pub use pvd::{PvdEntry, write_pvd};
+pub use summary::{EnergySample, RunStatus, RunSummary, write_summary};
+pub use vtu::write_vtu;
+
+use loam_core::Particles;
+use nalgebra::SVector;
+use std::path::{Path, PathBuf};
+
+/// Why output could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// A file or folder could not be created or written.
+    #[error("cannot write {}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// vtkio could not write a frame.
+    #[error("cannot write {}: {source}", path.display())]
+    Vtk {
+        /// The frame file.
+        path: PathBuf,
+        /// vtkio's error.
+        #[source]
+        source: vtkio::Error,
+    },
+    /// The run summary could not be serialised.
+    #[error("cannot serialise the run summary: {0}")]
+    Json(#[source] serde_json::Error),
+    /// The initial positions passed for the displacement field do not match the particles.
+    #[error("{given} initial positions were given for {particles} particles")]
+    InitialPositions {
+        /// Number of initial positions.
+        given: usize,
+        /// Number of particles.
+        particles: usize,
+    },
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// Writes a series of particle frames, `frame_0000.vtu`, `frame_0001.vtu`, …, and the
+/// collection [`FrameWriter::PVD_NAME`] listing them, into one folder.
+#[derive(Debug)]
+pub struct FrameWriter {
+    dir: PathBuf,
+    fields: Vec<Field>,
+    entries: Vec<PvdEntry>,
+}
+
+impl FrameWriter {
+    /// File name of the collection in the output folder.
+    pub const PVD_NAME: &'static str = "particles.pvd";
+
+    /// A writer into `dir` (created if missing) that writes the given point-data fields.
+    pub fn create(dir: impl Into<PathBuf>, fields: &[Field]) -> Result<Self, OutputError> {
+        let dir = dir.into();
+        std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        Ok(Self {
+            dir,
+            fields: fields.to_vec(),
+            entries: Vec::new(),
+        })
+    }
+
+    /// Writes the next frame at simulated time `time` and rewrites the collection; returns
+    /// the frame's path. `initial` (the initial positions) enables the displacement field.
+    pub fn write_frame<const D: usize>(
+        &mut self,
+        time: f64,
+        particles: &Particles<f64, D>,
+        initial: Option<&[SVector<f64, D>]>,
+    ) -> Result<PathBuf, OutputError> {
+        let file = format!("frame_{:04}.vtu", self.entries.len());
+        let path = self.dir.join(&file);
+        write_vtu(&path, particles, initial, &self.fields)?;
+        self.entries.push(PvdEntry { time, file });
+        write_pvd(&self.pvd_path(), &self.entries)?;
+        Ok(path)
+    }
+
+    /// The output folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Path of the collection file.
+    pub fn pvd_path(&self) -> PathBuf {
+        self.dir.join(Self::PVD_NAME)
+    }
+
+    /// The frames written so far, in order.
+    pub fn entries(&self) -> &[PvdEntry] {
+        &self.entries
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_errors_can_cross_threads() {
+        fn send_sync<T: Send + Sync + 'static>() {}
+        send_sync::<OutputError>();
+        send_sync::<crate::SceneError>();
+    }
+}

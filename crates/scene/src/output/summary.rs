@@ -1,0 +1,78 @@
+//! The JSON summary of a run: what ran, how far it got, how fast, and the energy history.
+
+use super::{OutputError, write_atomically};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// How a run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunStatus {
+    /// The run reached `end_time`.
+    Completed,
+    /// The run stopped early with an error (see [`RunSummary::error`]).
+    Failed,
+}
+
+/// The energies of the particle system at one step (J; J per metre of depth in 2D).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EnergySample {
+    /// Step number.
+    pub step: u64,
+    /// Simulated time (s).
+    pub time: f64,
+    /// Kinetic energy `½ Σ m v²`.
+    pub kinetic: f64,
+    /// Stored elastic (strain) energy `Σ V₀ ψ(F)`.
+    pub strain: f64,
+    /// Gravitational potential energy `−Σ m g·x`.
+    pub gravity: f64,
+    /// `kinetic + strain + gravity`.
+    pub total: f64,
+}
+
+/// What a run did, written as `summary.json` next to its frames. Non-finite numbers (say
+/// `dt_min` of a run that failed before its first step) are written as JSON `null`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// The scene (its file path, or a name).
+    pub scene: String,
+    /// Spatial dimension, 2 or 3.
+    pub dimension: usize,
+    /// Number of particles.
+    pub particles: usize,
+    /// Time steps taken.
+    pub steps: u64,
+    /// The scene's end time (s).
+    pub end_time: f64,
+    /// Simulated time reached (s); `end_time` unless the run failed.
+    pub time_reached: f64,
+    /// Smallest time step taken (s).
+    pub dt_min: f64,
+    /// Largest time step taken (s).
+    pub dt_max: f64,
+    /// Wall-clock time of the time loop (s).
+    pub wall_time_s: f64,
+    /// `steps / wall_time_s`.
+    pub steps_per_second: f64,
+    /// `particles · steps / wall_time_s`.
+    pub particle_steps_per_second: f64,
+    /// How the run ended.
+    pub status: RunStatus,
+    /// Why the run failed (`None` when it completed).
+    pub error: Option<String>,
+    /// Things worth a look that did not stop the run.
+    #[serde(default)]
+    pub warnings: Vec<String>,
+    /// Energy history.
+    pub energy: Vec<EnergySample>,
+    /// Frame files written, relative to the output folder, in time order.
+    pub frames: Vec<String>,
+}
+
+/// Writes the summary as pretty-printed JSON, atomically.
+pub fn write_summary(path: &Path, summary: &RunSummary) -> Result<(), OutputError> {
+    let mut json = serde_json::to_string_pretty(summary).map_err(OutputError::Json)?;
+    json.push('\n');
+    write_atomically(path, json.as_bytes())
+}

@@ -1,0 +1,291 @@
+//! The scene file schema: one serde struct per section, field names as written in the file.
+//!
+//! Every struct rejects unknown fields, so a misspelt key is an error that names it rather
+//! than a silently ignored setting. The types hold the `loam-core` enums directly
+//! ([`Shape`], [`ModelKind`], [`Scheme`], [`Transfer`], [`TimeStep`], [`Wall`]) so a loaded
+//! scene needs no conversion before it is built; `docs/scene-format.md` documents every field.
+
+use crate::output::Field;
+use crate::strict;
+use loam_core::{ModelKind, Scheme, Shape, TimeStep, Transfer, Wall};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// A whole scene: what to simulate, how, and what to write.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The background grid, which also fixes the dimension (2 or 3).
+    pub grid: GridSpec,
+    /// The material table; bodies refer to materials by name.
+    pub materials: Vec<MaterialSpec>,
+    /// The bodies, filled with particles in this order (see [`BodySpec`] for overlaps).
+    pub bodies: Vec<BodySpec>,
+    /// Wall conditions on the faces of the domain (default: all free).
+    #[serde(default)]
+    pub boundaries: BoundarySpec,
+    /// Body forces (default: none).
+    #[serde(default)]
+    pub loads: LoadSpec,
+    /// Time integration.
+    pub solver: SolverSpec,
+    /// What to write and where (default: every field, 20 frames, `out/<scene file stem>`).
+    #[serde(default)]
+    pub output: OutputSpec,
+    /// The file the scene was read from, if any (not part of the file; sets the default
+    /// output folder and prefixes error messages).
+    #[serde(skip)]
+    pub source: Option<PathBuf>,
+}
+
+/// `[grid]`: a uniform Cartesian grid over the box `[lo, hi]`, whose faces are the walls.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// Lower corner of the domain (m); its length (2 or 3) is the scene's dimension.
+    pub lo: Vec<f64>,
+    /// Upper corner of the domain (m).
+    pub hi: Vec<f64>,
+    /// Cell size `h` (m); `hi − lo` must be a whole number of cells along every axis.
+    pub cell_size: f64,
+    /// Shape-function family (default `quadratic_bspline`).
+    #[serde(default = "default_shape_function")]
+    pub shape_function: Shape,
+}
+
+fn default_shape_function() -> Shape {
+    Shape::QuadraticBspline
+}
+
+/// `[[materials]]`: a named isotropic elastic material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Name bodies use to refer to the material (unique).
+    pub name: String,
+    /// Constitutive model.
+    pub model: ModelKind,
+    /// Reference mass density `ρ₀` (kg/m³), positive.
+    pub density: f64,
+    /// Young's modulus `E` (Pa), positive.
+    pub youngs_modulus: f64,
+    /// Poisson's ratio `ν`, in (−1, 0.5).
+    pub poisson_ratio: f64,
+}
+
+/// `[[bodies]]`: a region of one material filled with particles.
+///
+/// Particles sit on a regular sub-grid of `particles_per_cell` points per axis in every grid
+/// cell (at the centres of the sub-cells) and are kept where they lie inside the shape. Where
+/// bodies overlap the earlier body wins: a point inside an earlier body's shape is skipped.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    /// Name of the body's material in [`Scene::materials`].
+    pub material: String,
+    /// The region the body occupies.
+    pub shape: BodyShape,
+    /// Particles per cell along each axis, 1 to 8 (default 2).
+    #[serde(default = "default_particles_per_cell")]
+    pub particles_per_cell: u32,
+    /// Initial velocity (m/s), one component per axis (default zero).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<Vec<f64>>,
+}
+
+fn default_particles_per_cell() -> u32 {
+    2
+}
+
+/// The region a body occupies; coordinates in metres, boundaries included.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum BodyShape {
+    /// An axis-aligned box `[lo, hi]` (2D or 3D).
+    Box {
+        /// Lower corner.
+        lo: Vec<f64>,
+        /// Upper corner (greater than `lo` along every axis).
+        hi: Vec<f64>,
+    },
+    /// A disk (2D).
+    Disk {
+        /// Centre.
+        #[serde(alias = "center")]
+        centre: Vec<f64>,
+        /// Radius, positive.
+        radius: f64,
+    },
+    /// A simple or self-intersecting polygon (2D); a point is inside where the winding number
+    /// is non-zero.
+    Polygon {
+        /// At least three `[x, y]` vertices, in either orientation; the last connects to the
+        /// first.
+        vertices: Vec<Vec<f64>>,
+    },
+    /// A ball (3D).
+    Sphere {
+        /// Centre.
+        #[serde(alias = "center")]
+        centre: Vec<f64>,
+        /// Radius, positive.
+        radius: f64,
+    },
+    /// A finite circular cylinder (3D), centred on `centre`, of the given `length` along
+    /// `axis`.
+    Cylinder {
+        /// Centre (the midpoint of the axis segment).
+        #[serde(alias = "center")]
+        centre: Vec<f64>,
+        /// Direction of the axis (any non-zero length).
+        axis: Vec<f64>,
+        /// Radius, positive.
+        radius: f64,
+        /// Length along the axis, positive.
+        length: f64,
+    },
+}
+
+/// `[boundaries]`: the wall on each face of the domain; a face left out is free.
+///
+/// A wall is written as its kind (`"fixed"`, `"slip"`, `"no_slip"`, `"free"`) or as a table
+/// `{ kind = "slip", separable = true }`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundarySpec {
+    /// Face `x = lo[0]`.
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub x_min: Option<Wall>,
+    /// Face `x = hi[0]`.
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub x_max: Option<Wall>,
+    /// Face `y = lo[1]`.
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub y_min: Option<Wall>,
+    /// Face `y = hi[1]`.
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub y_max: Option<Wall>,
+    /// Face `z = lo[2]` (3D only).
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub z_min: Option<Wall>,
+    /// Face `z = hi[2]` (3D only).
+    #[serde(
+        default,
+        deserialize_with = "strict::wall",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub z_max: Option<Wall>,
+}
+
+impl BoundarySpec {
+    /// The faces as `(name, axis, side, wall)`, `side` 0 for the lower face and 1 for the
+    /// upper one, in the order x_min, x_max, y_min, y_max, z_min, z_max.
+    pub fn faces(&self) -> [(&'static str, usize, usize, Option<Wall>); 6] {
+        [
+            ("x_min", 0, 0, self.x_min),
+            ("x_max", 0, 1, self.x_max),
+            ("y_min", 1, 0, self.y_min),
+            ("y_max", 1, 1, self.y_max),
+            ("z_min", 2, 0, self.z_min),
+            ("z_max", 2, 1, self.z_max),
+        ]
+    }
+}
+
+/// `[loads]`: body forces.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    /// Gravitational acceleration (m/s²), one component per axis (default zero).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<Vec<f64>>,
+}
+
+/// Which solver runs the scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// The explicit USL / MUSL loop.
+    #[default]
+    Explicit,
+}
+
+/// `[solver]`: time integration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// Solver family, written `type` (default `explicit`).
+    #[serde(rename = "type", default)]
+    pub kind: SolverKind,
+    /// Update order within a step (default `musl`).
+    #[serde(default)]
+    pub scheme: Scheme,
+    /// Particle–grid velocity transfer: `"pic"`, `"apic"` or a table such as
+    /// `{ type = "flip", alpha = 0.95 }` (default `apic`).
+    #[serde(default = "default_transfer", deserialize_with = "strict::transfer")]
+    pub transfer: Transfer,
+    /// Time-step control, `{ type = "fixed", dt = .. }` or
+    /// `{ type = "adaptive", cfl = .., max_dt = .. }`.
+    #[serde(deserialize_with = "strict::time_step")]
+    pub time_step: TimeStep,
+    /// Simulated time at which the run stops (s), positive.
+    pub end_time: f64,
+}
+
+fn default_transfer() -> Transfer {
+    Transfer::Apic
+}
+
+/// `[output]`: what to write and where.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output folder (default `out/<scene file stem>`, relative to the working directory).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dir: Option<PathBuf>,
+    /// Number of frames written after the initial one, at equal intervals of simulated time
+    /// up to `end_time` (at least 1; default 20).
+    #[serde(default = "default_frames")]
+    pub frames: usize,
+    /// Particle fields written to each frame (default: all of them).
+    #[serde(default = "default_fields")]
+    pub fields: Vec<Field>,
+}
+
+fn default_frames() -> usize {
+    20
+}
+
+fn default_fields() -> Vec<Field> {
+    Field::ALL.to_vec()
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self {
+            dir: None,
+            frames: default_frames(),
+            fields: default_fields(),
+        }
+    }
+}

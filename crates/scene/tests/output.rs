@@ -1,0 +1,192 @@
+//! Output round trip: frames written with `FrameWriter` read back with vtkio, the `.pvd`
+//! lists every frame, and the run summary is valid JSON.
+
+use loam_core::Particles;
+use loam_scene::output::{
+    EnergySample, Field, FrameWriter, OutputError, RunStatus, RunSummary, write_summary, write_vtu,
+};
+use nalgebra::{Matrix2, Matrix3, SVector, vector};
+use vtkio::model::{Attribute, DataSet, IOBuffer, Piece, Vtk};
+
+/// Three particles in 2D with distinct velocities, one stretched and stressed.
+fn particles() -> Particles<f64, 2> {
+    let mut p = Particles::default();
+    for (i, x) in [[0.1, 0.2], [0.3, 0.4], [0.5, 0.6]].iter().enumerate() {
+        let v = vector![i as f64, -2.0 * i as f64];
+        p.push(
+            vector![x[0], x[1]],
+            v,
+            1000.0,
+            vector![0.005, 0.005],
+            i as u32 % 2,
+        );
+    }
+    p.f[1] = Matrix2::new(1.2, 0.0, 0.0, 1.0);
+    p.stress[1] = Matrix3::new(1.0, 2.0, 0.0, 2.0, 3.0, 0.0, 0.0, 0.0, 4.0);
+    p
+}
+
+/// The inline piece of an imported `.vtu`.
+fn piece(vtk: Vtk) -> vtkio::model::UnstructuredGridPiece {
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not an unstructured grid");
+    };
+    let Some(Piece::Inline(piece)) = pieces.into_iter().next() else {
+        panic!("no inline piece");
+    };
+    *piece
+}
+
+fn array(piece: &vtkio::model::UnstructuredGridPiece, name: &str) -> Option<IOBuffer> {
+    piece.data.point.iter().find_map(|a| match a {
+        Attribute::DataArray(d) if d.name == name => Some(d.data.clone()),
+        _ => None,
+    })
+}
+
+#[test]
+fn frames_read_back_and_the_series_lists_them_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut writer = FrameWriter::create(&out, &Field::ALL).unwrap();
+    let mut p = particles();
+    let x0: Vec<SVector<f64, 2>> = p.x.clone();
+    for k in 0..3 {
+        let path = writer.write_frame(0.5 * k as f64, &p, Some(&x0)).unwrap();
+        assert!(path.exists());
+        for x in &mut p.x {
+            x[0] += 0.01;
+        }
+    }
+    let names: Vec<&str> = writer.entries().iter().map(|e| e.file.as_str()).collect();
+    assert_eq!(
+        names,
+        ["frame_0000.vtu", "frame_0001.vtu", "frame_0002.vtu"]
+    );
+
+    let pvd = std::fs::read_to_string(writer.pvd_path()).unwrap();
+    assert_eq!(pvd.matches("<DataSet ").count(), 3);
+    for (name, t) in names.iter().zip(["0", "0.5", "1"]) {
+        assert!(pvd.contains(&format!(
+            "timestep=\"{t}\" group=\"\" part=\"0\" file=\"{name}\""
+        )));
+    }
+    assert!(!out.join("particles.pvd.tmp").exists());
+
+    let last = piece(Vtk::import(out.join("frame_0002.vtu")).unwrap());
+    assert_eq!(last.num_points(), 3);
+    assert_eq!(last.cells.num_cells(), 3);
+    let points: Vec<f64> = last.points.clone().into_vec().unwrap();
+    assert!((points[3] - 0.32).abs() < 1e-12 && points[5] == 0.0);
+    let v: Vec<f64> = array(&last, "velocity").unwrap().into_vec().unwrap();
+    assert_eq!(v, [0.0, 0.0, 0.0, 1.0, -2.0, 0.0, 2.0, -4.0, 0.0]);
+    let u: Vec<f64> = array(&last, "displacement").unwrap().into_vec().unwrap();
+    assert!((u[3] - 0.02).abs() < 1e-12 && u[4].abs() < 1e-12);
+    let s: Vec<f64> = array(&last, "stress").unwrap().into_vec().unwrap();
+    assert_eq!(&s[9..18], &[1.0, 2.0, 0.0, 2.0, 3.0, 0.0, 0.0, 0.0, 4.0]);
+    let e: Vec<f64> = array(&last, "strain").unwrap().into_vec().unwrap();
+    assert!((e[9] - 1.2f64.ln()).abs() < 1e-14 && e[0].abs() < 1e-14);
+    let vol: Vec<f64> = array(&last, "volume").unwrap().into_vec().unwrap();
+    assert!((vol[1] - 1.2e-4).abs() < 1e-16 && (vol[0] - 1e-4).abs() < 1e-16);
+    let pressure: Vec<f64> = array(&last, "pressure").unwrap().into_vec().unwrap();
+    assert!((pressure[1] + 8.0 / 3.0).abs() < 1e-14);
+    let ids: Vec<u32> = array(&last, "material_id").unwrap().into_vec().unwrap();
+    assert_eq!(ids, [0, 1, 0]);
+    for field in Field::ALL {
+        assert!(
+            array(&last, field.name()).is_some(),
+            "{} missing",
+            field.name()
+        );
+    }
+}
+
+#[test]
+fn a_field_subset_is_honoured_and_displacement_needs_initial_positions() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one.vtu");
+    let p = particles();
+    write_vtu(&path, &p, None, &[Field::Velocity, Field::Displacement]).unwrap();
+    let piece = piece(Vtk::import(&path).unwrap());
+    assert!(array(&piece, "velocity").is_some());
+    assert!(array(&piece, "displacement").is_none());
+    assert!(array(&piece, "stress").is_none());
+
+    let err = write_vtu(&path, &p, Some(&p.x[..2]), &[Field::Velocity]).unwrap_err();
+    assert!(matches!(
+        err,
+        OutputError::InitialPositions {
+            given: 2,
+            particles: 3
+        }
+    ));
+}
+
+#[test]
+fn a_3d_frame_keeps_the_z_components() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("3d.vtu");
+    let mut p = Particles::<f64, 3>::default();
+    p.push(
+        vector![0.1, 0.2, 0.3],
+        vector![1.0, 2.0, 3.0],
+        1.0,
+        vector![0.5, 0.5, 0.5],
+        0,
+    );
+    write_vtu(&path, &p, None, &[Field::Velocity, Field::Mass]).unwrap();
+    let piece = piece(Vtk::import(&path).unwrap());
+    assert_eq!(
+        piece.points.clone().into_vec::<f64>().unwrap(),
+        [0.1, 0.2, 0.3]
+    );
+    let v: Vec<f64> = array(&piece, "velocity").unwrap().into_vec().unwrap();
+    assert_eq!(v, [1.0, 2.0, 3.0]);
+    let m: Vec<f64> = array(&piece, "mass").unwrap().into_vec().unwrap();
+    assert_eq!(m, [1.0]);
+}
+
+#[test]
+fn writing_into_a_file_path_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("taken");
+    std::fs::write(&file, "").unwrap();
+    let err = FrameWriter::create(&file, &Field::ALL).unwrap_err();
+    assert!(err.to_string().starts_with("cannot write"), "{err}");
+}
+
+#[test]
+fn run_summary_is_written_as_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("summary.json");
+    let summary = RunSummary {
+        scene: "examples/disk_collision.toml".into(),
+        dimension: 2,
+        particles: 2000,
+        steps: 4000,
+        end_time: 4.0,
+        time_reached: 1.5,
+        dt_min: 1e-3,
+        dt_max: 1e-3,
+        wall_time_s: 2.0,
+        steps_per_second: 2000.0,
+        particle_steps_per_second: 4.0e6,
+        status: RunStatus::Failed,
+        error: Some("particle 17 left the grid at step 1500".into()),
+        warnings: vec![],
+        energy: vec![EnergySample {
+            step: 0,
+            time: 0.0,
+            kinetic: 1.0,
+            strain: 0.0,
+            gravity: 0.5,
+            total: 1.5,
+        }],
+        frames: vec!["frame_0000.vtu".into()],
+    };
+    write_summary(&path, &summary).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\"status\": \"failed\""));
+    let back: RunSummary = serde_json::from_str(&text).unwrap();
+    assert_eq!(back, summary);
+}

@@ -1,0 +1,35 @@
+//! The verification cases at reduced size: each must meet its tolerance.
+
+use loam_verification::{Size, case};
+
+fn check(name: &str) {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let report =
+        (case(name).expect("case exists").run)(Size::Reduced, dir.path()).expect("case runs");
+    for m in &report.metrics {
+        println!(
+            "{} {} = {:.4e} (tolerance {:.1e})",
+            m.case, m.metric, m.value, m.tolerance
+        );
+    }
+    for f in &report.files {
+        assert!(f.exists(), "{} was not written", f.display());
+    }
+    for m in &report.metrics {
+        assert!(
+            m.passed,
+            "{}: {} = {} exceeds {}",
+            m.case, m.metric, m.value, m.tolerance
+        );
+    }
+}
+
+#[test]
+fn axial_bar() {
+    check("axial-bar");
+}
+
+#[test]
+fn disk_collision() {
+    check("disk-collision");
+}
