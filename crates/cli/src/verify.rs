@@ -1,0 +1,97 @@
+//! `loam verify`: run verification cases and report each metric against its tolerance.
+
+use crate::Outcome;
+use loam_verification::{Case, Metric, Size, case, cases};
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs the named cases (all when empty); exit 1 if any metric fails.
+pub fn verify(
+    names: &[String],
+    list: bool,
+    json: Option<&Path>,
+    out: &Path,
+    reduced: bool,
+) -> Outcome {
+    if list {
+        for c in cases() {
+            println!("{:<16} {}", c.name, c.description);
+        }
+        return Outcome::Ok;
+    }
+    let selected: Vec<Case> = if names.is_empty() {
+        cases()
+    } else {
+        match names.iter().map(|n| case(n)).collect::<Result<_, _>>() {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Outcome::BadInput;
+            }
+        }
+    };
+    let size = if reduced { Size::Reduced } else { Size::Full };
+    let mut metrics: Vec<Metric> = Vec::new();
+    let mut failed = false;
+    println!(
+        "{:<16} {:<30} {:>12} {:>12}  result",
+        "case", "metric", "value", "tolerance"
+    );
+    for c in selected {
+        let dir = out.join(c.name);
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            eprintln!("error: cannot create {}: {e}", dir.display());
+            return Outcome::Failed;
+        }
+        let start = Instant::now();
+        match (c.run)(size, &dir) {
+            Ok(report) => {
+                for m in &report.metrics {
+                    println!(
+                        "{:<16} {:<30} {:>12.4e} {:>12.4e}  {}",
+                        m.case,
+                        m.metric,
+                        m.value,
+                        m.tolerance,
+                        if m.passed { "pass" } else { "FAIL" }
+                    );
+                    failed |= !m.passed;
+                }
+                let files: Vec<String> = report
+                    .files
+                    .iter()
+                    .map(|f| f.display().to_string())
+                    .collect();
+                println!(
+                    "{:<16} ({:.1} s; wrote {})",
+                    "",
+                    start.elapsed().as_secs_f64(),
+                    files.join(", ")
+                );
+                metrics.extend(report.metrics);
+            }
+            Err(e) => {
+                println!(
+                    "{:<16} {:<30} {:>12} {:>12}  FAIL ({e})",
+                    c.name, "run", "-", "-"
+                );
+                metrics.push(Metric {
+                    case: c.name.into(),
+                    metric: "run".into(),
+                    value: f64::NAN,
+                    tolerance: 0.0,
+                    passed: false,
+                });
+                failed = true;
+            }
+        }
+    }
+    if let Some(path) = json {
+        let text = serde_json::to_string_pretty(&metrics).expect("metrics serialise");
+        if let Err(e) = std::fs::write(path, text) {
+            eprintln!("error: cannot write {}: {e}", path.display());
+            return Outcome::Failed;
+        }
+    }
+    if failed { Outcome::Failed } else { Outcome::Ok }
+}
