@@ -26,8 +26,20 @@ pub struct Metric {
     pub value: f64,
     /// Acceptance threshold (`value ≤ tolerance` passes).
     pub tolerance: f64,
+    /// Whether the tolerance is an upper bound (`value ≤ tolerance`) or a lower bound.
+    pub bound: Bound,
     /// Whether the value is within tolerance.
     pub passed: bool,
+}
+
+/// Which side of the tolerance passes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Bound {
+    /// `value ≤ tolerance` passes (errors, drifts).
+    Upper,
+    /// `value ≥ tolerance` passes (convergence orders).
+    Lower,
 }
 
 impl Metric {
@@ -38,7 +50,17 @@ impl Metric {
             metric: metric.into(),
             value,
             tolerance,
+            bound: Bound::Upper,
             passed: value.is_finite() && value <= tolerance,
+        }
+    }
+
+    /// A metric that passes when `value ≥ tolerance` (and is finite).
+    pub fn at_least(case: &str, metric: &str, value: f64, tolerance: f64) -> Self {
+        Self {
+            bound: Bound::Lower,
+            passed: value.is_finite() && value >= tolerance,
+            ..Self::at_most(case, metric, value, tolerance)
         }
     }
 }

@@ -76,7 +76,7 @@ pub fn write_plot(
             y1 = y1.max(y);
         }
     }
-    if !(x0 < x1) {
+    if x1.partial_cmp(&x0) != Some(std::cmp::Ordering::Greater) {
         x1 = x0 + 1.0;
     }
     let pad = 0.05 * (y1 - y0).abs().max(1e-12);

@@ -1,7 +1,7 @@
 //! `loam verify`: run verification cases and report each metric against its tolerance.
 
 use crate::Outcome;
-use loam_verification::{Case, Metric, Size, case, cases};
+use loam_verification::{Bound, Case, Metric, Size, case, cases};
 use std::path::Path;
 use std::time::Instant;
 
@@ -47,8 +47,12 @@ pub fn verify(
         match (c.run)(size, &dir) {
             Ok(report) => {
                 for m in &report.metrics {
+                    let bound = match m.bound {
+                        Bound::Upper => "≤",
+                        Bound::Lower => "≥",
+                    };
                     println!(
-                        "{:<16} {:<30} {:>12.4e} {:>12.4e}  {}",
+                        "{:<16} {:<30} {:>12.4e} {bound} {:>10.4e}  {}",
                         m.case,
                         m.metric,
                         m.value,
@@ -75,13 +79,7 @@ pub fn verify(
                     "{:<16} {:<30} {:>12} {:>12}  FAIL ({e})",
                     c.name, "run", "-", "-"
                 );
-                metrics.push(Metric {
-                    case: c.name.into(),
-                    metric: "run".into(),
-                    value: f64::NAN,
-                    tolerance: 0.0,
-                    passed: false,
-                });
+                metrics.push(Metric::at_most(c.name, "run", f64::NAN, 0.0));
                 failed = true;
             }
         }

@@ -152,7 +152,8 @@ impl<const D: usize> Boundary<D> {
 
     /// Folds what particles deposited on ghost nodes into the mirror nodes, as if the mirror
     /// image of the body across each bilateral wall were present: mass adds, and momentum and
-    /// force add through the wall's parity (constrained components change sign).
+    /// force add through the wall's parity (constrained components change sign). Pass `None`
+    /// for what was not deposited (MUSL's second transfer carries momentum only).
     ///
     /// With supports wider than the hat (B-splines, GIMP) particles near a wall reach ghost
     /// nodes; the mirror image makes the wall a symmetry plane, so `v = 0` (or `v·n = 0`) holds
@@ -161,13 +162,15 @@ impl<const D: usize> Boundary<D> {
     pub fn fold_ghosts<T: Scalar>(
         &self,
         grid: &Grid<D>,
-        mass: &mut [T],
+        mut mass: Option<&mut [T]>,
         momentum: &mut [Vector<T, D>],
         mut force: Option<&mut [Vector<T, D>]>,
     ) {
         self.for_each_ghost(grid, |g, m, axis, parity| {
-            let mg = mass[g];
-            mass[m] += mg;
+            if let Some(mass) = mass.as_deref_mut() {
+                let mg = mass[g];
+                mass[m] += mg;
+            }
             let pg = parity.image(axis, &momentum[g]);
             momentum[m] += pg;
             if let Some(f) = force.as_deref_mut() {

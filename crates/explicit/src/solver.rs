@@ -295,7 +295,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             });
         boundary.fold_ghosts(
             grid,
-            &mut self.mass,
+            Some(&mut self.mass),
             &mut self.velocity_old,
             Some(&mut self.velocity),
         );
@@ -419,24 +419,20 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 .par_iter_mut()
                 .enumerate()
                 .for_each(|(n, v)| *v = blocks.gather(grid.multi(n)).p);
-            // Fold with a scratch mass (the mass itself was folded already).
-            let mut mass = std::mem::take(&mut self.mass);
-            let mut scratch = vec![T::zero(); mass.len()];
-            boundary.fold_ghosts(grid, &mut scratch, &mut self.velocity, None);
+            boundary.fold_ghosts(grid, None, &mut self.velocity, None);
             let floor = self.mass_floor;
             self.velocity
                 .par_iter_mut()
-                .zip(mass.par_iter_mut())
+                .zip(self.mass.par_iter())
                 .enumerate()
-                .for_each(|(n, (v, m))| {
+                .for_each(|(n, (v, &m))| {
                     if m.re() > floor {
-                        *v /= *m;
+                        *v /= m;
                         boundary.apply(grid, grid.multi(n), v);
                     } else {
                         *v = Vector::zeros();
                     }
                 });
-            self.mass = mass;
             boundary.reflect_ghosts(grid, &mut self.velocity);
         }
         let cfg = &self.config;
