@@ -5,6 +5,21 @@ use crate::scalar::Scalar;
 use crate::shape::{MAX_SUPPORT, Shape, ShapeFunction, Weights1D};
 use crate::tensor::Vector;
 
+/// One node of a particle's stencil, as handed to [`Stencil::for_each`].
+#[derive(Clone, Copy, Debug)]
+pub struct StencilNode<T: Scalar, const D: usize> {
+    /// Grid multi-index of the node.
+    pub index: [usize; D],
+    /// Flat grid index `i + nx·(j + ny·k)`.
+    pub flat: usize,
+    /// Weight `w_ip`.
+    pub weight: T,
+    /// Gradient `∇w_ip`.
+    pub gradient: Vector<T, D>,
+    /// Offset from the particle to the node, `x_i − x_p`.
+    pub offset: Vector<T, D>,
+}
+
 /// Weights `w_ip` and gradients `∇w_ip` of one particle on its `b^D` nodes.
 #[derive(Clone, Copy, Debug)]
 pub struct Stencil<T, const D: usize> {
@@ -14,6 +29,10 @@ pub struct Stencil<T, const D: usize> {
     pub base: [isize; D],
     /// Per-axis 1D weights.
     pub axes: [Weights1D<T>; D],
+    /// Per-axis offsets `x_{base+k} − x_p` (physical units).
+    offsets: [[T; MAX_SUPPORT]; D],
+    /// Node counts of the grid per axis (for flat indices).
+    nodes: [usize; D],
 }
 
 impl<T: Scalar, const D: usize> Stencil<T, D> {
@@ -23,14 +42,23 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
     pub fn new(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>, half_width: &Vector<T, D>) -> Self {
         let o = grid.origin();
         let inv_h = T::cst(1.0 / grid.h);
+        let h = T::cst(grid.h);
+        let b = shape.support_width();
+        let mut offsets = [[T::zero(); MAX_SUPPORT]; D];
         let axes: [Weights1D<T>; D] = std::array::from_fn(|a| {
             let xi = (x[a] - T::cst(o[a])) * inv_h;
-            shape.weights_1d(xi, half_width[a] * inv_h, inv_h)
+            let w = shape.weights_1d(xi, half_width[a] * inv_h, inv_h);
+            for k in 0..b {
+                offsets[a][k] = (T::cst((w.base + k as isize) as f64) - xi) * h;
+            }
+            w
         });
         Self {
-            b: shape.support_width(),
+            b,
             base: std::array::from_fn(|a| axes[a].base),
             axes,
+            offsets,
+            nodes: grid.nodes(),
         }
     }
 
@@ -52,49 +80,48 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
         grid.contains_stencil(self.base, self.b)
     }
 
-    /// Local multi-index (`0..b` per axis) of stencil entry `k < b^D` (axis 0 fastest).
+    /// Calls `f` for every node of the stencil (axis 0 fastest) with its index, weight
+    /// `w = Π_a N_a`, gradient `∂w/∂x_a = N'_a Π_{c≠a} N_c` and offset `x_i − x_p`.
+    /// The stencil must be [on the grid](Stencil::on_grid).
     #[inline]
-    pub fn local(&self, mut k: usize) -> [usize; D] {
-        std::array::from_fn(|_| {
-            let l = k % self.b;
-            k /= self.b;
-            l
-        })
-    }
-
-    /// Grid multi-index of stencil entry `k`. The stencil must be on the grid.
-    #[inline]
-    pub fn node(&self, k: usize) -> [usize; D] {
-        let l = self.local(k);
-        std::array::from_fn(|a| (self.base[a] + l[a] as isize) as usize)
-    }
-
-    /// Weight `w = Π_a N_a` and gradient `∂w/∂x_a = N'_a Π_{c≠a} N_c` of stencil entry `k`.
-    #[inline]
-    pub fn weight_gradient(&self, k: usize) -> (T, Vector<T, D>) {
-        let l = self.local(k);
-        let mut w = T::one();
-        for a in 0..D {
-            w *= self.axes[a].w[l[a]];
+    pub fn for_each(&self, mut f: impl FnMut(StencilNode<T, D>)) {
+        let mut local = [0usize; D];
+        let mut stride = [1usize; D];
+        for a in 1..D {
+            stride[a] = stride[a - 1] * self.nodes[a - 1];
         }
-        let g = Vector::<T, D>::from_fn(|a, _| {
-            let mut p = self.axes[a].dw[l[a]];
-            for c in 0..D {
-                if c != a {
-                    p *= self.axes[c].w[l[c]];
-                }
+        let base_flat: usize = (0..D).map(|a| self.base[a] as usize * stride[a]).sum();
+        for _ in 0..self.len() {
+            let mut weight = T::one();
+            let mut flat = base_flat;
+            for a in 0..D {
+                weight *= self.axes[a].w[local[a]];
+                flat += local[a] * stride[a];
             }
-            p
-        });
-        (w, g)
-    }
-
-    /// Calls `f(node multi-index, w, ∇w)` for every node of the stencil.
-    #[inline]
-    pub fn for_each(&self, mut f: impl FnMut([usize; D], T, Vector<T, D>)) {
-        for k in 0..self.len() {
-            let (w, g) = self.weight_gradient(k);
-            f(self.node(k), w, g);
+            let gradient = Vector::<T, D>::from_fn(|a, _| {
+                let mut p = self.axes[a].dw[local[a]];
+                for c in 0..D {
+                    if c != a {
+                        p *= self.axes[c].w[local[c]];
+                    }
+                }
+                p
+            });
+            f(StencilNode {
+                index: std::array::from_fn(|a| (self.base[a] + local[a] as isize) as usize),
+                flat,
+                weight,
+                gradient,
+                offset: Vector::<T, D>::from_fn(|a, _| self.offsets[a][local[a]]),
+            });
+            // Odometer increment of the local multi-index.
+            for a in 0..D {
+                local[a] += 1;
+                if local[a] < self.b {
+                    break;
+                }
+                local[a] = 0;
+            }
         }
     }
 }
@@ -116,8 +143,11 @@ mod tests {
         let (mut sw, mut sg) = (0.0, Vector::<f64, D>::zeros());
         let mut sx = Vector::<f64, D>::zeros();
         let mut sxg = SMatrix::<f64, D, D>::zeros();
-        s.for_each(|n, w, g| {
-            let xi: Vector<f64, D> = grid.node_position(n);
+        s.for_each(|n| {
+            let (w, g) = (n.weight, n.gradient);
+            let xi: Vector<f64, D> = grid.node_position(n.index);
+            assert_eq!(n.flat, grid.flat(n.index));
+            assert!((n.offset - (xi - x)).norm() < 1e-14);
             sw += w;
             sg += g;
             sx += xi * w;
@@ -160,8 +190,12 @@ mod tests {
         let eps = 5e-7;
         for shape in Shape::ALL {
             let s = Stencil::new(shape, &grid, &x, &hw);
-            for k in 0..s.len() {
-                let (_, g) = s.weight_gradient(k);
+            let nodes = |st: &Stencil<f64, 3>| {
+                let mut v = Vec::new();
+                st.for_each(|n| v.push((n.weight, n.gradient)));
+                v
+            };
+            for (k, &(_, g)) in nodes(&s).iter().enumerate() {
                 for a in 0..3 {
                     let mut xp = x;
                     xp[a] += eps;
@@ -172,7 +206,7 @@ mod tests {
                         Stencil::new(shape, &grid, &xm, &hw),
                     );
                     assert_eq!(sp.base, sm.base);
-                    let fd = (sp.weight_gradient(k).0 - sm.weight_gradient(k).0) / (2.0 * eps);
+                    let fd = (nodes(&sp)[k].0 - nodes(&sm)[k].0) / (2.0 * eps);
                     assert!(
                         (fd - g[a]).abs() < 1e-7,
                         "{shape:?} k={k} a={a}: {fd} vs {}",

@@ -44,27 +44,39 @@ impl Transfer {
     }
 }
 
+/// The velocity a particle carries to a node: `v_p + C_p (x_i − x_p)` (APIC) or `v_p`.
+#[inline(always)]
+fn affine_velocity<T: Scalar, const D: usize>(
+    v: &Vector<T, D>,
+    affine: Option<&Tensor<T, D>>,
+    offset: &Vector<T, D>,
+) -> Vector<T, D> {
+    match affine {
+        Some(c) => v + c * offset,
+        None => *v,
+    }
+}
+
 /// Calls `sink(node, m_ip, p_ip, f_ip)` with one particle's mass, momentum and internal force
 /// contributions to each node of its stencil (see the module docs for the formulas).
 /// `stress_volume = V_p σ_p` (the in-plane block in 2D); `affine` is `C_p` or `None`.
 #[inline]
 pub fn p2g<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
-    grid: &Grid<D>,
-    x: &Vector<T, D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
     stress_volume: &Tensor<T, D>,
     mut sink: impl FnMut([usize; D], T, Vector<T, D>, Vector<T, D>),
 ) {
-    stencil.for_each(|node, w, g| {
-        let mw = mass * w;
-        let vel = match affine {
-            Some(c) => v + c * (grid.node_position::<T>(node) - x),
-            None => *v,
-        };
-        sink(node, mw, vel * mw, -(stress_volume * g));
+    stencil.for_each(|n| {
+        let mw = mass * n.weight;
+        sink(
+            n.index,
+            mw,
+            affine_velocity(v, affine, &n.offset) * mw,
+            -(stress_volume * n.gradient),
+        );
     });
 }
 
@@ -72,20 +84,14 @@ pub fn p2g<T: Scalar, const D: usize>(
 #[inline]
 pub fn p2g_momentum<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
-    grid: &Grid<D>,
-    x: &Vector<T, D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
     mut sink: impl FnMut([usize; D], T, Vector<T, D>),
 ) {
-    stencil.for_each(|node, w, _| {
-        let mw = mass * w;
-        let vel = match affine {
-            Some(c) => v + c * (grid.node_position::<T>(node) - x),
-            None => *v,
-        };
-        sink(node, mw, vel * mw);
+    stencil.for_each(|n| {
+        let mw = mass * n.weight;
+        sink(n.index, mw, affine_velocity(v, affine, &n.offset) * mw);
     });
 }
 
@@ -102,17 +108,17 @@ pub struct Gathered<T: Scalar, const D: usize> {
     pub affine: Tensor<T, D>,
 }
 
-/// Gathers the grid velocity field at a particle. `velocity(node)` returns the updated nodal
-/// velocity and `old(node)` the velocity at the start of the step (FLIP only).
+/// Gathers the grid velocity field at a particle. `velocity(flat)` returns the updated nodal
+/// velocity of the node with flat index `flat` and `old(flat)` its velocity at the start of
+/// the step (FLIP only).
 #[inline]
 pub fn g2p<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
     grid: &Grid<D>,
     shape: Shape,
     transfer: Transfer,
-    x: &Vector<T, D>,
-    velocity: impl Fn([usize; D]) -> Vector<T, D>,
-    old: impl Fn([usize; D]) -> Vector<T, D>,
+    velocity: impl Fn(usize) -> Vector<T, D>,
+    old: impl Fn(usize) -> Vector<T, D>,
 ) -> Gathered<T, D> {
     let mut out = Gathered {
         v: Vector::zeros(),
@@ -126,15 +132,15 @@ pub fn g2p<T: Scalar, const D: usize>(
     } else {
         None
     };
-    stencil.for_each(|node, w, g| {
-        let vi = velocity(node);
-        out.v += vi * w;
-        out.grad_v += vi * g.transpose();
+    stencil.for_each(|n| {
+        let vi = velocity(n.flat);
+        out.v += vi * n.weight;
+        out.grad_v += vi * n.gradient.transpose();
         if flip {
-            out.dv += (vi - old(node)) * w;
+            out.dv += (vi - old(n.flat)) * n.weight;
         }
         if apic_b.is_some() {
-            out.affine += vi * (grid.node_position::<T>(node) - x).transpose() * w;
+            out.affine += vi * n.offset.transpose() * n.weight;
         }
     });
     if transfer.is_affine() {

@@ -262,16 +262,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             let volume = p.volume0[i] * det(&p.f[i]);
             let sv = from3::<T, D>(&p.stress[i]) * volume;
             let c = affine.then_some(&p.c[i]);
-            p2g(
-                &st,
-                &cfg.grid,
-                &p.x[i],
-                &p.v[i],
-                c,
-                p.mass[i],
-                &sv,
-                |n, m, mom, f| sink.add(n, m, mom, f),
-            );
+            p2g(&st, &p.v[i], c, p.mass[i], &sv, |n, m, mom, f| {
+                sink.add(n, m, mom, f)
+            });
         };
         self.blocks.accumulate(contribute);
         self.mass_floor = MASS_EPS * p.mass.iter().fold(0.0f64, |a, m| a.max(m.re()));
@@ -348,9 +341,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     &cfg.grid,
                     cfg.shape,
                     cfg.transfer,
-                    x,
-                    |n| vel[cfg.grid.flat(n)],
-                    |n| vel_old[cfg.grid.flat(n)],
+                    |n| vel[n],
+                    |n| vel_old[n],
                 );
                 (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                 *x += g.v * dtt;
@@ -391,9 +383,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                         &cfg.grid,
                         cfg.shape,
                         cfg.transfer,
-                        x,
-                        |n| vel[cfg.grid.flat(n)],
-                        |n| vel_old[cfg.grid.flat(n)],
+                        |n| vel[n],
+                        |n| vel_old[n],
                     );
                     (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                     *x += g.v * dtt;
@@ -407,7 +398,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 let xo = &x_old[i];
                 let st = stencil(cfg, xo, &pr.half_width0[i], &pr.f[i]);
                 let c = affine.then_some(&pr.c[i]);
-                p2g_momentum(&st, &cfg.grid, xo, &pr.v[i], c, pr.mass[i], |n, _, mom| {
+                p2g_momentum(&st, &pr.v[i], c, pr.mass[i], |n, _, mom| {
                     sink.add_momentum(n, mom)
                 });
             };
@@ -457,7 +448,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .for_each(|((f, stress, state), ((&mat, hw0), xo))| {
                 let st = stencil(cfg, xo, hw0, f);
                 let mut l = Tensor::<T, D>::zeros();
-                st.for_each(|n, _, g| l += vel[cfg.grid.flat(n)] * g.transpose());
+                st.for_each(|n| l += vel[n.flat] * n.gradient.transpose());
                 update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
             });
     }

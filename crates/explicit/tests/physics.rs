@@ -4,7 +4,12 @@ use loam_core::tensor::Vector;
 use loam_core::*;
 use loam_explicit::{Config, Solver, StepError};
 
-fn block(transfer: Transfer, scheme: Scheme, gravity: [f64; 2], boundary: Boundary<2>) -> (Config<f64, 2>, Particles<f64, 2>) {
+fn block(
+    transfer: Transfer,
+    scheme: Scheme,
+    gravity: [f64; 2],
+    boundary: Boundary<2>,
+) -> (Config<f64, 2>, Particles<f64, 2>) {
     let h = 0.1;
     let config = Config {
         grid: Grid::new([0.0, 0.0], [20, 20], h, 2),
@@ -14,7 +19,10 @@ fn block(transfer: Transfer, scheme: Scheme, gravity: [f64; 2], boundary: Bounda
         boundary,
         gravity: Vector::<f64, 2>::from(gravity),
         materials: vec![Material::elastic(ModelKind::NeoHookean, 1.0e4, 0.3, 100.0)],
-        time_step: TimeStep::Adaptive { cfl: 0.4, max_dt: 1e-3 },
+        time_step: TimeStep::Adaptive {
+            cfl: 0.4,
+            max_dt: 1e-3,
+        },
     };
     let mut p = Particles::default();
     let dp = h / 2.0;
@@ -33,9 +41,18 @@ fn block(transfer: Transfer, scheme: Scheme, gravity: [f64; 2], boundary: Bounda
 /// is conserved to round-off for every transfer and scheme (P2G and G2P are partitions of unity).
 #[test]
 fn linear_momentum_is_conserved_without_external_forces() {
-    for transfer in [Transfer::Pic, Transfer::Flip { alpha: 0.95 }, Transfer::Apic] {
+    for transfer in [
+        Transfer::Pic,
+        Transfer::Flip { alpha: 0.95 },
+        Transfer::Apic,
+    ] {
         for scheme in [Scheme::Usl, Scheme::Musl] {
-            let (config, mut p) = block(transfer, scheme, [0.0, 0.0], Boundary::all(Wall::new(WallKind::Free)));
+            let (config, mut p) = block(
+                transfer,
+                scheme,
+                [0.0, 0.0],
+                Boundary::all(Wall::new(WallKind::Free)),
+            );
             let p0 = p.momentum();
             let mass0 = p.total_mass();
             let mut solver = Solver::new(config, &p).expect("valid");
@@ -43,7 +60,11 @@ fn linear_momentum_is_conserved_without_external_forces() {
                 solver.step(&mut p, f64::INFINITY).expect("stable");
             }
             // ~200 steps × 2e2 particles of O(1) momentum: round-off ≲ 1e-12.
-            assert!((p.momentum() - p0).norm() < 1e-12 * p0.norm().max(1.0), "{transfer:?} {scheme:?}: {} vs {p0}", p.momentum());
+            assert!(
+                (p.momentum() - p0).norm() < 1e-12 * p0.norm().max(1.0),
+                "{transfer:?} {scheme:?}: {} vs {p0}",
+                p.momentum()
+            );
             assert_eq!(p.total_mass(), mass0);
         }
     }
@@ -54,22 +75,38 @@ fn linear_momentum_is_conserved_without_external_forces() {
 #[test]
 fn centre_of_mass_falls_at_g() {
     let g = [0.0, -9.81];
-    let (config, mut p) = block(Transfer::Apic, Scheme::Musl, g, Boundary::all(Wall::new(WallKind::Free)));
+    let (config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        g,
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
     let v0 = p.centre_of_mass_velocity();
     let mut solver = Solver::new(config, &p).expect("valid");
     solver.advance_to(&mut p, 0.05, |_, _| {}).expect("stable");
     let dv = p.centre_of_mass_velocity() - v0;
-    assert!((dv[0]).abs() < 1e-12 && (dv[1] - g[1] * 0.05).abs() < 1e-12, "Δv_cm = {dv}");
+    assert!(
+        (dv[0]).abs() < 1e-12 && (dv[1] - g[1] * 0.05).abs() < 1e-12,
+        "Δv_cm = {dv}"
+    );
 }
 
 #[test]
 fn a_particle_leaving_the_grid_stops_the_run_with_its_id() {
-    let (config, mut p) = block(Transfer::Apic, Scheme::Musl, [0.0, 0.0], Boundary::all(Wall::new(WallKind::Free)));
+    let (config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        [0.0, 0.0],
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
     // The whole body flies left at 40 m/s with free walls: it reaches the ghost layer
     // (x ≈ −0.05 m) after ≈ 0.02 s.
-    p.v.iter_mut().for_each(|v| *v = Vector::<f64, 2>::new(-40.0, 0.0));
+    p.v.iter_mut()
+        .for_each(|v| *v = Vector::<f64, 2>::new(-40.0, 0.0));
     let mut solver = Solver::new(config, &p).expect("valid");
-    let err = (0..500).find_map(|_| solver.step(&mut p, f64::INFINITY).err()).expect("the run must stop");
+    let err = (0..500)
+        .find_map(|_| solver.step(&mut p, f64::INFINITY).err())
+        .expect("the run must stop");
     match &err {
         StepError::LeftGrid { ids, step, .. } => {
             // Particle 0 is in the leftmost column of the block.
@@ -83,31 +120,52 @@ fn a_particle_leaving_the_grid_stops_the_run_with_its_id() {
 
 #[test]
 fn a_fixed_step_above_the_stability_limit_is_refused() {
-    let (mut config, p) = block(Transfer::Apic, Scheme::Musl, [0.0, 0.0], Boundary::all(Wall::new(WallKind::Free)));
+    let (mut config, p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        [0.0, 0.0],
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
     // c = √(M/ρ) ≈ 11.6 m/s, h = 0.1 m: the limit is ≈ 8e-3 s.
     config.time_step = TimeStep::Fixed { dt: 0.05 };
     let mut p = p;
     let mut solver = Solver::new(config, &p).expect("valid");
     match solver.step(&mut p, f64::INFINITY) {
-        Err(StepError::TimeStepTooLarge { step: 1, limit, .. }) => assert!(limit < 0.01 && limit > 0.005),
+        Err(StepError::TimeStepTooLarge { step: 1, limit, .. }) => {
+            assert!(limit < 0.01 && limit > 0.005)
+        }
         other => panic!("expected TimeStepTooLarge, got {other:?}"),
     }
 }
 
 #[test]
 fn non_finite_values_are_reported_with_the_field() {
-    let (mut config, mut p) = block(Transfer::Apic, Scheme::Musl, [0.0, 0.0], Boundary::all(Wall::new(WallKind::Free)));
-    config.materials.push(Material::elastic(ModelKind::Hencky, 1.0e4, 0.3, 100.0));
+    let (mut config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        [0.0, 0.0],
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
+    config
+        .materials
+        .push(Material::elastic(ModelKind::Hencky, 1.0e4, 0.3, 100.0));
     p.material[3] = 1;
     p.stress[3][(0, 0)] = f64::NAN;
     let mut solver = Solver::new(config, &p).expect("valid");
-    let err = solver.step(&mut p, f64::INFINITY).expect_err("NaN must stop the run");
+    let err = solver
+        .step(&mut p, f64::INFINITY)
+        .expect_err("NaN must stop the run");
     assert!(matches!(err, StepError::NonFinite { .. }), "{err}");
 }
 
 #[test]
 fn particles_with_unknown_materials_are_rejected() {
-    let (config, mut p) = block(Transfer::Apic, Scheme::Musl, [0.0, 0.0], Boundary::all(Wall::new(WallKind::Free)));
+    let (config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        [0.0, 0.0],
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
     p.material[5] = 4;
     let err = Solver::new(config, &p).err().expect("must be rejected");
     assert!(err.to_string().contains("particle 5"), "{err}");
@@ -126,8 +184,16 @@ fn slip_floor_supports_a_block_under_gravity() {
         scheme: Scheme::Musl,
         boundary: Boundary::all(Wall::new(WallKind::Slip)),
         gravity: Vector::<f64, 2>::new(0.0, -10.0),
-        materials: vec![Material::elastic(ModelKind::LinearElastic, 1.0e6, 0.0, 1000.0)],
-        time_step: TimeStep::Adaptive { cfl: 0.4, max_dt: 1e-3 },
+        materials: vec![Material::elastic(
+            ModelKind::LinearElastic,
+            1.0e6,
+            0.0,
+            1000.0,
+        )],
+        time_step: TimeStep::Adaptive {
+            cfl: 0.4,
+            max_dt: 1e-3,
+        },
     };
     let mut p = Particles::default();
     let dp = h / 2.0;
@@ -135,7 +201,13 @@ fn slip_floor_supports_a_block_under_gravity() {
     for i in 0..16 {
         for j in 0..16 {
             let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-            p.push(x, Vector::zeros(), 1000.0, Vector::<f64, 2>::repeat(dp / 2.0), 0);
+            p.push(
+                x,
+                Vector::zeros(),
+                1000.0,
+                Vector::<f64, 2>::repeat(dp / 2.0),
+                0,
+            );
         }
     }
     let mut solver = Solver::new(config, &p).expect("valid");
@@ -149,5 +221,8 @@ fn slip_floor_supports_a_block_under_gravity() {
     }
     let mean = s / n as f64;
     let exact = -1000.0 * 10.0 * 0.2;
-    assert!((mean - exact).abs() < 0.1 * exact.abs(), "σ_yy(H/2) = {mean}, expected {exact}");
+    assert!(
+        (mean - exact).abs() < 0.1 * exact.abs(),
+        "σ_yy(H/2) = {mean}, expected {exact}"
+    );
 }

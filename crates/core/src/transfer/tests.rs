@@ -46,19 +46,11 @@ fn to_grid<const D: usize>(
     for k in 0..cl.x.len() {
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
         let c = affine.then_some(&cl.c[k]);
-        p2g_momentum(
-            &st,
-            &cl.grid,
-            &cl.x[k],
-            &cl.v[k],
-            c,
-            cl.m[k],
-            |node, mw, mv| {
-                let f = cl.grid.flat(node);
-                m[f] += mw;
-                p[f] += mv;
-            },
-        );
+        p2g_momentum(&st, &cl.v[k], c, cl.m[k], |node, mw, mv| {
+            let f = cl.grid.flat(node);
+            m[f] += mw;
+            p[f] += mv;
+        });
     }
     let v = m
         .iter()
@@ -81,8 +73,7 @@ fn gather<const D: usize>(
         &cl.grid,
         shape,
         Transfer::Apic,
-        &cl.x[k],
-        |n| vel[cl.grid.flat(n)],
+        |n| vel[n],
         |_| Vector::zeros(),
     )
 }
@@ -119,9 +110,9 @@ fn particle_angular_momentum<const D: usize>(
     for k in 0..cl.x.len() {
         add(&mut l, cl.m[k], cross(&cl.x[k], &v[k]));
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
-        st.for_each(|node, w, _| {
-            let r = cl.grid.node_position::<f64>(node) - cl.x[k];
-            add(&mut l, cl.m[k] * w, cross(&r, &(c[k] * r)));
+        st.for_each(|n| {
+            let r = n.offset;
+            add(&mut l, cl.m[k] * n.weight, cross(&r, &(c[k] * r)));
         });
     }
     l
