@@ -464,11 +464,14 @@ fn update_stress<T: Scalar, const D: usize>(
     stress: &mut nalgebra::Matrix3<T>,
     state: &mut loam_core::MaterialState<T>,
 ) {
-    *f = (Tensor::<T, D>::identity() + l * dt) * *f;
+    let delta_f = Tensor::<T, D>::identity() + l * dt;
+    *f = delta_f * *f;
     let f3 = to3(f, T::one());
+    let df3 = to3(&delta_f, T::one());
     let l3 = to3(l, T::zero());
     let kin = Kinematics {
         f: &f3,
+        delta_f: &df3,
         velocity_gradient: &l3,
         dt,
         stress,

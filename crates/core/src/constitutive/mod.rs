@@ -67,6 +67,8 @@ impl<T: Scalar> Default for MaterialState<T> {
 pub struct Kinematics<'a, T> {
     /// Deformation gradient at the end of the step (3×3, `F_zz = 1` in plane strain).
     pub f: &'a Matrix3<T>,
+    /// Relative deformation gradient over the step, `ΔF = F F_n⁻¹` (3×3).
+    pub delta_f: &'a Matrix3<T>,
     /// Velocity gradient `L = ∇v` over the step (3×3, zero out-of-plane row/column in 2D).
     pub velocity_gradient: &'a Matrix3<T>,
     /// Time step.
