@@ -32,8 +32,8 @@ pub fn energy<T: Scalar, const D: usize>(
         let m = particles.mass[p].re();
         e.kinetic += 0.5 * m * particles.v[p].map(|x| x.re()).norm_squared();
         let mat = &materials[particles.material[p] as usize];
-        e.strain +=
-            particles.volume0[p].re() * mat.energy_density(&to3(&particles.f[p], T::one())).re();
+        let f = to3(&particles.f[p], T::one());
+        e.strain += particles.volume0[p].re() * mat.energy_density(&f, &particles.state[p]).re();
         e.gravity -= m * gravity.map(|x| x.re()).dot(&particles.x[p].map(|x| x.re()));
     }
     e

@@ -3,7 +3,7 @@
 use crate::error::{Issue, SceneError};
 use crate::output::Field;
 use crate::schema::{Scene, SolverSpec};
-use loam_core::{Boundary, Grid, Material, Particles, Shape};
+use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape};
 use nalgebra::SVector;
 use std::path::PathBuf;
 
@@ -79,7 +79,17 @@ impl Scene {
         let materials = self
             .materials
             .iter()
-            .map(|m| Material::elastic(m.model, m.youngs_modulus, m.poisson_ratio, m.density))
+            .map(|m| match (m.model, m.yield_stress) {
+                (ModelKind::J2, Some(yield_stress)) => Material::j2(
+                    m.youngs_modulus,
+                    m.poisson_ratio,
+                    yield_stress,
+                    m.hardening.unwrap_or(0.0),
+                    m.density,
+                ),
+                // Validated: `j2` always comes with a yield stress.
+                (kind, _) => Material::elastic(kind, m.youngs_modulus, m.poisson_ratio, m.density),
+            })
             .collect();
         let material_names: Vec<String> = self.materials.iter().map(|m| m.name.clone()).collect();
         // Per body: (material id, density, velocity, half-width); names were validated.

@@ -57,7 +57,7 @@ fn default_shape_function() -> Shape {
     Shape::QuadraticBspline
 }
 
-/// `[[materials]]`: a named isotropic elastic material.
+/// `[[materials]]`: a named isotropic material, elastic or (model `j2`) elastoplastic.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
@@ -71,6 +71,14 @@ pub struct MaterialSpec {
     pub youngs_modulus: f64,
     /// Poisson's ratio `ν`, in (−1, 0.5).
     pub poisson_ratio: f64,
+    /// Uniaxial yield stress `σ_y` (Pa), positive: required by model `j2`, not allowed for
+    /// the elastic models.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yield_stress: Option<f64>,
+    /// Linear isotropic hardening modulus `H` (Pa), `≥ 0`; model `j2` only (default 0,
+    /// perfect plasticity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hardening: Option<f64>,
 }
 
 /// `[[bodies]]`: a region of one material filled with particles.

@@ -8,7 +8,7 @@
 use crate::error::{Issue, SceneError};
 use crate::geometry::twice_signed_area;
 use crate::schema::{BodyShape, BodySpec, Scene};
-use loam_core::{TimeStep, Transfer};
+use loam_core::{ModelKind, TimeStep, Transfer};
 use std::collections::HashSet;
 
 /// Tolerance, relative to the domain size, for a body's bounding box to stick out of the
@@ -149,6 +149,32 @@ impl Scene {
                     format!("{path}.poisson_ratio"),
                     format!("must be in (-1, 0.5), got {nu}"),
                 );
+            }
+            let plastic = m.model == ModelKind::J2;
+            match m.yield_stress {
+                Some(sy) if plastic => {
+                    c.positive(&format!("{path}.yield_stress"), sy);
+                }
+                None if plastic => c.issue(
+                    format!("{path}.yield_stress"),
+                    "required for model \"j2\" (the uniaxial yield stress, Pa)",
+                ),
+                Some(_) => c.issue(
+                    format!("{path}.yield_stress"),
+                    "only used by model \"j2\"; remove it or change the model",
+                ),
+                None => {}
+            }
+            if let Some(hardening) = m.hardening {
+                let hpath = format!("{path}.hardening");
+                if !plastic {
+                    c.issue(
+                        hpath,
+                        "only used by model \"j2\"; remove it or change the model",
+                    );
+                } else if c.finite(&hpath, hardening) && hardening < 0.0 {
+                    c.issue(hpath, format!("must be zero or positive, got {hardening}"));
+                }
             }
         }
     }

@@ -1,6 +1,7 @@
 //! Scene files: malformed fixtures give errors naming the offending field, good ones build
 //! with the expected particles, and the example scenes load.
 
+use loam_core::constitutive::{J2, Lame, Model};
 use loam_core::{Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
 use loam_scene::{Scene, SceneError};
 use std::path::{Path, PathBuf};
@@ -146,6 +147,10 @@ const BAD: &[(&str, &[&str])] = &[
         &["grid.cellsize: unknown field `cellsize`", "line 12"],
     ),
     ("json_syntax.json", &["JSON syntax error at line 79"]),
+    (
+        "j2_without_yield_stress.toml",
+        &[r#"materials[0].yield_stress: required for model "j2""#],
+    ),
 ];
 
 #[test]
@@ -332,6 +337,64 @@ fn json_3d_fixture_builds_sphere_and_cylinder() {
     assert_eq!(built.output.dir, Path::new("out/sphere_3d"));
 }
 
+/// A `j2` material gets its yield stress and hardening (default 0); the plasticity fields
+/// are rejected on an elastic model and checked for range.
+#[test]
+fn j2_fixture_builds_plastic_materials() {
+    let built = Scene::from_path(fixture("good/j2_2d.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    let lame = Lame::from_young_poisson(1.0e7, 0.3);
+    let expected = [
+        (1.0e5, 2.0e5), // hardening given
+        (5.0e4, 0.0),   // hardening left out: perfectly plastic
+    ];
+    for (material, (yield_stress, hardening)) in built.materials.iter().zip(expected) {
+        assert_eq!(
+            material.model,
+            Model::J2(J2 {
+                lame,
+                yield_stress,
+                hardening
+            })
+        );
+        assert_eq!(material.density, 1800.0);
+    }
+    assert!(matches!(built.materials[2].model, Model::Hencky(_)));
+    let p = &built.particles;
+    assert_eq!(p.len(), 280);
+    assert_eq!(p.material.iter().filter(|&&m| m == 0).count(), 200);
+    assert_eq!(p.material.iter().filter(|&&m| m == 2).count(), 80);
+
+    let text = std::fs::read_to_string(fixture("good/j2_2d.toml")).unwrap();
+    for (from, to, want) in [
+        (
+            "poisson_ratio = 0.25",
+            "poisson_ratio = 0.25\nhardening = 1.0",
+            r#"materials[2].hardening: only used by model "j2""#,
+        ),
+        (
+            "poisson_ratio = 0.25",
+            "poisson_ratio = 0.25\nyield_stress = 1.0",
+            r#"materials[2].yield_stress: only used by model "j2""#,
+        ),
+        (
+            "hardening = 2.0e5",
+            "hardening = -1.0",
+            "materials[0].hardening: must be zero or positive, got -1",
+        ),
+        (
+            "yield_stress = 5.0e4",
+            "yield_stress = 0.0",
+            "materials[1].yield_stress: must be positive, got 0",
+        ),
+    ] {
+        let err = Scene::from_toml_str(&text.replacen(from, to, 1)).unwrap_err();
+        assert!(err.to_string().contains(want), "{err}");
+    }
+}
+
 #[test]
 fn scenes_round_trip_through_toml_and_json() {
     for name in [
@@ -339,6 +402,7 @@ fn scenes_round_trip_through_toml_and_json() {
         "disk_2d.toml",
         "overlap_2d.toml",
         "sphere_3d.json",
+        "j2_2d.toml",
     ] {
         let mut scene = Scene::from_path(fixture(&format!("good/{name}"))).unwrap();
         scene.source = None;
@@ -432,7 +496,12 @@ fn mangled_scenes_give_errors_not_panics() {
         "{ type = \"box\" }",
         "true",
     ];
-    for name in ["box_2d.toml", "disk_2d.toml", "overlap_2d.toml"] {
+    for name in [
+        "box_2d.toml",
+        "disk_2d.toml",
+        "overlap_2d.toml",
+        "j2_2d.toml",
+    ] {
         let text = std::fs::read_to_string(fixture(&format!("good/{name}"))).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         for (i, line) in lines.iter().enumerate() {

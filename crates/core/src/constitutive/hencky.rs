@@ -25,14 +25,11 @@ impl<T: Scalar> Hencky<T> {
 
 impl<T: Scalar> Hyperelastic<T> for Hencky<T> {
     fn energy_density(&self, f: &Matrix3<T>) -> T {
-        let eps = Self::strain(f);
-        let tr = eps.trace();
-        self.lame.mu * eps.component_mul(&eps).sum() + self.lame.lambda * tr * tr * T::cst(0.5)
+        self.lame.energy(&Self::strain(f))
     }
 
     fn kirchhoff_stress(&self, f: &Matrix3<T>) -> Matrix3<T> {
-        let eps = Self::strain(f);
-        eps * (self.lame.mu * T::cst(2.0)) + Matrix3::identity() * (self.lame.lambda * eps.trace())
+        self.lame.stress(&Self::strain(f))
     }
 
     fn lame(&self) -> Lame<T> {

@@ -6,10 +6,12 @@
 //! is the same code run with a dual parameter.
 
 mod hencky;
+mod j2;
 mod linear_elastic;
 mod neo_hookean;
 
 pub use hencky::Hencky;
+pub use j2::J2;
 pub use linear_elastic::LinearElastic;
 pub use neo_hookean::NeoHookean;
 
@@ -40,6 +42,28 @@ impl<T: Scalar> Lame<T> {
     /// `c = √(M/ρ)`.
     pub fn p_wave_modulus(&self) -> T {
         self.lambda + self.mu * T::cst(2.0)
+    }
+
+    /// The isotropic linear law `2μ ε + λ tr(ε) I` on a symmetric strain `ε` (the Kirchhoff
+    /// stress of Hencky elasticity when `ε` is the logarithmic strain).
+    pub fn stress(&self, eps: &Matrix3<T>) -> Matrix3<T> {
+        eps * (self.mu * T::cst(2.0)) + Matrix3::identity() * (self.lambda * eps.trace())
+    }
+
+    /// The quadratic energy `μ ε:ε + ½λ (tr ε)²` whose derivative is [`Lame::stress`].
+    pub fn energy(&self, eps: &Matrix3<T>) -> T {
+        let tr = eps.trace();
+        self.mu * eps.component_mul(eps).sum() + self.lambda * tr * tr * T::cst(0.5)
+    }
+}
+
+impl Lame<f64> {
+    /// The same parameters as constants of another scalar type (zero derivative parts).
+    pub fn lift<T: Scalar>(&self) -> Lame<T> {
+        Lame {
+            mu: T::cst(self.mu),
+            lambda: T::cst(self.lambda),
+        }
     }
 }
 
@@ -110,15 +134,28 @@ pub trait Hyperelastic<T: Scalar>: Send + Sync {
     }
 }
 
-impl<T: Scalar, M: Hyperelastic<T>> Constitutive<T> for M {
-    fn update(&self, kin: &Kinematics<'_, T>, _state: &mut MaterialState<T>) -> Matrix3<T> {
-        self.cauchy_stress(kin.f)
-    }
+/// Implements [`Constitutive`] for hyperelastic models: `σ = τ(F) / J`, no history. (One
+/// impl per model rather than a blanket impl over [`Hyperelastic`], which would overlap with
+/// the impl of the history-dependent [`J2`].)
+macro_rules! hyperelastic_constitutive {
+    ($($model:ident),*) => {$(
+        impl<T: Scalar> Constitutive<T> for $model<T> {
+            fn update(
+                &self,
+                kin: &Kinematics<'_, T>,
+                _state: &mut MaterialState<T>,
+            ) -> Matrix3<T> {
+                self.cauchy_stress(kin.f)
+            }
 
-    fn p_wave_modulus(&self) -> f64 {
-        self.lame().p_wave_modulus().re()
-    }
+            fn p_wave_modulus(&self) -> f64 {
+                self.lame().p_wave_modulus().re()
+            }
+        }
+    )*};
 }
+
+hyperelastic_constitutive!(LinearElastic, NeoHookean, Hencky);
 
 /// The names of the available models (what a scene file may ask for).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -130,6 +167,8 @@ pub enum ModelKind {
     NeoHookean,
     /// [`Hencky`].
     Hencky,
+    /// [`J2`] (von Mises plasticity), written `j2`.
+    J2,
 }
 
 /// A material: density plus one constitutive model. The solver dispatches on the variant
@@ -151,18 +190,41 @@ pub enum Model<T> {
     NeoHookean(NeoHookean<T>),
     /// Hencky (logarithmic-strain) hyperelasticity.
     Hencky(Hencky<T>),
+    /// J2 (von Mises) plasticity in Hencky strain space.
+    J2(J2<T>),
 }
 
 impl<T: Scalar> Material<T> {
     /// An isotropic elastic material of the given kind from `E`, `ν` and `ρ₀`.
+    ///
+    /// [`ModelKind::J2`] gives a J2 material with an infinite yield stress, which never yields
+    /// (Hencky elasticity carried in the J2 state); use [`Material::j2`] for a finite one.
     pub fn elastic(kind: ModelKind, young: T, poisson: T, density: f64) -> Self {
         let lame = Lame::from_young_poisson(young, poisson);
         let model = match kind {
             ModelKind::LinearElastic => Model::LinearElastic(LinearElastic { lame }),
             ModelKind::NeoHookean => Model::NeoHookean(NeoHookean { lame }),
             ModelKind::Hencky => Model::Hencky(Hencky { lame }),
+            ModelKind::J2 => Model::J2(J2 {
+                lame,
+                yield_stress: T::cst(f64::INFINITY),
+                hardening: T::zero(),
+            }),
         };
         Self { density, model }
+    }
+
+    /// A [`J2`] elastoplastic material from `E`, `ν`, the uniaxial yield stress `σ_y`, the
+    /// linear hardening modulus `H` (`0` for perfect plasticity) and `ρ₀`.
+    pub fn j2(young: T, poisson: T, yield_stress: T, hardening: T, density: f64) -> Self {
+        Self {
+            density,
+            model: Model::J2(J2 {
+                lame: Lame::from_young_poisson(young, poisson),
+                yield_stress,
+                hardening,
+            }),
+        }
     }
 
     /// Elastic P-wave speed `c = √(M/ρ₀)` (real part).
@@ -176,17 +238,40 @@ impl<T: Scalar> Material<T> {
             Model::LinearElastic(m) => m,
             Model::NeoHookean(m) => m,
             Model::Hencky(m) => m,
+            Model::J2(m) => m,
         }
     }
 
-    /// Stored energy per unit reference volume `ψ(F)` (every model in the table is
-    /// hyperelastic).
+    /// Stored (elastic) energy per unit reference volume: `ψ(F)` for the hyperelastic models
+    /// (`state` unused), `ψ(bₑ) = μ ε:ε + ½λ (tr ε)²` with `ε = ½ ln bₑ` for [`J2`] (`f`
+    /// unused; the plastic work is dissipated, not stored).
     #[inline]
-    pub fn energy_density(&self, f: &Matrix3<T>) -> T {
+    pub fn energy_density(&self, f: &Matrix3<T>, state: &MaterialState<T>) -> T {
         match &self.model {
             Model::LinearElastic(m) => m.energy_density(f),
             Model::NeoHookean(m) => m.energy_density(f),
             Model::Hencky(m) => m.energy_density(f),
+            Model::J2(m) => m.stored_energy(state),
+        }
+    }
+
+    /// Kirchhoff stress `τ` and new state at the end of a step, without committing anything:
+    /// for the hyperelastic models `τ(F)` of the total deformation gradient `f` with the state
+    /// unchanged, for [`J2`] its return mapping on the relative deformation gradient `delta_f`
+    /// from `state` ([`J2::kirchhoff_update`]). For implicit solvers, which re-evaluate a step
+    /// from the last converged state at every Newton iterate; with dual inputs the derivative
+    /// is the consistent tangent.
+    pub fn kirchhoff_update(
+        &self,
+        delta_f: &Matrix3<T>,
+        f: &Matrix3<T>,
+        state: &MaterialState<T>,
+    ) -> (Matrix3<T>, MaterialState<T>) {
+        match &self.model {
+            Model::LinearElastic(m) => (m.kirchhoff_stress(f), *state),
+            Model::NeoHookean(m) => (m.kirchhoff_stress(f), *state),
+            Model::Hencky(m) => (m.kirchhoff_stress(f), *state),
+            Model::J2(m) => m.kirchhoff_update(delta_f, state),
         }
     }
 
@@ -197,9 +282,39 @@ impl<T: Scalar> Material<T> {
             Model::LinearElastic(m) => m.update(kin, state),
             Model::NeoHookean(m) => m.update(kin, state),
             Model::Hencky(m) => m.update(kin, state),
+            Model::J2(m) => m.update(kin, state),
         }
     }
 }
 
+impl Material<f64> {
+    /// The same material with its parameters as constants of another scalar type (zero
+    /// derivative parts), e.g. to evaluate dual-number tangents with respect to the motion.
+    pub fn lift<T: Scalar>(&self) -> Material<T> {
+        let model = match &self.model {
+            Model::LinearElastic(m) => Model::LinearElastic(LinearElastic {
+                lame: m.lame.lift(),
+            }),
+            Model::NeoHookean(m) => Model::NeoHookean(NeoHookean {
+                lame: m.lame.lift(),
+            }),
+            Model::Hencky(m) => Model::Hencky(Hencky {
+                lame: m.lame.lift(),
+            }),
+            Model::J2(m) => Model::J2(J2 {
+                lame: m.lame.lift(),
+                yield_stress: T::cst(m.yield_stress),
+                hardening: T::cst(m.hardening),
+            }),
+        };
+        Material {
+            density: self.density,
+            model,
+        }
+    }
+}
+
+#[cfg(test)]
+mod j2_tests;
 #[cfg(test)]
 mod tests;
