@@ -6,8 +6,12 @@
 //! size; the test suite runs them at reduced size.
 
 pub mod axial_bar;
+pub mod cantilever;
 pub mod disk_collision;
+pub mod elastica;
+pub mod newton_quadratic;
 mod output;
+pub mod tangent_fd;
 
 pub use output::{Series, write_csv, write_plot};
 
@@ -95,6 +99,15 @@ pub enum VerifyError {
         #[source]
         source: loam_explicit::StepError,
     },
+    /// An implicit run stopped.
+    #[error("{case}: implicit solve failed: {source}")]
+    Implicit {
+        /// Case name.
+        case: String,
+        /// The solver's error.
+        #[source]
+        source: loam_implicit::ImplicitError,
+    },
     /// The solver rejected the set-up (a bug in the case).
     #[error("{case}: invalid set-up: {source}")]
     Config {
@@ -134,6 +147,21 @@ pub fn cases() -> Vec<Case> {
             name: "axial-bar",
             description: "1D axial vibration of a fixed-free elastic bar vs the modal solution v_cm(t) = v0/(β1 L) cos(ω1 t)",
             run: axial_bar::run,
+        },
+        Case {
+            name: "tangent-fd",
+            description: "sparse-AD tangents (per-particle and colour-seeded) vs central finite differences, Neo-Hookean / Hencky / J2, 2D and 3D",
+            run: tangent_fd::run,
+        },
+        Case {
+            name: "newton-quadratic",
+            description: "quadratic convergence of Newton with the AD tangent (r_{k+1}/r_k² bounded)",
+            run: newton_quadratic::run,
+        },
+        Case {
+            name: "cantilever",
+            description: "large-deflection plane-strain cantilever (Hencky, 50 load steps) vs the elastica",
+            run: cantilever::run,
         },
         Case {
             name: "disk-collision",

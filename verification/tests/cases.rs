@@ -33,3 +33,18 @@ fn axial_bar() {
 fn disk_collision() {
     check("disk-collision");
 }
+
+#[test]
+fn tangent_fd() {
+    check("tangent-fd");
+}
+
+#[test]
+fn newton_quadratic() {
+    check("newton-quadratic");
+}
+
+#[test]
+fn cantilever() {
+    check("cantilever");
+}

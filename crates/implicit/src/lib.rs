@@ -1,7 +1,23 @@
 //! # loam-implicit
 //!
-//! Implicit MPM: Newton–Krylov solves of quasi-static (and Newmark dynamic) load steps with the
-//! tangent assembled by sparse forward-mode AD over the same generic kernels as the explicit
-//! path.
+//! Implicit MPM: Newton–Krylov solves of quasi-static load steps with the tangent assembled by
+//! sparse forward-mode AD over the same generic kernels as the explicit path.
+//!
+//! - [`kernel`]: the per-particle stress kernel of the updated-Lagrangian step, generic over
+//!   the scalar type.
+//! - [`dofs`]: unknowns, walls (mirror images), prescribed displacements.
+//! - [`system`]: residual, the per-particle AD tangent and the block-colour-seeded reference
+//!   tangent, particle update.
+//! - [`newton`]: Newton with line search; [`solver`]: load stepping with step cutting.
+//! - [`linear`]: sparse direct (faer LU / Cholesky) and preconditioned Krylov solvers.
 
+pub mod dofs;
+pub mod kernel;
 pub mod linear;
+pub mod newton;
+pub mod solver;
+pub mod system;
+
+pub use dofs::{NodeConstraint, NodeDof};
+pub use newton::{NewtonReport, NewtonSettings, TangentMethod};
+pub use solver::{ImplicitConfig, ImplicitError, ImplicitSolver, PointLoad, StepReport};

@@ -1,0 +1,209 @@
+//! Numbering of the unknowns: which grid-node components are free, which are prescribed, and
+//! which are mirror images of others across a wall.
+//!
+//! The unknowns of a load step are the displacement increments `Δu` of the nodes touched by
+//! particles. Walls are treated as in the explicit solver (`loam_core::Boundary`): the face
+//! nodes of a fixed wall are prescribed to zero (a slip wall: their normal component), and a
+//! ghost node beyond a bilateral wall is the mirror image of its mirror node, `Δu_ghost = P Δu_mirror`
+//! with `P` negating the constrained components. The mirror image makes the wall a symmetry plane
+//! for wide supports (B-splines, GIMP): without it the displacement field would be pinned a
+//! fraction of a cell outside the wall, an O(h) error.
+
+use loam_core::{Boundary, Grid, WallKind};
+
+/// How one component of one grid node is determined in a load step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NodeDof {
+    /// Not in the support of any particle.
+    Inactive,
+    /// `Δu = sign · x[dof]` for the unknown vector `x`.
+    Free {
+        /// Index of the unknown.
+        dof: usize,
+        /// `+1`, or `−1` for a mirror image across a wall.
+        sign: f64,
+    },
+    /// A prescribed increment.
+    Prescribed {
+        /// The value of `Δu` in this load step.
+        value: f64,
+    },
+}
+
+/// A displacement constraint on the grid nodes inside a box (for loading plates, supports,
+/// pinned points). Components with `Some(u)` are prescribed to reach the total displacement
+/// `u` at the end of the loading, linearly over the load steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeConstraint<const D: usize> {
+    /// Lower corner of the box of nodes (inclusive, with a tolerance of 1e-9 h).
+    pub lo: [f64; D],
+    /// Upper corner.
+    pub hi: [f64; D],
+    /// Total prescribed displacement per component; `None` leaves the component free.
+    pub displacement: [Option<f64>; D],
+}
+
+/// The map from grid-node components to unknowns for one load step.
+#[derive(Clone, Debug)]
+pub struct DofMap<const D: usize> {
+    nodes: Vec<[NodeDof; D]>,
+    owners: Vec<(usize, usize)>,
+}
+
+/// The node whose unknowns a ghost node mirrors, and the sign per component; `None` for the
+/// node itself (not beyond any bilateral wall).
+fn owner<const D: usize>(
+    grid: &Grid<D>,
+    boundary: &Boundary<D>,
+    node: [usize; D],
+) -> ([usize; D], [f64; D]) {
+    let mut idx = node;
+    let mut sign = [1.0; D];
+    for axis in 0..D {
+        for side in 0..2 {
+            let wall = boundary.walls[axis][side];
+            let reflect_all = match wall.kind {
+                _ if wall.separable => continue,
+                WallKind::Free => continue,
+                WallKind::Fixed | WallKind::NoSlip => true,
+                WallKind::Slip => false,
+            };
+            let face = if side == 0 {
+                grid.pad
+            } else {
+                grid.pad + grid.cells[axis]
+            };
+            let beyond = if side == 0 {
+                idx[axis] < face
+            } else {
+                idx[axis] > face
+            };
+            if beyond {
+                idx[axis] = 2 * face - idx[axis];
+                if reflect_all {
+                    sign.iter_mut().for_each(|s| *s = -*s);
+                } else {
+                    sign[axis] = -sign[axis];
+                }
+            }
+        }
+    }
+    (idx, sign)
+}
+
+impl<const D: usize> DofMap<D> {
+    /// Numbers the unknowns: `active[n]` says whether node `n` (flat index) is in the support
+    /// of a particle; `prescribed(node, component)` gives this step's increment of a
+    /// constrained component, if any (user constraints), on top of the walls.
+    pub fn new(
+        grid: &Grid<D>,
+        boundary: &Boundary<D>,
+        active: &[bool],
+        prescribed: impl Fn([usize; D], usize) -> Option<f64>,
+    ) -> Self {
+        let n = grid.num_nodes();
+        // Owners of active nodes are active too (a particle just outside a wall may reach a
+        // ghost without reaching its mirror).
+        let mut owned = vec![false; n];
+        for (f, &a) in active.iter().enumerate() {
+            if a {
+                let (o, _) = owner(grid, boundary, grid.multi(f));
+                owned[grid.flat(o)] = true;
+            }
+        }
+        // Constraints of the owner nodes: walls, then user constraints.
+        let constraint = |node: [usize; D], c: usize| -> Option<f64> {
+            for axis in 0..D {
+                for side in 0..2 {
+                    let wall = boundary.walls[axis][side];
+                    if wall.separable || !grid.on_face(node, axis, side) {
+                        continue;
+                    }
+                    match wall.kind {
+                        WallKind::Fixed | WallKind::NoSlip => return Some(0.0),
+                        WallKind::Slip if c == axis => return Some(0.0),
+                        _ => {}
+                    }
+                }
+            }
+            prescribed(node, c)
+        };
+        let mut own_dof = vec![[NodeDof::Inactive; D]; n];
+        let mut owners = Vec::new();
+        for f in 0..n {
+            if !owned[f] {
+                continue;
+            }
+            let node = grid.multi(f);
+            for c in 0..D {
+                own_dof[f][c] = match constraint(node, c) {
+                    Some(value) => NodeDof::Prescribed { value },
+                    None => {
+                        owners.push((f, c));
+                        NodeDof::Free {
+                            dof: owners.len() - 1,
+                            sign: 1.0,
+                        }
+                    }
+                };
+            }
+        }
+        let mut nodes = vec![[NodeDof::Inactive; D]; n];
+        for f in 0..n {
+            if !active[f] && !owned[f] {
+                continue;
+            }
+            let (o, sign) = owner(grid, boundary, grid.multi(f));
+            let of = grid.flat(o);
+            for c in 0..D {
+                nodes[f][c] = match own_dof[of][c] {
+                    NodeDof::Free { dof, .. } => NodeDof::Free { dof, sign: sign[c] },
+                    NodeDof::Prescribed { value } => NodeDof::Prescribed {
+                        value: sign[c] * value,
+                    },
+                    NodeDof::Inactive => NodeDof::Inactive,
+                };
+            }
+        }
+        Self { nodes, owners }
+    }
+
+    /// Number of unknowns.
+    pub fn len(&self) -> usize {
+        self.owners.len()
+    }
+
+    /// `true` when there is no unknown.
+    pub fn is_empty(&self) -> bool {
+        self.owners.is_empty()
+    }
+
+    /// How component `c` of node `flat` is determined.
+    #[inline]
+    pub fn get(&self, flat: usize, c: usize) -> NodeDof {
+        self.nodes[flat][c]
+    }
+
+    /// The (owner node, component) of unknown `dof`.
+    pub fn owner_of(&self, dof: usize) -> (usize, usize) {
+        self.owners[dof]
+    }
+
+    /// `Δu` of a node component for the unknown vector `x`.
+    #[inline]
+    pub fn value(&self, flat: usize, c: usize, x: &[f64]) -> f64 {
+        match self.nodes[flat][c] {
+            NodeDof::Free { dof, sign } => sign * x[dof],
+            NodeDof::Prescribed { value } => value,
+            NodeDof::Inactive => 0.0,
+        }
+    }
+}
+
+impl<const D: usize> NodeConstraint<D> {
+    /// Whether a node at `x` lies in the constraint's box (tolerance 1e-9·h).
+    pub fn contains(&self, x: &[f64; D], h: f64) -> bool {
+        let tol = 1e-9 * h;
+        (0..D).all(|a| x[a] >= self.lo[a] - tol && x[a] <= self.hi[a] + tol)
+    }
+}

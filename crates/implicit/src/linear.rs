@@ -1,1 +1,0 @@
-//! Sparse linear solvers (placeholder).

@@ -1,0 +1,425 @@
+//! Sparse linear algebra of the Newton solver: a fixed per-step [`SparsePattern`], the
+//! [`SparseMatrix`] refilled on it at every iteration, and a [`LinearSolver`] that solves
+//! `A x = b` or `Aᵀ x = b` with faer's sparse LU or Cholesky (symbolic analysis reused while the
+//! pattern stays the same) or with faer's preconditioned CG / BiCGSTAB (identity, Jacobi or
+//! ILU(0) preconditioner).
+//!
+//! Everything runs sequentially ([`faer::Par::Seq`]): faer's parallel dense kernels split some
+//! reductions by thread count, which would make the results depend on the machine.
+
+mod direct;
+mod krylov;
+mod pattern;
+mod precond;
+#[cfg(test)]
+mod tests;
+
+use std::sync::Arc;
+
+use faer::Par;
+
+pub use pattern::{SparseMatrix, SparsePattern};
+pub use precond::Preconditioner;
+
+use krylov::KrylovParams;
+use precond::PrecondState;
+
+/// Largest relative asymmetry `max |a_ij − a_ji| / max |a_ij|` accepted by the solvers for
+/// symmetric matrices (Cholesky, CG); tangents that are symmetric in theory are so to round-off.
+pub const SYMMETRY_TOLERANCE: f64 = 1e-8;
+
+/// Largest relative residual `‖b − A x‖ / ‖b‖` of a direct solve; beyond it the matrix is reported
+/// [`LinearError::Singular`] (singular or so ill-conditioned that the solution is meaningless).
+/// A Newton correction solved to 1e-4 still gives a converging iteration (an inexact Newton
+/// step), so ill-conditioned but usable tangents are accepted.
+pub const DIRECT_RESIDUAL_LIMIT: f64 = 1e-4;
+
+/// Parallelism of every faer call (see the module documentation).
+const PAR: Par = Par::Seq;
+
+/// Which linear solver to use.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LinearSolverKind {
+    /// Sparse LU with partial pivoting (faer); any non-singular matrix.
+    Lu,
+    /// Sparse Cholesky `L Lᵀ` (faer); symmetric positive definite matrices only.
+    Cholesky,
+    /// Preconditioned conjugate gradient (faer); symmetric positive definite matrices only.
+    Cg {
+        /// Preconditioner (must be symmetric positive definite for CG).
+        preconditioner: Preconditioner,
+        /// Stop when `‖b − A x‖ < rel_tol ‖b‖`.
+        rel_tol: f64,
+        /// Iteration limit.
+        max_iter: usize,
+    },
+    /// Right-preconditioned BiCGSTAB (faer); any non-singular matrix.
+    Bicgstab {
+        /// Preconditioner.
+        preconditioner: Preconditioner,
+        /// Stop when `‖b − A x‖ < rel_tol ‖b‖`.
+        rel_tol: f64,
+        /// Iteration limit.
+        max_iter: usize,
+    },
+}
+
+impl LinearSolverKind {
+    /// Short name used in reports and errors, e.g. `"CG+ILU(0)"`.
+    pub fn name(self) -> &'static str {
+        use Preconditioner::{Identity, Ilu0, Jacobi};
+        match self {
+            Self::Lu => "LU",
+            Self::Cholesky => "Cholesky",
+            Self::Cg {
+                preconditioner: Identity,
+                ..
+            } => "CG",
+            Self::Cg {
+                preconditioner: Jacobi,
+                ..
+            } => "CG+Jacobi",
+            Self::Cg {
+                preconditioner: Ilu0,
+                ..
+            } => "CG+ILU(0)",
+            Self::Bicgstab {
+                preconditioner: Identity,
+                ..
+            } => "BiCGSTAB",
+            Self::Bicgstab {
+                preconditioner: Jacobi,
+                ..
+            } => "BiCGSTAB+Jacobi",
+            Self::Bicgstab {
+                preconditioner: Ilu0,
+                ..
+            } => "BiCGSTAB+ILU(0)",
+        }
+    }
+
+    /// Whether the method needs a symmetric matrix.
+    fn needs_symmetry(self) -> bool {
+        matches!(self, Self::Cholesky | Self::Cg { .. })
+    }
+}
+
+/// Outcome of a successful solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LinearStats {
+    /// [`LinearSolverKind::name`] of the method used.
+    pub method: &'static str,
+    /// Krylov iterations; 1 for a direct solve.
+    pub iterations: usize,
+    /// True relative residual `‖b − A x‖ / ‖b‖` of the returned solution (`‖b − A x‖` when
+    /// `b = 0`), recomputed after the solve.
+    pub relative_residual: f64,
+}
+
+/// Why a linear solve failed.
+#[derive(Debug, thiserror::Error)]
+pub enum LinearError {
+    /// The matrix or the right-hand side holds a NaN or an infinity.
+    #[error("the {what} holds a non-finite value (NaN or infinity) at index {index}")]
+    NonFinite {
+        /// `"matrix"` or `"right-hand side"`.
+        what: &'static str,
+        /// Index into the value array or the vector.
+        index: usize,
+    },
+    /// The matrix is structurally or numerically singular.
+    #[error("{method}: the matrix is singular ({detail})")]
+    Singular {
+        /// Solver name.
+        method: &'static str,
+        /// What revealed it.
+        detail: String,
+    },
+    /// A solver for symmetric positive definite matrices met a matrix that is not.
+    #[error("{method}: the matrix is not positive definite ({detail}); use LU or BiCGSTAB")]
+    NotPositiveDefinite {
+        /// Solver name.
+        method: &'static str,
+        /// What revealed it.
+        detail: String,
+    },
+    /// A solver for symmetric matrices met a matrix that is not.
+    #[error(
+        "{method}: the matrix is not symmetric (relative asymmetry {symmetry_error:.2e} > \
+         {tolerance:.0e}); use LU or BiCGSTAB"
+    )]
+    NotSymmetric {
+        /// Solver name.
+        method: &'static str,
+        /// [`SparseMatrix::symmetry_error`].
+        symmetry_error: f64,
+        /// [`SYMMETRY_TOLERANCE`].
+        tolerance: f64,
+    },
+    /// An iterative solver reached its iteration limit.
+    #[error(
+        "{method}: not converged after {iterations} iterations (relative residual \
+         {relative_residual:.3e}, target {target:.1e})"
+    )]
+    NotConverged {
+        /// Solver name.
+        method: &'static str,
+        /// Iterations done.
+        iterations: usize,
+        /// True relative residual of the last iterate.
+        relative_residual: f64,
+        /// Requested relative residual.
+        target: f64,
+    },
+    /// ILU(0) needs every diagonal entry in the pattern.
+    #[error(
+        "ILU(0) needs the diagonal in the sparsity pattern, but row {row} has no diagonal entry"
+    )]
+    MissingDiagonal {
+        /// First row without a diagonal entry.
+        row: usize,
+    },
+    /// A preconditioner divides by zero.
+    #[error("{preconditioner} preconditioner: zero pivot in row {row}")]
+    ZeroPivot {
+        /// `"Jacobi"` or `"ILU(0)"`.
+        preconditioner: &'static str,
+        /// Row of the zero diagonal entry or pivot.
+        row: usize,
+    },
+    /// faer failed for a reason unrelated to the matrix values (out of memory, index overflow).
+    #[error("{method}: {message}")]
+    Backend {
+        /// Solver name.
+        method: &'static str,
+        /// faer's error.
+        message: String,
+    },
+}
+
+/// Whether to solve with `A` or with `Aᵀ`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Orientation {
+    Plain,
+    Transposed,
+}
+
+/// Per-pattern state of the selected method.
+#[derive(Debug)]
+enum Backend {
+    Lu(direct::Lu),
+    Cholesky(direct::Cholesky),
+    Cg(PrecondState, KrylovParams),
+    Bicgstab(PrecondState, KrylovParams),
+}
+
+/// The per-pattern state and the pattern it belongs to.
+#[derive(Debug)]
+struct Analysis {
+    pattern: Arc<SparsePattern>,
+    backend: Backend,
+}
+
+/// Sparse linear solver of one kind, caching its symbolic work (faer's symbolic LU / Cholesky,
+/// the ILU(0) structure and the preconditioner storage) for the pattern it last saw; the cache is
+/// reused while the matrices come with the same `Arc<SparsePattern>` (pointer identity).
+#[derive(Debug)]
+pub struct LinearSolver {
+    kind: LinearSolverKind,
+    analysis: Option<Analysis>,
+    symbolic_analyses: usize,
+}
+
+impl LinearSolver {
+    /// A solver of the given kind, with nothing cached yet.
+    pub fn new(kind: LinearSolverKind) -> Self {
+        Self {
+            kind,
+            analysis: None,
+            symbolic_analyses: 0,
+        }
+    }
+
+    /// The kind of solver.
+    pub fn kind(&self) -> LinearSolverKind {
+        self.kind
+    }
+
+    /// Number of per-pattern analyses done so far (one per distinct pattern met in a row): the
+    /// symbolic factorisation for LU and Cholesky, the preconditioner storage (and the ILU(0)
+    /// diagonal positions) for the Krylov methods.
+    pub fn symbolic_analyses(&self) -> usize {
+        self.symbolic_analyses
+    }
+
+    /// Solves `A x = b`; `x` is overwritten (its content is not used as an initial guess).
+    ///
+    /// # Panics
+    /// If `b`, `x` or `a.values` do not match the size of the pattern.
+    pub fn solve(
+        &mut self,
+        a: &SparseMatrix,
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<LinearStats, LinearError> {
+        self.solve_oriented(a, b, x, Orientation::Plain)
+    }
+
+    /// Solves `Aᵀ x = b` (adjoint systems), with the same caching as [`Self::solve`].
+    ///
+    /// # Panics
+    /// If `b`, `x` or `a.values` do not match the size of the pattern.
+    pub fn solve_transpose(
+        &mut self,
+        a: &SparseMatrix,
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<LinearStats, LinearError> {
+        self.solve_oriented(a, b, x, Orientation::Transposed)
+    }
+
+    fn solve_oriented(
+        &mut self,
+        a: &SparseMatrix,
+        b: &[f64],
+        x: &mut [f64],
+        orientation: Orientation,
+    ) -> Result<LinearStats, LinearError> {
+        let n = a.pattern.n();
+        assert_eq!(
+            a.values.len(),
+            a.pattern.nnz(),
+            "matrix values vs pattern entries"
+        );
+        assert_eq!(b.len(), n, "right-hand side length");
+        assert_eq!(x.len(), n, "solution length");
+        check_finite("matrix", &a.values)?;
+        check_finite("right-hand side", b)?;
+        let kind = self.kind;
+        let method = kind.name();
+        if kind.needs_symmetry() {
+            let symmetry_error = a.symmetry_error();
+            if symmetry_error > SYMMETRY_TOLERANCE {
+                return Err(LinearError::NotSymmetric {
+                    method,
+                    symmetry_error,
+                    tolerance: SYMMETRY_TOLERANCE,
+                });
+            }
+        }
+
+        let iterations = match self.backend(&a.pattern)? {
+            Backend::Lu(lu) => {
+                lu.solve(a, b, x, orientation)?;
+                1
+            }
+            // Symmetric: the transposed system is the same.
+            Backend::Cholesky(llt) => {
+                llt.solve(a, b, x)?;
+                1
+            }
+            Backend::Cg(state, params) => {
+                state.factorize(a)?;
+                krylov::solve_cg(state, a, b, x, orientation, *params)?
+            }
+            Backend::Bicgstab(state, params) => {
+                state.factorize(a)?;
+                krylov::solve_bicgstab(state, a, b, x, orientation, *params)?
+            }
+        };
+
+        let relative_residual = relative_residual(a, b, x, orientation);
+        let direct = matches!(kind, LinearSolverKind::Lu | LinearSolverKind::Cholesky);
+        if direct && (relative_residual.is_nan() || relative_residual > DIRECT_RESIDUAL_LIMIT) {
+            return Err(LinearError::Singular {
+                method,
+                detail: format!(
+                    "the computed solution has relative residual {relative_residual:.2e} > \
+                     {DIRECT_RESIDUAL_LIMIT:.0e}"
+                ),
+            });
+        }
+        Ok(LinearStats {
+            method,
+            iterations,
+            relative_residual,
+        })
+    }
+
+    /// The per-pattern state for `pattern`, analysing it unless it is the cached one.
+    fn backend(&mut self, pattern: &Arc<SparsePattern>) -> Result<&mut Backend, LinearError> {
+        let analysis = match self.analysis.take() {
+            Some(cached) if Arc::ptr_eq(&cached.pattern, pattern) => cached,
+            stale => {
+                // Free the old factorisation before building the new one.
+                drop(stale);
+                let method = self.kind.name();
+                let backend = match self.kind {
+                    LinearSolverKind::Lu => Backend::Lu(direct::Lu::analyse(pattern)?),
+                    LinearSolverKind::Cholesky => {
+                        Backend::Cholesky(direct::Cholesky::analyse(pattern)?)
+                    }
+                    LinearSolverKind::Cg {
+                        preconditioner,
+                        rel_tol,
+                        max_iter,
+                    } => Backend::Cg(
+                        PrecondState::new(preconditioner, pattern)?,
+                        KrylovParams {
+                            method,
+                            rel_tol,
+                            max_iter,
+                        },
+                    ),
+                    LinearSolverKind::Bicgstab {
+                        preconditioner,
+                        rel_tol,
+                        max_iter,
+                    } => Backend::Bicgstab(
+                        PrecondState::new(preconditioner, pattern)?,
+                        KrylovParams {
+                            method,
+                            rel_tol,
+                            max_iter,
+                        },
+                    ),
+                };
+                self.symbolic_analyses += 1;
+                Analysis {
+                    pattern: Arc::clone(pattern),
+                    backend,
+                }
+            }
+        };
+        Ok(&mut self.analysis.insert(analysis).backend)
+    }
+}
+
+/// Fails on the first NaN or infinity of `values`.
+fn check_finite(what: &'static str, values: &[f64]) -> Result<(), LinearError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(LinearError::NonFinite { what, index }),
+        None => Ok(()),
+    }
+}
+
+/// `‖b − op(A) x‖ / ‖b‖`, or `‖b − op(A) x‖` when `b = 0`.
+fn relative_residual(a: &SparseMatrix, b: &[f64], x: &[f64], orientation: Orientation) -> f64 {
+    let mut ax = vec![0.0; b.len()];
+    match orientation {
+        Orientation::Plain => a.mul_vec(x, &mut ax),
+        Orientation::Transposed => a.mul_vec_transpose(x, &mut ax),
+    }
+    let residual = ax
+        .iter()
+        .zip(b)
+        .map(|(ax, b)| (b - ax).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let b_norm = b.iter().map(|b| b * b).sum::<f64>().sqrt();
+    if b_norm > 0.0 {
+        residual / b_norm
+    } else {
+        residual
+    }
+}

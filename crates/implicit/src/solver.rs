@@ -1,0 +1,330 @@
+//! Load stepping: freeze the particles, solve the step with Newton, commit, and cut the step
+//! in half when Newton fails.
+
+use crate::dofs::{DofMap, NodeConstraint};
+use crate::kernel::Frozen;
+use crate::linear::LinearSolver;
+use crate::newton::{NewtonReport, NewtonSettings, solve};
+use crate::system::{Materials, StepSystem};
+use loam_core::tensor::Vector;
+use loam_core::{Boundary, Grid, Material, Particles, Shape, Stencil};
+use thiserror::Error;
+
+/// A force on one particle (a point load), reaching `force` at the end of the loading.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointLoad<const D: usize> {
+    /// Particle id.
+    pub particle: usize,
+    /// Total force (N per metre of thickness in plane strain).
+    pub force: [f64; D],
+}
+
+/// Everything a quasi-static implicit run needs besides the particles.
+#[derive(Clone, Debug)]
+pub struct ImplicitConfig<const D: usize> {
+    /// Background grid (reset every load step).
+    pub grid: Grid<D>,
+    /// Shape functions.
+    pub shape: Shape,
+    /// Walls on the grid faces.
+    pub boundary: Boundary<D>,
+    /// Material table.
+    pub materials: Vec<Material<f64>>,
+    /// Gravity, ramped with the load factor.
+    pub gravity: Vector<f64, D>,
+    /// Prescribed displacements on grid nodes (ramped).
+    pub constraints: Vec<NodeConstraint<D>>,
+    /// Point loads on particles (ramped).
+    pub point_loads: Vec<PointLoad<D>>,
+    /// Number of equal load steps from load factor 0 to 1.
+    pub load_steps: usize,
+    /// Newton settings.
+    pub newton: NewtonSettings,
+    /// A node takes part in a load step when its particle support `Σ_p w_ip V_p` exceeds
+    /// this fraction of a cell volume (1e-4 by default; see `ImplicitConfig::DEFAULT_MIN_NODE_SUPPORT`).
+    pub min_node_support: f64,
+}
+
+impl<const D: usize> ImplicitConfig<D> {
+    /// Default of [`ImplicitConfig::min_node_support`]: a quadratic B-spline weight of 1e-4
+    /// is a particle 0.014 h inside the edge of the support.
+    pub const DEFAULT_MIN_NODE_SUPPORT: f64 = 1e-4;
+}
+
+/// Why a load step could not be completed.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ImplicitError {
+    /// Invalid configuration.
+    #[error("{field}: {msg}")]
+    Config {
+        /// Offending field.
+        field: String,
+        /// What was expected.
+        msg: String,
+    },
+    /// Newton failed even after cutting the step `cuts` times.
+    #[error(
+        "load step {step} (load factor {from:.6} → {to:.6}) failed after {cuts} cut(s): {reason}"
+    )]
+    NoConvergence {
+        /// Load step.
+        step: usize,
+        /// Load factor at the start of the failed attempt.
+        from: f64,
+        /// Target load factor of the failed attempt.
+        to: f64,
+        /// Cuts tried.
+        cuts: usize,
+        /// The last failure.
+        reason: String,
+    },
+    /// A particle's support left the grid.
+    #[error("load step {step}: particle {particle} left the grid at {position:?}")]
+    LeftGrid {
+        /// Load step.
+        step: usize,
+        /// Particle id.
+        particle: usize,
+        /// Its position.
+        position: Vec<f64>,
+    },
+}
+
+/// What one load step did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepReport {
+    /// Load step number (1-based).
+    pub step: usize,
+    /// Load factor reached.
+    pub load_factor: f64,
+    /// Unknowns of the (last) system.
+    pub unknowns: usize,
+    /// Newton solves of the step in order: one per sub-step, failed attempts included.
+    pub solves: Vec<NewtonReport>,
+    /// Times the step was cut.
+    pub cuts: usize,
+}
+
+impl StepReport {
+    /// Newton iterations of the converged solves.
+    pub fn iterations(&self) -> usize {
+        self.solves
+            .iter()
+            .filter(|s| s.converged)
+            .map(|s| s.iterations())
+            .sum()
+    }
+}
+
+/// The quasi-static implicit solver.
+pub struct ImplicitSolver<const D: usize> {
+    config: ImplicitConfig<D>,
+    materials: Materials,
+    linear: LinearSolver,
+    load_factor: f64,
+    steps: usize,
+}
+
+impl<const D: usize> ImplicitSolver<D> {
+    /// A solver for `config` and its particles.
+    pub fn new(
+        config: ImplicitConfig<D>,
+        particles: &Particles<f64, D>,
+    ) -> Result<Self, ImplicitError> {
+        let bad = |field: &str, msg: String| ImplicitError::Config {
+            field: field.into(),
+            msg,
+        };
+        if config.load_steps == 0 {
+            return Err(bad("load_steps", "must be at least 1".into()));
+        }
+        if config.grid.pad < config.shape.ghost_cells() {
+            return Err(bad(
+                "grid.pad",
+                format!(
+                    "{:?} needs {} ghost cells",
+                    config.shape,
+                    config.shape.ghost_cells()
+                ),
+            ));
+        }
+        if let Some(p) = particles
+            .material
+            .iter()
+            .position(|&m| m as usize >= config.materials.len())
+        {
+            return Err(bad(
+                "particles.material",
+                format!(
+                    "particle {p} refers to material {}, but there are {}",
+                    particles.material[p],
+                    config.materials.len()
+                ),
+            ));
+        }
+        if let Some(l) = config
+            .point_loads
+            .iter()
+            .find(|l| l.particle >= particles.len())
+        {
+            return Err(bad(
+                "point_loads.particle",
+                format!(
+                    "particle {} does not exist ({} particles)",
+                    l.particle,
+                    particles.len()
+                ),
+            ));
+        }
+        Ok(Self {
+            materials: Materials::new(config.materials.clone()),
+            linear: LinearSolver::new(config.newton.linear),
+            config,
+            load_factor: 0.0,
+            steps: 0,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ImplicitConfig<D> {
+        &self.config
+    }
+
+    /// Load factor reached (0 … 1).
+    pub fn load_factor(&self) -> f64 {
+        self.load_factor
+    }
+
+    /// Load steps completed.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// `true` when the loading is complete.
+    pub fn finished(&self) -> bool {
+        self.steps >= self.config.load_steps
+    }
+
+    /// Builds the system of a sub-step from load factor `from` to `to`.
+    fn system(
+        &self,
+        p: &Particles<f64, D>,
+        from: f64,
+        to: f64,
+    ) -> Result<StepSystem<D>, ImplicitError> {
+        let cfg = &self.config;
+        let grid = &cfg.grid;
+        let mut frozen = Vec::with_capacity(p.len());
+        let mut support = vec![0.0; grid.num_nodes()];
+        for i in 0..p.len() {
+            let st = Stencil::new(cfg.shape, grid, &p.x[i], &p.half_width0[i]);
+            if !st.on_grid(grid) {
+                return Err(ImplicitError::LeftGrid {
+                    step: self.steps + 1,
+                    particle: i,
+                    position: p.x[i].iter().copied().collect(),
+                });
+            }
+            st.for_each(|n| support[n.flat] += n.weight * p.volume0[i]);
+            frozen.push(Frozen {
+                stencil: st,
+                f_n: p.f[i],
+                state: p.state[i],
+                volume0: p.volume0[i],
+                material: p.material[i] as usize,
+            });
+        }
+        // Nodes whose particle support `Σ_p w_ip V_p` is a tiny fraction of a full cell carry
+        // a tiny stiffness and make the tangent near-singular (a particle at the very edge of
+        // a B-spline support); they are left out (Δu = 0 there).
+        let full = grid.h.powi(D as i32);
+        let active: Vec<bool> = support
+            .iter()
+            .map(|&s| s > cfg.min_node_support * full)
+            .collect();
+        let dl = to - from;
+        let prescribed = |node: [usize; D], c: usize| {
+            let x: Vector<f64, D> = grid.node_position(node);
+            let xa: [f64; D] = std::array::from_fn(|a| x[a]);
+            cfg.constraints
+                .iter()
+                .rev()
+                .find(|k| k.displacement[c].is_some() && k.contains(&xa, grid.h))
+                .and_then(|k| k.displacement[c].map(|u| u * dl))
+        };
+        let dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
+        let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
+        for l in &cfg.point_loads {
+            loads[l.particle] += Vector::<f64, D>::from(l.force) * to;
+        }
+        Ok(StepSystem::new(grid, frozen, dofs, |i| {
+            p.mass[i] * to * cfg.gravity + loads[i]
+        }))
+    }
+
+    /// Advances one load step (cutting it into halves as needed) and updates the particles.
+    pub fn step(&mut self, particles: &mut Particles<f64, D>) -> Result<StepReport, ImplicitError> {
+        let n = self.config.load_steps as f64;
+        let target = (self.steps + 1) as f64 / n;
+        let mut report = StepReport {
+            step: self.steps + 1,
+            load_factor: self.load_factor,
+            unknowns: 0,
+            solves: Vec::new(),
+            cuts: 0,
+        };
+        let mut from = self.load_factor;
+        let mut size = target - from;
+        while target - from > 1e-12 * size.max(1e-300) {
+            let to = (from + size).min(target);
+            let system = self.system(particles, from, to)?;
+            report.unknowns = system.len();
+            let (x, newton) = solve(
+                &system,
+                &self.materials,
+                &self.config.newton,
+                &mut self.linear,
+                self.config.grid.h,
+            );
+            let converged = newton.converged;
+            let failure = newton.failure.clone();
+            report.solves.push(newton);
+            let update = if converged {
+                system.particle_updates(&x, &self.materials).ok()
+            } else {
+                None
+            };
+            match update {
+                Some(update) => {
+                    for (i, u) in update.into_iter().enumerate() {
+                        particles.x[i] += u.displacement;
+                        particles.f[i] = u.f;
+                        particles.stress[i] = u.stress;
+                        particles.state[i] = u.state;
+                    }
+                    from = to;
+                    self.load_factor = to;
+                }
+                None => {
+                    if report.cuts >= self.config.newton.max_cuts {
+                        return Err(ImplicitError::NoConvergence {
+                            step: report.step,
+                            from,
+                            to,
+                            cuts: report.cuts,
+                            reason: failure.unwrap_or_else(|| {
+                                "inverted particle in the converged state".into()
+                            }),
+                        });
+                    }
+                    report.cuts += 1;
+                    size *= 0.5;
+                }
+            }
+        }
+        self.steps += 1;
+        self.load_factor = target;
+        report.load_factor = target;
+        Ok(report)
+    }
+}

@@ -1,0 +1,442 @@
+//! The nonlinear system of one load step: residual `R(Δu) = f_int(Δu) − f_ext` over the free
+//! unknowns, its sparse tangent `K = ∂R/∂Δu`, and the particle update once it converged.
+
+use crate::dofs::{DofMap, NodeDof};
+use crate::kernel::{Frozen, delta_f, particle_stress};
+use crate::linear::{SparseMatrix, SparsePattern};
+use loam_core::tensor::{Tensor, Vector, det};
+use loam_core::{Grid, Material, Stencil};
+use nalgebra::Matrix3;
+use num_dual::{Dual64, DualSVec64};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// Particles per parallel chunk: local results of a chunk are computed in parallel and then
+/// scattered serially in particle order, so the assembly is deterministic.
+const CHUNK: usize = 1024;
+
+/// A trial state that inverts a particle (`det ΔF ≤ 0`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Inverted {
+    /// The particle.
+    pub particle: usize,
+}
+
+/// Material tables lifted to the scalar types the tangents use.
+pub struct Materials {
+    /// Real parameters (residual).
+    pub real: Vec<Material<f64>>,
+    /// For the per-particle tangent (one `ΔF` entry seeded at a time).
+    pub dual: Vec<Material<Dual64>>,
+    /// For the colour-seeded tangent with 2 or 3 lanes.
+    pub dual2: Vec<Material<DualSVec64<2>>>,
+    /// 3-lane version.
+    pub dual3: Vec<Material<DualSVec64<3>>>,
+}
+
+impl Materials {
+    /// Lifts a real material table.
+    pub fn new(real: Vec<Material<f64>>) -> Self {
+        Self {
+            dual: real.iter().map(|m| m.lift()).collect(),
+            dual2: real.iter().map(|m| m.lift()).collect(),
+            dual3: real.iter().map(|m| m.lift()).collect(),
+            real,
+        }
+    }
+}
+
+/// One load step's system.
+pub struct StepSystem<const D: usize> {
+    /// Frozen particle data.
+    pub frozen: Vec<Frozen<D>>,
+    /// Unknown numbering.
+    pub dofs: DofMap<D>,
+    /// Tangent sparsity (fixed for the step).
+    pub pattern: Arc<SparsePattern>,
+    /// External force on the unknowns at the end of the step.
+    pub f_ext: Vec<f64>,
+    /// Per unknown (column), the value positions of its rows by neighbour offset.
+    slots: Vec<u32>,
+    /// Edge of the neighbour box, `2b − 1`.
+    reach: usize,
+    b: usize,
+    grid: Grid<D>,
+}
+
+const NO_SLOT: u32 = u32::MAX;
+
+impl<const D: usize> StepSystem<D> {
+    /// Builds the system: `frozen` particles, the unknown map and the external force
+    /// `f_ext = Σ_p (m_p g + f_p) N_i(x_pⁿ)` (gravity and particle point loads at the end of
+    /// the step, scattered through the map).
+    pub fn new(
+        grid: &Grid<D>,
+        frozen: Vec<Frozen<D>>,
+        dofs: DofMap<D>,
+        particle_force: impl Fn(usize) -> Vector<f64, D>,
+    ) -> Self {
+        let b = frozen.first().map_or(2, |f| f.stencil.b);
+        let reach = 2 * b - 1;
+        let n = dofs.len();
+        // Pattern: owner nodes within b − 1 of each other along every axis couple.
+        let nodes = grid.nodes();
+        let offsets = reach.pow(D as u32);
+        let neighbour = |flat: usize, k: usize| -> Option<usize> {
+            let idx = grid.multi(flat);
+            let mut r = k;
+            let mut out = [0usize; D];
+            for a in 0..D {
+                let o = (r % reach) as isize - (b as isize - 1);
+                r /= reach;
+                let j = idx[a] as isize + o;
+                if j < 0 || j as usize >= nodes[a] {
+                    return None;
+                }
+                out[a] = j as usize;
+            }
+            Some(grid.flat(out))
+        };
+        let owner_dof = |flat: usize, c: usize| match dofs.get(flat, c) {
+            NodeDof::Free { dof, .. } if dofs.owner_of(dof).0 == flat => Some(dof),
+            _ => None,
+        };
+        let mut entries = Vec::with_capacity(n * offsets * D);
+        for col in 0..n {
+            let (node, _) = dofs.owner_of(col);
+            for k in 0..offsets {
+                if let Some(m) = neighbour(node, k) {
+                    for c in 0..D {
+                        if let Some(row) = owner_dof(m, c) {
+                            entries.push((row, col));
+                        }
+                    }
+                }
+            }
+        }
+        let pattern = Arc::new(SparsePattern::new(n, entries));
+        let mut slots = vec![NO_SLOT; n * offsets * D];
+        for col in 0..n {
+            let (node, _) = dofs.owner_of(col);
+            for k in 0..offsets {
+                if let Some(m) = neighbour(node, k) {
+                    for c in 0..D {
+                        if let Some(row) = owner_dof(m, c) {
+                            let pos = pattern.position(row, col).expect("entry was inserted");
+                            slots[(col * offsets + k) * D + c] = pos as u32;
+                        }
+                    }
+                }
+            }
+        }
+        let mut f_ext = vec![0.0; n];
+        for (p, fr) in frozen.iter().enumerate() {
+            let fp = particle_force(p);
+            fr.stencil.for_each(|node| {
+                for a in 0..D {
+                    if let NodeDof::Free { dof, sign } = dofs.get(node.flat, a) {
+                        f_ext[dof] += sign * node.weight * fp[a];
+                    }
+                }
+            });
+        }
+        Self {
+            frozen,
+            dofs,
+            pattern,
+            f_ext,
+            slots,
+            reach,
+            b,
+            grid: grid.clone(),
+        }
+    }
+
+    /// Number of unknowns.
+    pub fn len(&self) -> usize {
+        self.dofs.len()
+    }
+
+    /// `true` when there are no unknowns.
+    pub fn is_empty(&self) -> bool {
+        self.dofs.is_empty()
+    }
+
+    /// Position in the value array of entry (row unknown, column unknown); both are owners.
+    #[inline]
+    fn slot(&self, row: usize, col: usize) -> usize {
+        let (rn, rc) = self.dofs.owner_of(row);
+        let (cn, _) = self.dofs.owner_of(col);
+        let (ri, ci) = (self.grid.multi(rn), self.grid.multi(cn));
+        let mut k = 0;
+        for a in (0..D).rev() {
+            let o = ri[a] as isize - ci[a] as isize + (self.b as isize - 1);
+            k = k * self.reach + o as usize;
+        }
+        let offsets = self.reach.pow(D as u32);
+        let s = self.slots[(col * offsets + k) * D + rc];
+        debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
+        s as usize
+    }
+
+    /// `ΔF` of particle `p` for the unknowns `x`.
+    #[inline]
+    fn delta_f_real(&self, p: usize, x: &[f64]) -> Tensor<f64, D> {
+        delta_f(&self.frozen[p].stencil, |flat, c| {
+            self.dofs.value(flat, c, x)
+        })
+    }
+
+    /// Internal force on the unknowns `f_int(x)`; `Err` names a particle the trial state
+    /// inverts.
+    pub fn internal_force(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
+        let mut f = vec![0.0; self.len()];
+        let mut local: Vec<Option<Tensor<f64, D>>> = Vec::new();
+        for start in (0..self.frozen.len()).step_by(CHUNK) {
+            let end = (start + CHUNK).min(self.frozen.len());
+            (start..end)
+                .into_par_iter()
+                .map(|p| {
+                    let fr = &self.frozen[p];
+                    particle_stress(&materials.real[fr.material], fr, &self.delta_f_real(p, x))
+                        .map(|s| s.0)
+                })
+                .collect_into_vec(&mut local);
+            for (k, s) in local.iter().enumerate() {
+                let p = start + k;
+                let s = s.ok_or(Inverted { particle: p })?;
+                self.frozen[p].stencil.for_each(|node| {
+                    let fi = s * node.gradient;
+                    for a in 0..D {
+                        if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, a) {
+                            f[dof] += sign * fi[a];
+                        }
+                    }
+                });
+            }
+        }
+        Ok(f)
+    }
+
+    /// Residual `R(x) = f_int(x) − f_ext`.
+    pub fn residual(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
+        let mut r = self.internal_force(x, materials)?;
+        r.iter_mut().zip(&self.f_ext).for_each(|(r, f)| *r -= f);
+        Ok(r)
+    }
+
+    /// Tangent by per-particle forward-mode AD: `A = ∂(V⁰ τ ΔF⁻ᵀ)/∂ΔF` from `D²` passes with
+    /// one `ΔF` entry seeded as a `Dual64`, then `K_{ia,jc} = Σ_{bd} ∂N_i/∂x_b A_{ab,cd} ∂N_j/∂x_d`
+    /// scattered through the unknown map. Exact (no finite differences); the fast path.
+    pub fn tangent_local(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<SparseMatrix, Inverted> {
+        let mut k = SparseMatrix::zeros(self.pattern.clone());
+        let mut local: Vec<Option<[[Tensor<f64, D>; D]; D]>> = Vec::new();
+        for start in (0..self.frozen.len()).step_by(CHUNK) {
+            let end = (start + CHUNK).min(self.frozen.len());
+            (start..end)
+                .into_par_iter()
+                .map(|p| self.material_tangent(p, x, materials))
+                .collect_into_vec(&mut local);
+            for (i, a) in local.iter().enumerate() {
+                let p = start + i;
+                let a = a.ok_or(Inverted { particle: p })?;
+                self.scatter_local(&self.frozen[p].stencil, &a, &mut k);
+            }
+        }
+        Ok(k)
+    }
+
+    /// `A[c][d] = ∂(V⁰ τ ΔF⁻ᵀ)/∂ΔF_cd` for particle `p`.
+    fn material_tangent(
+        &self,
+        p: usize,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Option<[[Tensor<f64, D>; D]; D]> {
+        let fr = &self.frozen[p];
+        let g = self.delta_f_real(p, x);
+        let mat = &materials.dual[fr.material];
+        let mut out = [[Tensor::<f64, D>::zeros(); D]; D];
+        for c in 0..D {
+            for d in 0..D {
+                let gd = Tensor::<Dual64, D>::from_fn(|i, j| {
+                    Dual64::new(g[(i, j)], if (i, j) == (c, d) { 1.0 } else { 0.0 })
+                });
+                let (s, _, _) = particle_stress(mat, fr, &gd)?;
+                out[c][d] = s.map(|v| v.eps);
+            }
+        }
+        Some(out)
+    }
+
+    /// Adds one particle's `K_{ia,jc} = Σ_{bd} ∂_b N_i A[c][d]_{ab} ∂_d N_j` to the matrix.
+    fn scatter_local(
+        &self,
+        st: &Stencil<f64, D>,
+        a: &[[Tensor<f64, D>; D]; D],
+        k: &mut SparseMatrix,
+    ) {
+        let mut nodes = Vec::with_capacity(st.len());
+        st.for_each(|n| nodes.push((n.flat, n.gradient)));
+        for &(fj, gj) in &nodes {
+            // G[c] = Σ_d A[c][d] ∂_d N_j  (a D×D tensor per column component c)
+            let gcol: [Tensor<f64, D>; D] = std::array::from_fn(|c| {
+                let mut s = Tensor::<f64, D>::zeros();
+                for d in 0..D {
+                    s += a[c][d] * gj[d];
+                }
+                s
+            });
+            for c in 0..D {
+                let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, c) else {
+                    continue;
+                };
+                for &(fi, gi) in &nodes {
+                    let v = gcol[c] * gi;
+                    for r in 0..D {
+                        if let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, r) {
+                            k.values[self.slot(row, col)] += sr * sc * v[r];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Reference tangent by block-colour seeding (see `tangent` module docs): for each of the
+    /// `b^D` node colours, seed the `D` components of every unknown owned by a node of that
+    /// colour with a `D`-lane dual, evaluate every particle once, and scatter the dual parts
+    /// of its nodal forces into the columns of the one seeded node in its stencil.
+    pub fn tangent_colour(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<SparseMatrix, Inverted> {
+        match D {
+            2 => self.tangent_colour_lanes::<2>(x, &materials.dual2),
+            3 => self.tangent_colour_lanes::<3>(x, &materials.dual3),
+            _ => unreachable!("D is 2 or 3"),
+        }
+    }
+
+    fn tangent_colour_lanes<const L: usize>(
+        &self,
+        x: &[f64],
+        mats: &[Material<DualSVec64<L>>],
+    ) -> Result<SparseMatrix, Inverted> {
+        let mut k = SparseMatrix::zeros(self.pattern.clone());
+        let colours = self.b.pow(D as u32);
+        type Local<const D: usize, const L: usize> =
+            Option<(Option<usize>, Tensor<DualSVec64<L>, D>)>;
+        let mut local: Vec<Local<D, L>> = Vec::new();
+        for colour in 0..colours {
+            for start in (0..self.frozen.len()).step_by(CHUNK) {
+                let end = (start + CHUNK).min(self.frozen.len());
+                (start..end)
+                    .into_par_iter()
+                    .map(|p| {
+                        let fr = &self.frozen[p];
+                        // The seeded owner node of this colour in the stencil, if any.
+                        let mut seeded = None;
+                        let g = delta_f::<DualSVec64<L>, D>(&fr.stencil, |flat, c| {
+                            let v = self.dofs.value(flat, c, x);
+                            match self.dofs.get(flat, c) {
+                                NodeDof::Free { dof, sign } if self.colour(dof) == colour => {
+                                    seeded = Some(self.dofs.owner_of(dof).0);
+                                    let mut e = nalgebra::SVector::<f64, L>::zeros();
+                                    e[c] = sign;
+                                    DualSVec64::<L>::new(v, num_dual::Derivative::some(e))
+                                }
+                                _ => DualSVec64::<L>::from_re(v),
+                            }
+                        });
+                        particle_stress(&mats[fr.material], fr, &g).map(|s| (seeded, s.0))
+                    })
+                    .collect_into_vec(&mut local);
+                for (i, s) in local.iter().enumerate() {
+                    let p = start + i;
+                    let (seeded, s) = s.as_ref().ok_or(Inverted { particle: p })?;
+                    let Some(owner) = *seeded else { continue };
+                    self.frozen[p].stencil.for_each(|node| {
+                        let fi = s * node.gradient.map(DualSVec64::<L>::from_re);
+                        for r in 0..D {
+                            let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(node.flat, r)
+                            else {
+                                continue;
+                            };
+                            let Some(eps) = fi[r].eps.0.as_ref() else {
+                                continue;
+                            };
+                            for c in 0..D {
+                                if let NodeDof::Free { dof: col, .. } = self.dofs.get(owner, c) {
+                                    k.values[self.slot(row, col)] += sr * eps[c];
+                                }
+                            }
+                        }
+                    });
+                }
+            }
+        }
+        Ok(k)
+    }
+
+    /// Colour `(i mod b, j mod b, k mod b)` of the owner node of unknown `dof`.
+    #[inline]
+    fn colour(&self, dof: usize) -> usize {
+        let idx = self.grid.multi(self.dofs.owner_of(dof).0);
+        let mut c = 0;
+        for a in (0..D).rev() {
+            c = c * self.b + idx[a] % self.b;
+        }
+        c
+    }
+
+    /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J` and the
+    /// displacement `Σ_i N_i Δu_i` of each particle.
+    pub fn particle_updates(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<Vec<ParticleUpdate<D>>, Inverted> {
+        (0..self.frozen.len())
+            .into_par_iter()
+            .map(|p| {
+                let fr = &self.frozen[p];
+                let g = self.delta_f_real(p, x);
+                let (_, tau, state) = particle_stress(&materials.real[fr.material], fr, &g)
+                    .ok_or(Inverted { particle: p })?;
+                let f = g * fr.f_n;
+                let j = det(&f);
+                let mut u = Vector::<f64, D>::zeros();
+                fr.stencil.for_each(|n| {
+                    for a in 0..D {
+                        u[a] += n.weight * self.dofs.value(n.flat, a, x);
+                    }
+                });
+                Ok(ParticleUpdate {
+                    displacement: u,
+                    f,
+                    stress: tau / j,
+                    state,
+                })
+            })
+            .collect()
+    }
+}
+
+/// What a converged load step changes on a particle.
+#[derive(Clone, Debug)]
+pub struct ParticleUpdate<const D: usize> {
+    /// Displacement over the step.
+    pub displacement: Vector<f64, D>,
+    /// New deformation gradient.
+    pub f: Tensor<f64, D>,
+    /// New Cauchy stress (3×3).
+    pub stress: Matrix3<f64>,
+    /// New history.
+    pub state: loam_core::MaterialState<f64>,
+}
