@@ -190,6 +190,36 @@ impl<const D: usize> Boundary<D> {
     }
 }
 
+/// A displacement constraint on the grid nodes inside a box (for loading plates, supports,
+/// pinned points). Components with `Some(u)` are prescribed to reach the total displacement
+/// `u` at the end of the loading, linearly over the load steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeConstraint<const D: usize> {
+    /// Lower corner of the box of nodes (inclusive, with a tolerance of 1e-9 h).
+    pub lo: [f64; D],
+    /// Upper corner.
+    pub hi: [f64; D],
+    /// Total prescribed displacement per component; `None` leaves the component free.
+    pub displacement: [Option<f64>; D],
+}
+
+impl<const D: usize> NodeConstraint<D> {
+    /// Whether a node at `x` lies in the constraint's box (tolerance 1e-9·h).
+    pub fn contains(&self, x: &[f64; D], h: f64) -> bool {
+        let tol = 1e-9 * h;
+        (0..D).all(|a| x[a] >= self.lo[a] - tol && x[a] <= self.hi[a] + tol)
+    }
+}
+
+/// A force on one particle (a point load), reaching `force` at the end of the loading.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointLoad<const D: usize> {
+    /// Particle id.
+    pub particle: usize,
+    /// Total force (N per metre of thickness in plane strain).
+    pub force: [f64; D],
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,7 +17,7 @@ pub mod stepping;
 pub mod tensor;
 pub mod transfer;
 
-pub use boundary::{Boundary, Wall, WallKind};
+pub use boundary::{Boundary, NodeConstraint, PointLoad, Wall, WallKind};
 pub use constitutive::{Material, MaterialState, ModelKind};
 pub use grid::Grid;
 pub use particles::Particles;

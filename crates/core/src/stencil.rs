@@ -3,7 +3,7 @@
 use crate::grid::Grid;
 use crate::scalar::Scalar;
 use crate::shape::{MAX_SUPPORT, Shape, ShapeFunction, Weights1D};
-use crate::tensor::Vector;
+use crate::tensor::{Tensor, Vector};
 
 /// One node of a particle's stencil, as handed to [`Stencil::for_each`].
 #[derive(Clone, Copy, Debug)]
@@ -123,6 +123,30 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
                 local[a] = 0;
             }
         }
+    }
+}
+
+/// Particle half-length per axis for the GIMP family: uGIMP keeps the reference size, cpGIMP
+/// stretches it by the diagonal of `F`, clamped to `(0, h/2]` so the support stays `b = 3`.
+#[inline]
+pub fn particle_half_width<T: Scalar, const D: usize>(
+    shape: Shape,
+    h: f64,
+    hw0: &Vector<T, D>,
+    f: &Tensor<T, D>,
+) -> Vector<T, D> {
+    match shape {
+        Shape::Cpgimp => Vector::<T, D>::from_fn(|a, _| {
+            let l = hw0[a] * f[(a, a)];
+            if l.re() > 0.5 * h {
+                T::cst(0.5 * h)
+            } else if l.re() < 1e-6 * h {
+                T::cst(1e-6 * h)
+            } else {
+                l
+            }
+        }),
+        _ => *hw0,
     }
 }
 

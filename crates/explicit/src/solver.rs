@@ -5,9 +5,10 @@ use crate::config::Config;
 use crate::energy::{Energy, energy};
 use crate::error::{ConfigError, StepError};
 use loam_core::constitutive::Kinematics;
+use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector, det, from3, to3};
 use loam_core::transfer::{g2p, p2g, p2g_momentum};
-use loam_core::{Particles, Scalar, Scheme, Shape, ShapeFunction, Stencil, TimeStep};
+use loam_core::{Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep};
 use rayon::prelude::*;
 
 /// What one completed step did.
@@ -42,30 +43,6 @@ pub struct Solver<T: Scalar, const D: usize> {
 /// as empty, so `p/m` never divides by round-off.
 const MASS_EPS: f64 = 1e-14;
 
-/// Particle half-length per axis for the GIMP family: uGIMP keeps the reference size, cpGIMP
-/// stretches it by the diagonal of `F`, clamped to `(0, h/2]` so the support stays `b = 3`.
-#[inline]
-fn half_width<T: Scalar, const D: usize>(
-    shape: Shape,
-    h: f64,
-    hw0: &Vector<T, D>,
-    f: &Tensor<T, D>,
-) -> Vector<T, D> {
-    match shape {
-        Shape::Cpgimp => Vector::<T, D>::from_fn(|a, _| {
-            let l = hw0[a] * f[(a, a)];
-            if l.re() > 0.5 * h {
-                T::cst(0.5 * h)
-            } else if l.re() < 1e-6 * h {
-                T::cst(1e-6 * h)
-            } else {
-                l
-            }
-        }),
-        _ => *hw0,
-    }
-}
-
 /// The stencil of a particle at `x` with reference half-width `hw0` and deformation `f`.
 #[inline]
 fn stencil<T: Scalar, const D: usize>(
@@ -74,7 +51,7 @@ fn stencil<T: Scalar, const D: usize>(
     hw0: &Vector<T, D>,
     f: &Tensor<T, D>,
 ) -> Stencil<T, D> {
-    let hw = half_width(cfg.shape, cfg.grid.h, hw0, f);
+    let hw = particle_half_width(cfg.shape, cfg.grid.h, hw0, f);
     Stencil::new(cfg.shape, &cfg.grid, x, &hw)
 }
 

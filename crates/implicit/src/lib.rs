@@ -18,6 +18,7 @@ pub mod newton;
 pub mod solver;
 pub mod system;
 
-pub use dofs::{NodeConstraint, NodeDof};
+pub use dofs::NodeDof;
+pub use loam_core::{NodeConstraint, PointLoad};
 pub use newton::{NewtonReport, NewtonSettings, TangentMethod};
-pub use solver::{ImplicitConfig, ImplicitError, ImplicitSolver, PointLoad, StepReport};
+pub use solver::{ImplicitConfig, ImplicitError, ImplicitSolver, StepReport};

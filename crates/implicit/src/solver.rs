@@ -1,23 +1,15 @@
 //! Load stepping: freeze the particles, solve the step with Newton, commit, and cut the step
 //! in half when Newton fails.
 
-use crate::dofs::{DofMap, NodeConstraint};
+use crate::dofs::DofMap;
 use crate::kernel::Frozen;
 use crate::linear::LinearSolver;
 use crate::newton::{NewtonReport, NewtonSettings, solve};
 use crate::system::{Materials, StepSystem};
+use loam_core::stencil::particle_half_width;
 use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, Particles, Shape, Stencil};
+use loam_core::{Boundary, Grid, Material, NodeConstraint, Particles, PointLoad, Shape, Stencil};
 use thiserror::Error;
-
-/// A force on one particle (a point load), reaching `force` at the end of the loading.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PointLoad<const D: usize> {
-    /// Particle id.
-    pub particle: usize,
-    /// Total force (N per metre of thickness in plane strain).
-    pub force: [f64; D],
-}
 
 /// Everything a quasi-static implicit run needs besides the particles.
 #[derive(Clone, Debug)]
@@ -217,7 +209,8 @@ impl<const D: usize> ImplicitSolver<D> {
         let mut frozen = Vec::with_capacity(p.len());
         let mut support = vec![0.0; grid.num_nodes()];
         for i in 0..p.len() {
-            let st = Stencil::new(cfg.shape, grid, &p.x[i], &p.half_width0[i]);
+            let hw = particle_half_width(cfg.shape, grid.h, &p.half_width0[i], &p.f[i]);
+            let st = Stencil::new(cfg.shape, grid, &p.x[i], &hw);
             if !st.on_grid(grid) {
                 return Err(ImplicitError::LeftGrid {
                     step: self.steps + 1,
