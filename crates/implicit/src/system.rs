@@ -32,6 +32,10 @@ pub struct Materials {
     pub dual2: Vec<Material<DualSVec64<2>>>,
     /// 3-lane version.
     pub dual3: Vec<Material<DualSVec64<3>>>,
+    /// For the per-particle tangent in 2D: all 4 entries of `ΔF` seeded in one pass.
+    pub dual4: Vec<Material<DualSVec64<4>>>,
+    /// For the per-particle tangent in 3D: all 9 entries of `ΔF` seeded in one pass.
+    pub dual9: Vec<Material<DualSVec64<9>>>,
 }
 
 impl Materials {
@@ -41,6 +45,8 @@ impl Materials {
             dual: real.iter().map(|m| m.lift()).collect(),
             dual2: real.iter().map(|m| m.lift()).collect(),
             dual3: real.iter().map(|m| m.lift()).collect(),
+            dual4: real.iter().map(|m| m.lift()).collect(),
+            dual9: real.iter().map(|m| m.lift()).collect(),
             real,
         }
     }
@@ -58,8 +64,12 @@ pub struct StepSystem<const D: usize> {
     pub f_ext: Vec<f64>,
     /// Per unknown (column), the value positions of its rows by neighbour offset.
     slots: Vec<u32>,
+    /// Grid multi-index and component of the owner node of each unknown.
+    owner_index: Vec<([usize; D], usize)>,
     /// Edge of the neighbour box, `2b − 1`.
     reach: usize,
+    /// Neighbour offsets per node, `reach^D`.
+    offsets: usize,
     b: usize,
     grid: Grid<D>,
 }
@@ -140,13 +150,21 @@ impl<const D: usize> StepSystem<D> {
                 }
             });
         }
+        let owner_index = (0..n)
+            .map(|d| {
+                let (node, c) = dofs.owner_of(d);
+                (grid.multi(node), c)
+            })
+            .collect();
         Self {
             frozen,
             dofs,
             pattern,
             f_ext,
             slots,
+            owner_index,
             reach,
+            offsets,
             b,
             grid: grid.clone(),
         }
@@ -165,16 +183,14 @@ impl<const D: usize> StepSystem<D> {
     /// Position in the value array of entry (row unknown, column unknown); both are owners.
     #[inline]
     fn slot(&self, row: usize, col: usize) -> usize {
-        let (rn, rc) = self.dofs.owner_of(row);
-        let (cn, _) = self.dofs.owner_of(col);
-        let (ri, ci) = (self.grid.multi(rn), self.grid.multi(cn));
+        let (ri, rc) = self.owner_index[row];
+        let (ci, _) = self.owner_index[col];
         let mut k = 0;
         for a in (0..D).rev() {
-            let o = ri[a] as isize - ci[a] as isize + (self.b as isize - 1);
-            k = k * self.reach + o as usize;
+            let o = ri[a] + self.b - 1 - ci[a];
+            k = k * self.reach + o;
         }
-        let offsets = self.reach.pow(D as u32);
-        let s = self.slots[(col * offsets + k) * D + rc];
+        let s = self.slots[(col * self.offsets + k) * D + rc];
         debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
         s as usize
     }
@@ -259,6 +275,9 @@ impl<const D: usize> StepSystem<D> {
     ) -> Option<[[Tensor<f64, D>; D]; D]> {
         let fr = &self.frozen[p];
         let g = self.delta_f_real(p, x);
+        if D == 2 {
+            return self.material_tangent_lanes::<4>(fr, &g, &materials.dual4[fr.material]);
+        }
         let mat = &materials.dual[fr.material];
         let mut out = [[Tensor::<f64, D>::zeros(); D]; D];
         for c in 0..D {
@@ -271,6 +290,24 @@ impl<const D: usize> StepSystem<D> {
             }
         }
         Some(out)
+    }
+
+    /// `A` with all `L = D²` entries of `ΔF` seeded in one pass (lane `c·D + d`).
+    fn material_tangent_lanes<const L: usize>(
+        &self,
+        fr: &Frozen<D>,
+        g: &Tensor<f64, D>,
+        mat: &Material<DualSVec64<L>>,
+    ) -> Option<[[Tensor<f64, D>; D]; D]> {
+        let gd = Tensor::<DualSVec64<L>, D>::from_fn(|i, j| {
+            let mut e = nalgebra::SVector::<f64, L>::zeros();
+            e[i * D + j] = 1.0;
+            DualSVec64::<L>::new(g[(i, j)], num_dual::Derivative::some(e))
+        });
+        let (s, _, _) = particle_stress(mat, fr, &gd)?;
+        Some(std::array::from_fn(|c| {
+            std::array::from_fn(|d| s.map(|v| v.eps.0.as_ref().map_or(0.0, |e| e[c * D + d])))
+        }))
     }
 
     /// Adds one particle's `K_{ia,jc} = Σ_{bd} ∂_b N_i A[c][d]_{ab} ∂_d N_j` to the matrix.
