@@ -7,6 +7,7 @@
 
 pub mod axial_bar;
 pub mod cantilever;
+pub mod column;
 pub mod disk_collision;
 pub mod elastica;
 pub mod newton_quadratic;
@@ -162,6 +163,11 @@ pub fn cases() -> Vec<Case> {
             name: "cantilever",
             description: "large-deflection plane-strain cantilever (Hencky, 50 load steps) vs the elastica",
             run: cantilever::run,
+        },
+        Case {
+            name: "column-compaction",
+            description: "soil column compacting under self-weight (Hencky, 40 load steps) vs the exact stress",
+            run: column::run,
         },
         Case {
             name: "disk-collision",

@@ -48,3 +48,8 @@ fn newton_quadratic() {
 fn cantilever() {
     check("cantilever");
 }
+
+#[test]
+fn column_compaction() {
+    check("column-compaction");
+}

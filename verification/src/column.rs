@@ -1,0 +1,209 @@
+//! A soil column compacting under its own weight (quasi-static, large deformation).
+//!
+//! A column of height H = 50 m rests on a fixed base between frictionless (slip) walls, so it
+//! deforms in uniaxial strain. Gravity g = 10 m/s² is ramped over 40 load steps; E = 10 kPa,
+//! ν = 0, ρ₀ = 80 kg/m³, Hencky elasticity. The bottom is compressed to about 30 % of its height.
+//! Whatever the material, equilibrium and mass conservation give the exact vertical Cauchy
+//! stress at a particle that started at height Y₀: `σ_yy = −ρ₀ g (H − Y₀)`. The error norm is
+//! `Σ_p |σ_yy − σ_exact| V⁰_p / Σ_p ρ₀ g H V⁰_p`.
+
+use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use loam_core::tensor::Vector;
+use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
+use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
+use std::path::Path;
+
+/// Column height (m).
+pub const HEIGHT: f64 = 50.0;
+/// Young's modulus (Pa).
+pub const YOUNG: f64 = 10.0e3;
+/// Reference density (kg/m³).
+pub const DENSITY: f64 = 80.0;
+/// Gravity (m/s²).
+pub const GRAVITY: f64 = 10.0;
+
+/// Discretisation of the column.
+#[derive(Clone, Copy, Debug)]
+pub struct Setup {
+    /// Cells over the height.
+    pub cells: usize,
+    /// Particles per cell per axis.
+    pub ppc: usize,
+    /// Load steps.
+    pub steps: usize,
+    /// Shape functions.
+    pub shape: Shape,
+}
+
+impl Setup {
+    /// cpGIMP, 2×2 particles per cell, 40 load steps.
+    ///
+    /// cpGIMP because the bottom particles are compressed to ~30 % of their height: their
+    /// domains shrink with F, so the quadrature follows the material. With point-integrated
+    /// quadratic B-splines the stress picks up ±1 % particle-to-particle noise from the cell
+    /// crossings over the 40 steps (error 5.2e-3 at 32 cells, not converging), cpGIMP reaches
+    /// 1.0e-3 (see docs/verification.md).
+    pub fn new(cells: usize) -> Self {
+        Self {
+            cells,
+            ppc: 2,
+            steps: 40,
+            shape: Shape::Cpgimp,
+        }
+    }
+
+    /// Configuration and particles: one cell wide, the grid one cell taller than the column.
+    pub fn build(&self, material: Material<f64>) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+        let h = HEIGHT / self.cells as f64;
+        let grid = Grid::new([0.0, 0.0], [1, self.cells + 1], h, self.shape.ghost_cells());
+        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+        boundary.walls[1][0] = Wall::new(WallKind::Fixed);
+        boundary.walls[1][1] = Wall::new(WallKind::Free);
+        let config = ImplicitConfig {
+            grid,
+            shape: self.shape,
+            boundary,
+            materials: vec![material],
+            gravity: Vector::<f64, 2>::new(0.0, -GRAVITY),
+            constraints: Vec::new(),
+            point_loads: Vec::new(),
+            load_steps: self.steps,
+            newton: NewtonSettings::default(),
+            min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
+        };
+        let mut particles = Particles::default();
+        let dp = h / self.ppc as f64;
+        let hw = Vector::<f64, 2>::repeat(dp / 2.0);
+        for j in 0..self.cells * self.ppc {
+            for i in 0..self.ppc {
+                let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
+                particles.push(x, Vector::zeros(), DENSITY, hw, 0);
+            }
+        }
+        (config, particles)
+    }
+
+    /// Runs all load steps; returns `(Y₀, σ_yy)` per particle and the Newton iterations.
+    pub fn run(
+        &self,
+        material: Material<f64>,
+    ) -> Result<(Vec<(f64, f64)>, usize), loam_implicit::ImplicitError> {
+        let (config, mut particles) = self.build(material);
+        let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
+        let mut solver = ImplicitSolver::new(config, &particles)?;
+        let mut iterations = 0;
+        while !solver.finished() {
+            iterations += solver.step(&mut particles)?.iterations();
+        }
+        Ok((
+            y0.into_iter()
+                .zip(particles.stress.iter().map(|s| s[(1, 1)]))
+                .collect(),
+            iterations,
+        ))
+    }
+}
+
+/// The exact vertical stress at reference height `y0`.
+pub fn exact_stress(y0: f64) -> f64 {
+    -DENSITY * GRAVITY * (HEIGHT - y0)
+}
+
+/// `Σ |σ − σ_exact| / Σ ρ₀ g H` over particles of equal volume.
+pub fn error_norm(stress: &[(f64, f64)]) -> f64 {
+    let num: f64 = stress
+        .iter()
+        .map(|&(y0, s)| (s - exact_stress(y0)).abs())
+        .sum();
+    num / (stress.len() as f64 * DENSITY * GRAVITY * HEIGHT)
+}
+
+/// Runs the case: error at 64 cells and the refinement study.
+pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+    const CASE: &str = "column-compaction";
+    let err = |source| VerifyError::Implicit {
+        case: CASE.into(),
+        source,
+    };
+    let hencky = Material::elastic(ModelKind::Hencky, YOUNG, 0.0, DENSITY);
+    let levels: &[usize] = match size {
+        Size::Reduced => &[8, 16, 32],
+        Size::Full => &[8, 16, 32, 64, 128],
+    };
+    let main_cells = match size {
+        Size::Reduced => 32,
+        Size::Full => 64,
+    };
+    let mut table = String::from(
+        "| cells | h (m) | error | observed order | Newton iterations |\n|---|---|---|---|---|\n",
+    );
+    let mut prev: Option<f64> = None;
+    let mut main = None;
+    let mut last_rate = f64::NAN;
+    for &n in levels {
+        let s = Setup::new(n);
+        let (stress, its) = s.run(hencky.clone()).map_err(err)?;
+        let e = error_norm(&stress);
+        let rate = prev.map(|p| (p / e).log2());
+        if let Some(r) = rate {
+            last_rate = r;
+        }
+        table.push_str(&format!(
+            "| {n} | {:.4} | {e:.3e} | {} | {its} |\n",
+            HEIGHT / n as f64,
+            rate.map_or("–".to_string(), |r| format!("{r:.2}"))
+        ));
+        prev = Some(e);
+        if n == main_cells {
+            main = Some((e, stress));
+        }
+    }
+    let (main_err, stress) = main.expect("the main level is in the refinement list");
+    let csv = out.join("column_compaction.csv");
+    let rows: Vec<Vec<f64>> = stress
+        .iter()
+        .map(|&(y0, s)| vec![y0, s, exact_stress(y0)])
+        .collect();
+    write_csv(&csv, &["y0", "sigma_yy", "sigma_exact"], &rows)?;
+    let png = out.join("column_compaction.png");
+    write_plot(
+        &png,
+        &format!("Column under self-weight, {main_cells} cells (Hencky, cpGIMP)"),
+        "reference height Y0 (m)",
+        "sigma_yy (Pa)",
+        &[
+            Series {
+                name: "exact".into(),
+                points: vec![(0.0, exact_stress(0.0)), (HEIGHT, 0.0)],
+                markers: false,
+            },
+            Series {
+                name: "loam".into(),
+                points: stress.iter().step_by(2).copied().collect(),
+                markers: true,
+            },
+        ],
+    )?;
+    let md = out.join("column_compaction.md");
+    std::fs::write(&md, &table).map_err(|e| VerifyError::Output {
+        path: md.clone(),
+        msg: e.to_string(),
+    })?;
+    Ok(CaseReport {
+        metrics: vec![
+            // Goal: 4e-4 at 64 cells. The reduced run (32 cells) measures 1.05e-3; with the
+            // observed order ≈ 1.3–1.8 the goal scales to ≈ 1.0–1.4e-3 there, so 1.5e-3.
+            Metric::at_most(
+                CASE,
+                "stress_error_norm",
+                main_err,
+                match size {
+                    Size::Full => 4e-4,
+                    Size::Reduced => 1.5e-3,
+                },
+            ),
+            Metric::at_least(CASE, "observed_order", last_rate, 1.0),
+        ],
+        files: vec![csv, png, md],
+    })
+}
