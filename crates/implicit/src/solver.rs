@@ -197,8 +197,15 @@ impl<const D: usize> ImplicitSolver<D> {
         self.steps >= self.config.load_steps
     }
 
-    /// Builds the system of a sub-step from load factor `from` to `to`.
-    fn system(
+    /// The material tables (real and lifted to the dual types of the tangents).
+    pub fn materials(&self) -> &Materials {
+        &self.materials
+    }
+
+    /// Builds the system of a (sub-)step from load factor `from` to `to` for the current
+    /// particles: frozen particle data, unknown numbering, sparsity pattern and external force.
+    /// [`ImplicitSolver::step`] calls it; it is public for benchmarks and tests.
+    pub fn system(
         &self,
         p: &Particles<f64, D>,
         from: f64,
