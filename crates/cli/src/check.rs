@@ -17,13 +17,18 @@ pub fn check(path: &Path) -> Outcome {
     let result = Scene::from_path(path).and_then(|s| particle_count(&s).map(|n| (s, n)));
     match result {
         Ok((scene, n)) => {
+            let extent = match (scene.solver.end_time, scene.solver.load_steps) {
+                (Some(t), _) => format!("end time {t} s"),
+                (None, Some(n)) => format!("{n} load steps"),
+                (None, None) => String::new(),
+            };
             println!(
-                "{}: valid {}D scene, {} material(s), {} bod(y/ies), {n} particles, end time {} s",
+                "{}: valid {}D {} scene, {} material(s), {} bod(y/ies), {n} particles, {extent}",
                 path.display(),
                 scene.dim(),
+                scene.solver.kind.name(),
                 scene.materials.len(),
                 scene.bodies.len(),
-                scene.solver.end_time
             );
             Outcome::Ok
         }

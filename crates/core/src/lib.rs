@@ -7,6 +7,7 @@
 
 pub mod boundary;
 pub mod constitutive;
+pub mod energy;
 pub mod grid;
 pub mod particles;
 pub mod scalar;
@@ -19,6 +20,7 @@ pub mod transfer;
 
 pub use boundary::{Boundary, NodeConstraint, PointLoad, Wall, WallKind};
 pub use constitutive::{Material, MaterialState, ModelKind};
+pub use energy::Energy;
 pub use grid::Grid;
 pub use particles::Particles;
 pub use scalar::Scalar;

@@ -11,11 +11,10 @@
 
 mod blocks;
 mod config;
-mod energy;
 mod error;
 mod solver;
 
 pub use config::Config;
-pub use energy::Energy;
 pub use error::{ConfigError, StepError};
+pub use loam_core::Energy;
 pub use solver::{Solver, StepInfo};

@@ -2,9 +2,9 @@
 
 use crate::blocks::Blocks;
 use crate::config::Config;
-use crate::energy::{Energy, energy};
 use crate::error::{ConfigError, StepError};
 use loam_core::constitutive::Kinematics;
+use loam_core::energy::{Energy, energy};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector, det, from3, to3};
 use loam_core::transfer::{g2p, p2g, p2g_momentum};

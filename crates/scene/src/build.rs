@@ -2,8 +2,14 @@
 
 use crate::error::{Issue, SceneError};
 use crate::output::Field;
-use crate::schema::{Scene, SolverSpec};
-use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape};
+use crate::schema::{
+    DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind, LinearSpec, NewtonSpec,
+    PreconditionerKind, Scene, SolverKind, SolverSpec,
+};
+use loam_core::{
+    Boundary, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme, Shape,
+    TimeStep, Transfer,
+};
 use nalgebra::SVector;
 use std::path::PathBuf;
 
@@ -24,10 +30,116 @@ pub struct Built<const D: usize> {
     pub material_names: Vec<String>,
     /// The particles of all bodies, body by body in file order.
     pub particles: Particles<f64, D>,
-    /// Time-integration settings.
+    /// Prescribed displacements of grid nodes, in file order (implicit solver; empty for an
+    /// explicit scene).
+    pub constraints: Vec<NodeConstraint<D>>,
+    /// Forces on particles (implicit solver; empty for an explicit scene): for each
+    /// `[[point_loads]]` entry in file order, one load of `force / count` on each of its
+    /// `count` particles, nearest first.
+    pub point_loads: Vec<PointLoad<D>>,
+    /// The `[solver]` section as written (absent settings are `None`).
     pub solver: SolverSpec,
+    /// The solver settings with every default filled in: what a front end runs.
+    pub plan: SolverPlan,
     /// What to write and where.
     pub output: OutputPlan,
+}
+
+/// The solver to run and its settings, defaults filled in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SolverPlan {
+    /// Explicit dynamics (`type = "explicit"`).
+    Explicit(ExplicitPlan),
+    /// Quasi-static implicit load stepping (`type = "implicit"`).
+    Implicit(ImplicitPlan),
+}
+
+/// The explicit solver's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExplicitPlan {
+    /// Update order within a step.
+    pub scheme: Scheme,
+    /// Particle–grid velocity transfer.
+    pub transfer: Transfer,
+    /// Time-step control.
+    pub time_step: TimeStep,
+    /// Simulated time at which the run stops (s).
+    pub end_time: f64,
+}
+
+/// The implicit solver's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImplicitPlan {
+    /// Number of load steps; gravity, point loads and prescribed displacements reach
+    /// `step / load_steps` of their totals after step `step`.
+    pub load_steps: usize,
+    /// Newton settings.
+    pub newton: NewtonSpec,
+    /// Linear solver of the Newton corrections.
+    pub linear: LinearMethod,
+}
+
+/// A linear solver with its settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LinearMethod {
+    /// Sparse LU.
+    Lu,
+    /// Sparse Cholesky.
+    Cholesky,
+    /// Preconditioned conjugate gradient.
+    Cg(KrylovSettings),
+    /// Preconditioned BiCGSTAB.
+    Bicgstab(KrylovSettings),
+}
+
+/// The settings of an iterative linear solver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KrylovSettings {
+    /// Preconditioner.
+    pub preconditioner: PreconditionerKind,
+    /// Stop when `‖b − A x‖ < rel_tol ‖b‖`.
+    pub rel_tol: f64,
+    /// Iteration limit.
+    pub max_iterations: usize,
+}
+
+impl LinearSpec {
+    /// The method with the iterative solvers' defaults filled in (preconditioner `ilu0`,
+    /// `rel_tol` 1e-10, `max_iterations` 1000).
+    pub fn method(&self) -> LinearMethod {
+        let krylov = KrylovSettings {
+            preconditioner: self.preconditioner.unwrap_or_default(),
+            rel_tol: self.rel_tol.unwrap_or(DEFAULT_LINEAR_REL_TOL),
+            max_iterations: self.max_iterations.unwrap_or(DEFAULT_LINEAR_MAX_ITERATIONS),
+        };
+        match self.kind {
+            LinearKind::Lu => LinearMethod::Lu,
+            LinearKind::Cholesky => LinearMethod::Cholesky,
+            LinearKind::Cg => LinearMethod::Cg(krylov),
+            LinearKind::Bicgstab => LinearMethod::Bicgstab(krylov),
+        }
+    }
+}
+
+impl SolverSpec {
+    /// The settings with the defaults filled in; `None` when a required one is missing
+    /// (`time_step` or `end_time` for the explicit solver, `load_steps` for the implicit
+    /// one), which validation reports.
+    pub fn plan(&self) -> Option<SolverPlan> {
+        Some(match self.kind {
+            SolverKind::Explicit => SolverPlan::Explicit(ExplicitPlan {
+                scheme: self.scheme.unwrap_or_default(),
+                transfer: self.transfer.unwrap_or(Transfer::Apic),
+                time_step: self.time_step?,
+                end_time: self.end_time?,
+            }),
+            SolverKind::Implicit => SolverPlan::Implicit(ImplicitPlan {
+                load_steps: self.load_steps?,
+                newton: self.newton.unwrap_or_default(),
+                linear: self.linear.unwrap_or_default().method(),
+            }),
+        })
+    }
 }
 
 /// The output settings with the folder resolved.
@@ -43,14 +155,46 @@ pub struct OutputPlan {
 }
 
 impl<const D: usize> Built<D> {
-    /// The simulated times of the frames to write: `0` (the initial state) and then
-    /// `output.frames` equal intervals up to `end_time`, `frames + 1` times in all.
+    /// When to write frames, as times from 0 (the initial state).
+    ///
+    /// Explicit: the simulated times `end_time · k / frames`, `k = 0..=frames`. Implicit:
+    /// the load factors `step / load_steps` (a pseudo-time from 0 to 1) of the
+    /// [frame steps](Built::frame_steps).
     pub fn frame_times(&self) -> Vec<f64> {
-        let n = self.output.frames.max(1);
-        (0..=n)
-            .map(|k| self.solver.end_time * k as f64 / n as f64)
-            .collect()
+        match self.plan {
+            SolverPlan::Explicit(p) => {
+                let n = self.output.frames.max(1);
+                (0..=n).map(|k| p.end_time * k as f64 / n as f64).collect()
+            }
+            SolverPlan::Implicit(p) => self
+                .frame_steps()
+                .into_iter()
+                .map(|s| s as f64 / p.load_steps as f64)
+                .collect(),
+        }
     }
+
+    /// Implicit: the load steps after which frames are written, from 0 (the initial state):
+    /// `round(k · load_steps / frames)` for `k = 0..=frames` (halves round up), repeats
+    /// dropped, so `frames + 1` steps when `frames ≤ load_steps` and every step otherwise;
+    /// the last is `load_steps`. Empty for the explicit solver.
+    pub fn frame_steps(&self) -> Vec<usize> {
+        match self.plan {
+            SolverPlan::Explicit(_) => Vec::new(),
+            SolverPlan::Implicit(p) => frame_steps(p.load_steps, self.output.frames),
+        }
+    }
+}
+
+/// `round(k · steps / frames)`, `k = 0..=frames`, without repeats (exact integer rounding).
+fn frame_steps(steps: usize, frames: usize) -> Vec<usize> {
+    let (n, f) = (steps as u128, frames.max(1) as u128);
+    if f >= n {
+        return (0..=steps).collect();
+    }
+    (0..=f)
+        .map(|k| ((2 * k * n + f) / (2 * f)) as usize)
+        .collect()
 }
 
 impl Scene {
@@ -108,11 +252,16 @@ impl Scene {
             .collect();
 
         let mut particles = Particles::default();
-        let issues = self.seed::<D>(|body, x| {
+        let mut issues = self.seed::<D>(|body, x| {
             let (id, density, v, hw) = body_data[body];
             particles.push(SVector::from(x), v, density, hw, id);
         });
+        issues.extend(self.placement_issues::<D>(particles.len()));
         self.issues_to_result(issues)?;
+        let plan = self.solver.plan().ok_or_else(|| {
+            // Unreachable on a validated scene; kept as an error rather than a panic.
+            SceneError::invalid(vec![Issue::new("solver", "a required setting is missing")])
+        })?;
 
         let mut boundary = Boundary::all(Default::default());
         for (_, axis, side, wall) in self.boundaries.faces() {
@@ -127,10 +276,44 @@ impl Scene {
             gravity: vector_or_zero(self.loads.gravity.as_deref()),
             materials,
             material_names,
+            constraints: self.node_constraints(),
+            point_loads: self.point_loads(&particles),
             particles,
             solver: self.solver.clone(),
+            plan,
             output: self.output_plan(),
         })
+    }
+
+    /// The constraints as core structs (the fields must be valid and of dimension `D`).
+    fn node_constraints<const D: usize>(&self) -> Vec<NodeConstraint<D>> {
+        self.constraints
+            .iter()
+            .map(|k| NodeConstraint {
+                lo: std::array::from_fn(|a| k.lo[a]),
+                hi: std::array::from_fn(|a| k.hi[a]),
+                displacement: std::array::from_fn(|a| k.displacement[a]),
+            })
+            .collect()
+    }
+
+    /// Each point load split over its `count` nearest particles (the fields must be valid,
+    /// of dimension `D`, and `count` at most the number of particles).
+    fn point_loads<const D: usize>(&self, particles: &Particles<f64, D>) -> Vec<PointLoad<D>> {
+        let mut loads = Vec::new();
+        for l in &self.point_loads {
+            let at = SVector::<f64, D>::from_column_slice(&l.at);
+            let share: [f64; D] = std::array::from_fn(|a| l.force[a] / l.count as f64);
+            loads.extend(
+                nearest(&particles.x, &at, l.count)
+                    .into_iter()
+                    .map(|particle| PointLoad {
+                        particle,
+                        force: share,
+                    }),
+            );
+        }
+        loads
     }
 
     /// The core grid (the fields must be valid and of dimension `D`).
@@ -212,6 +395,30 @@ impl Scene {
     }
 }
 
+/// The ids of the `count` points of `x` nearest `at`, nearest first, ties broken by the
+/// lower id.
+fn nearest<const D: usize>(
+    x: &[SVector<f64, D>],
+    at: &SVector<f64, D>,
+    count: usize,
+) -> Vec<usize> {
+    let mut order: Vec<(f64, usize)> = x
+        .iter()
+        .enumerate()
+        .map(|(i, x)| ((x - at).norm_squared(), i))
+        .collect();
+    let by_distance = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    if count == 0 {
+        return Vec::new();
+    }
+    if count < order.len() {
+        order.select_nth_unstable_by(count - 1, by_distance);
+        order.truncate(count);
+    }
+    order.sort_unstable_by(by_distance);
+    order.into_iter().map(|(_, i)| i).collect()
+}
+
 /// A validated optional vector of `D` components, zero when absent.
 fn vector_or_zero<const D: usize>(v: Option<&[f64]>) -> SVector<f64, D> {
     v.map_or_else(SVector::zeros, SVector::from_column_slice)
@@ -247,6 +454,32 @@ fn for_each_index<const D: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frame_steps_round_and_drop_repeats() {
+        assert_eq!(
+            frame_steps(50, 10),
+            vec![0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 50]
+        );
+        // 7 · 1/4 = 1.75, 3.5, 5.25, 7: halves round up.
+        assert_eq!(frame_steps(7, 4), vec![0, 2, 4, 5, 7]);
+        assert_eq!(frame_steps(3, 20), vec![0, 1, 2, 3]);
+        assert_eq!(frame_steps(1, 1), vec![0, 1]);
+        assert_eq!(frame_steps(5, 5), vec![0, 1, 2, 3, 4, 5]);
+    }
+
+    #[test]
+    fn nearest_points_break_ties_by_the_lower_id() {
+        let x: Vec<SVector<f64, 2>> = [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.5, 0.0], [3.0, 3.0]]
+            .iter()
+            .map(|p| SVector::from(*p))
+            .collect();
+        let at = SVector::zeros();
+        assert_eq!(nearest(&x, &at, 1), vec![3]);
+        assert_eq!(nearest(&x, &at, 3), vec![3, 0, 1]);
+        assert_eq!(nearest(&x, &at, 5), vec![3, 0, 1, 2, 4]);
+        assert_eq!(nearest(&x, &at, 0), Vec::<usize>::new());
+    }
 
     #[test]
     fn index_box_is_visited_once_per_index_axis_zero_fastest() {

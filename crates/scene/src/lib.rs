@@ -5,7 +5,9 @@
 //!
 //! A scene is a TOML file (JSON is accepted too, chosen by the `.json` extension) with the
 //! sections `[grid]`, `[[materials]]`, `[[bodies]]`, `[boundaries]`, `[loads]`, `[solver]`
-//! and `[output]`; `docs/scene-format.md` documents every field. A small 2D example:
+//! and `[output]`, and for quasi-static implicit runs (`[solver] type = "implicit"`)
+//! `[[constraints]]` and `[[point_loads]]`; `docs/scene-format.md` documents every field.
+//! A small 2D example:
 //!
 //! ```toml
 //! [grid]
@@ -39,7 +41,8 @@
 //!   [validate](Scene::validate); every error ([`SceneError`]) names the field path and what
 //!   was expected.
 //! - [`Scene::build`] returns a [`Built`] of plain `loam-core` structs (grid, boundary,
-//!   materials, particles) for a solver; dispatch on [`Scene::dim`] to pick `D`.
+//!   materials, particles, node constraints, point loads) and the solver settings with their
+//!   defaults ([`SolverPlan`]) for a solver; dispatch on [`Scene::dim`] to pick `D`.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
 //!
 //! This crate depends on `loam-core` only: solvers take the plain structs it builds.
@@ -53,9 +56,12 @@ mod schema;
 mod strict;
 mod validate;
 
-pub use build::{Built, OutputPlan};
+pub use build::{
+    Built, ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, OutputPlan, SolverPlan,
+};
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use schema::{
-    BodyShape, BodySpec, BoundarySpec, GridSpec, LoadSpec, MaterialSpec, OutputSpec, Scene,
-    SolverKind, SolverSpec,
+    BodyShape, BodySpec, BoundarySpec, ConstraintSpec, GridSpec, LinearKind, LinearSpec, LoadSpec,
+    MaterialSpec, NewtonSpec, OutputSpec, PointLoadSpec, PreconditionerKind, Scene, SolverKind,
+    SolverSpec, TangentKind,
 };

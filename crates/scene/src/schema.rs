@@ -4,6 +4,8 @@
 //! than a silently ignored setting. The types hold the `loam-core` enums directly
 //! ([`Shape`], [`ModelKind`], [`Scheme`], [`Transfer`], [`TimeStep`], [`Wall`]) so a loaded
 //! scene needs no conversion before it is built; `docs/scene-format.md` documents every field.
+//! The implicit solver's settings ([`NewtonSpec`], [`LinearSpec`]) are plain types of this
+//! crate, which depends on `loam-core` only: a front end maps them to the solver's own.
 
 use crate::output::Field;
 use crate::strict;
@@ -27,7 +29,13 @@ pub struct Scene {
     /// Body forces (default: none).
     #[serde(default)]
     pub loads: LoadSpec,
-    /// Time integration.
+    /// Prescribed displacements of grid nodes (implicit solver only; default: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constraints: Vec<ConstraintSpec>,
+    /// Forces on particles (implicit solver only; default: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub point_loads: Vec<PointLoadSpec>,
+    /// The solver: explicit dynamics or implicit quasi-static load steps.
     pub solver: SolverSpec,
     /// What to write and where (default: every field, 20 frames, `out/<scene file stem>`).
     #[serde(default)]
@@ -233,35 +241,246 @@ pub struct LoadSpec {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SolverKind {
-    /// The explicit USL / MUSL loop.
+    /// The explicit USL / MUSL loop: dynamics in time up to `end_time`.
     #[default]
     Explicit,
+    /// Quasi-static implicit load stepping: the loads (gravity, point loads, prescribed
+    /// displacements) are ramped linearly over `load_steps` steps, each solved for
+    /// equilibrium by Newton's method.
+    Implicit,
 }
 
-/// `[solver]`: time integration.
+impl SolverKind {
+    /// The name written in the file (`"explicit"`, `"implicit"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Explicit => "explicit",
+            Self::Implicit => "implicit",
+        }
+    }
+}
+
+/// `[solver]`: the solver family and its settings.
+///
+/// Which keys apply depends on `type`: `scheme`, `transfer`, `time_step` and `end_time` are
+/// for the explicit solver (`time_step` and `end_time` required there); `load_steps`
+/// (required), `newton` and `linear` for the implicit one. A key of the other family is an
+/// error. The absent optional settings take their defaults when the scene is built
+/// ([`crate::SolverPlan`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
     /// Solver family, written `type` (default `explicit`).
     #[serde(rename = "type", default)]
     pub kind: SolverKind,
-    /// Update order within a step (default `musl`).
-    #[serde(default)]
-    pub scheme: Scheme,
-    /// Particle–grid velocity transfer: `"pic"`, `"apic"` or a table such as
+    /// Explicit: update order within a step (default `musl`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scheme: Option<Scheme>,
+    /// Explicit: particle–grid velocity transfer, `"pic"`, `"apic"` or a table such as
     /// `{ type = "flip", alpha = 0.95 }` (default `apic`).
-    #[serde(default = "default_transfer", deserialize_with = "strict::transfer")]
-    pub transfer: Transfer,
-    /// Time-step control, `{ type = "fixed", dt = .. }` or
+    #[serde(
+        default,
+        deserialize_with = "strict::transfer",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub transfer: Option<Transfer>,
+    /// Explicit (required): time-step control, `{ type = "fixed", dt = .. }` or
     /// `{ type = "adaptive", cfl = .., max_dt = .. }`.
-    #[serde(deserialize_with = "strict::time_step")]
-    pub time_step: TimeStep,
-    /// Simulated time at which the run stops (s), positive.
-    pub end_time: f64,
+    #[serde(
+        default,
+        deserialize_with = "strict::time_step",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub time_step: Option<TimeStep>,
+    /// Explicit (required): simulated time at which the run stops (s), positive.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_time: Option<f64>,
+    /// Implicit (required): number of load steps over which the loads are ramped, `≥ 1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_steps: Option<usize>,
+    /// Implicit: Newton settings, `[solver.newton]` (default [`NewtonSpec::default`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newton: Option<NewtonSpec>,
+    /// Implicit: the linear solver of the Newton corrections, `[solver.linear]` or a bare
+    /// name such as `"lu"` (default `lu`).
+    #[serde(
+        default,
+        deserialize_with = "strict::linear",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub linear: Option<LinearSpec>,
 }
 
-fn default_transfer() -> Transfer {
-    Transfer::Apic
+/// `[solver.newton]`: convergence and robustness settings of the implicit solver's Newton
+/// iteration; every key is optional.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NewtonSpec {
+    /// Converged when `‖R‖ ≤ residual_tol · max(‖R₀‖, ‖f_ext‖)`; in (0, 1) (default 1e-8).
+    #[serde(default = "default_residual_tol")]
+    pub residual_tol: f64,
+    /// …or when the Newton correction `‖δ‖_∞ ≤ increment_tol · h`; positive (default
+    /// 1e-10).
+    #[serde(default = "default_increment_tol")]
+    pub increment_tol: f64,
+    /// Newton iterations per attempt, `≥ 1` (default 25).
+    #[serde(default = "default_newton_iterations")]
+    pub max_iterations: usize,
+    /// Backtracking line search on the Newton step (default `true`).
+    #[serde(default = "default_line_search")]
+    pub line_search: bool,
+    /// How often a failed load step may be cut in half before the run stops, `≥ 0`
+    /// (default 6).
+    #[serde(default = "default_max_cuts")]
+    pub max_cuts: usize,
+    /// Tangent assembly (default `local`).
+    #[serde(default)]
+    pub tangent: TangentKind,
+}
+
+fn default_residual_tol() -> f64 {
+    1e-8
+}
+
+fn default_increment_tol() -> f64 {
+    1e-10
+}
+
+fn default_newton_iterations() -> usize {
+    25
+}
+
+fn default_line_search() -> bool {
+    true
+}
+
+fn default_max_cuts() -> usize {
+    6
+}
+
+impl Default for NewtonSpec {
+    fn default() -> Self {
+        Self {
+            residual_tol: default_residual_tol(),
+            increment_tol: default_increment_tol(),
+            max_iterations: default_newton_iterations(),
+            line_search: default_line_search(),
+            max_cuts: default_max_cuts(),
+            tangent: TangentKind::default(),
+        }
+    }
+}
+
+/// How the implicit solver assembles the tangent matrix.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TangentKind {
+    /// Per-particle forward-mode AD of the stress, chained with the shape-function gradients
+    /// (fast).
+    #[default]
+    Local,
+    /// Block-colour seeding over the grid nodes (the slower reference); `color` is accepted.
+    #[serde(alias = "color")]
+    Colour,
+}
+
+/// `[solver.linear]`: the linear solver of the Newton corrections.
+///
+/// `preconditioner`, `rel_tol` and `max_iterations` belong to the iterative solvers (`cg`,
+/// `bicgstab`) and are errors on the direct ones; [`LinearSpec::method`] fills in their
+/// defaults.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearSpec {
+    /// The method, written `type`.
+    #[serde(rename = "type")]
+    pub kind: LinearKind,
+    /// Iterative solvers: the preconditioner (default `ilu0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preconditioner: Option<PreconditionerKind>,
+    /// Iterative solvers: stop when `‖b − A x‖ < rel_tol ‖b‖`; in (0, 1) (default 1e-10).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rel_tol: Option<f64>,
+    /// Iterative solvers: iteration limit, `≥ 1` (default 1000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_iterations: Option<usize>,
+}
+
+/// The linear solver methods.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinearKind {
+    /// Sparse LU with partial pivoting (direct; any non-singular matrix).
+    #[default]
+    Lu,
+    /// Sparse Cholesky (direct; symmetric positive definite matrices only).
+    Cholesky,
+    /// Preconditioned conjugate gradient (iterative; symmetric positive definite only).
+    Cg,
+    /// Preconditioned BiCGSTAB (iterative; any non-singular matrix).
+    Bicgstab,
+}
+
+impl LinearKind {
+    /// Whether the method is iterative (takes a preconditioner and a tolerance).
+    pub fn is_iterative(self) -> bool {
+        matches!(self, Self::Cg | Self::Bicgstab)
+    }
+}
+
+/// Preconditioners of the iterative linear solvers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PreconditionerKind {
+    /// None.
+    Identity,
+    /// Inverse of the diagonal.
+    Jacobi,
+    /// Incomplete LU without fill-in.
+    #[default]
+    Ilu0,
+}
+
+/// Default relative tolerance of the iterative linear solvers.
+pub(crate) const DEFAULT_LINEAR_REL_TOL: f64 = 1e-10;
+/// Default iteration limit of the iterative linear solvers.
+pub(crate) const DEFAULT_LINEAR_MAX_ITERATIONS: usize = 1000;
+
+/// `[[constraints]]` (implicit solver): prescribed displacements of the grid nodes in a box.
+///
+/// Every grid node `x` with `lo − ε ≤ x ≤ hi + ε` (per axis, `ε = 1e-9 h`) gets, for each
+/// component written as a number, that total displacement (m), reached linearly over the
+/// load steps; a component written `"free"` is left to the solver. Where boxes overlap the
+/// later constraint wins, component by component.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintSpec {
+    /// Lower corner of the box (m).
+    pub lo: Vec<f64>,
+    /// Upper corner of the box (m), `≥ lo` on every axis (equal for a plane or a point).
+    pub hi: Vec<f64>,
+    /// Per component, the total displacement (m) or `"free"` (`None`); at least one number.
+    #[serde(with = "strict::displacement")]
+    pub displacement: Vec<Option<f64>>,
+}
+
+/// `[[point_loads]]` (implicit solver): a total force shared equally by the `count`
+/// particles nearest a point (ties broken by the lower particle id), reached linearly over
+/// the load steps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointLoadSpec {
+    /// The point (m), inside the domain.
+    pub at: Vec<f64>,
+    /// How many particles share the force, `≥ 1` (default 1).
+    #[serde(default = "default_point_load_count")]
+    pub count: usize,
+    /// Total force (N; N per metre of depth in 2D), one component per axis.
+    pub force: Vec<f64>,
+}
+
+fn default_point_load_count() -> usize {
+    1
 }
 
 /// `[output]`: what to write and where.
@@ -271,8 +490,9 @@ pub struct OutputSpec {
     /// Output folder (default `out/<scene file stem>`, relative to the working directory).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dir: Option<PathBuf>,
-    /// Number of frames written after the initial one, at equal intervals of simulated time
-    /// up to `end_time` (at least 1; default 20).
+    /// Number of frames written after the initial one (at least 1; default 20): at equal
+    /// intervals of simulated time up to `end_time` (explicit), or after the load steps
+    /// `round(k · load_steps / frames)`, `k = 1..=frames`, repeats dropped (implicit).
     #[serde(default = "default_frames")]
     pub frames: usize,
     /// Particle fields written to each frame (default: all of them).

@@ -1,14 +1,17 @@
-//! Strict readers for the `loam-core` types whose own serde forms are lenient.
+//! Strict readers for the `loam-core` types whose own serde forms are lenient, and the
+//! scene's mixed-type values.
 //!
 //! Core's [`Transfer`], [`TimeStep`] and [`Wall`] accept (and ignore) unknown keys. A scene
 //! file must not, so these readers go through private mirror types that reject them, then
-//! convert. [`Transfer`] and [`Wall`] also accept a short form, the bare name (`"apic"`,
-//! `"slip"`), read as a table holding only the tag key.
+//! convert. [`Transfer`], [`Wall`] and [`LinearSpec`] also accept a short form, the bare name
+//! (`"apic"`, `"slip"`, `"lu"`), read as a table holding only the tag key. [`displacement`]
+//! reads and writes a constraint's components, each a number or `"free"`.
 
+use crate::schema::LinearSpec;
 use loam_core::{TimeStep, Transfer, Wall, WallKind};
 use serde::de::value::{MapAccessDeserializer, MapDeserializer};
 use serde::de::{self, DeserializeOwned, MapAccess, Visitor};
-use serde::{Deserialize, Deserializer};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
 use std::marker::PhantomData;
 
@@ -66,13 +69,81 @@ impl From<WallTable> for Wall {
 }
 
 /// `solver.transfer`: `"pic"`, `"apic"` or `{ type = "flip", alpha = .. }`.
-pub(crate) fn transfer<'de, D: Deserializer<'de>>(d: D) -> Result<Transfer, D::Error> {
-    name_or_table::<D, TransferTable>(d, "type").map(Into::into)
+pub(crate) fn transfer<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Transfer>, D::Error> {
+    name_or_table::<D, TransferTable>(d, "type").map(|t| Some(t.into()))
 }
 
 /// `solver.time_step`: a table only.
-pub(crate) fn time_step<'de, D: Deserializer<'de>>(d: D) -> Result<TimeStep, D::Error> {
-    TimeStepTable::deserialize(d).map(Into::into)
+pub(crate) fn time_step<'de, D: Deserializer<'de>>(d: D) -> Result<Option<TimeStep>, D::Error> {
+    TimeStepTable::deserialize(d).map(|t| Some(t.into()))
+}
+
+/// `solver.linear`: `"lu"` or `{ type = "cg", preconditioner = .. }`.
+pub(crate) fn linear<'de, D: Deserializer<'de>>(d: D) -> Result<Option<LinearSpec>, D::Error> {
+    name_or_table::<D, LinearSpec>(d, "type").map(Some)
+}
+
+/// A constraint's displacement: a list whose items are numbers (`Some`) or `"free"` (`None`).
+pub(crate) mod displacement {
+    use super::*;
+
+    /// One component: a number or `"free"`.
+    struct Component(Option<f64>);
+
+    impl<'de> Deserialize<'de> for Component {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct ComponentVisitor;
+
+            impl Visitor<'_> for ComponentVisitor {
+                type Value = Component;
+
+                fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                    f.write_str("a number (a displacement, m) or \"free\"")
+                }
+
+                fn visit_f64<E: de::Error>(self, x: f64) -> Result<Component, E> {
+                    Ok(Component(Some(x)))
+                }
+
+                fn visit_i64<E: de::Error>(self, x: i64) -> Result<Component, E> {
+                    Ok(Component(Some(x as f64)))
+                }
+
+                fn visit_u64<E: de::Error>(self, x: u64) -> Result<Component, E> {
+                    Ok(Component(Some(x as f64)))
+                }
+
+                fn visit_str<E: de::Error>(self, s: &str) -> Result<Component, E> {
+                    if s == "free" {
+                        Ok(Component(None))
+                    } else {
+                        Err(E::invalid_value(de::Unexpected::Str(s), &self))
+                    }
+                }
+            }
+
+            d.deserialize_any(ComponentVisitor)
+        }
+    }
+
+    impl Serialize for Component {
+        fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            match self.0 {
+                Some(x) => s.serialize_f64(x),
+                None => s.serialize_str("free"),
+            }
+        }
+    }
+
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Vec<Option<f64>>, D::Error> {
+        Vec::<Component>::deserialize(d).map(|v| v.into_iter().map(|c| c.0).collect())
+    }
+
+    pub(crate) fn serialize<S: Serializer>(v: &[Option<f64>], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|&c| Component(c)))
+    }
 }
 
 /// A face of `[boundaries]`: `"slip"` or `{ kind = "slip", separable = true }`.
@@ -116,13 +187,17 @@ fn name_or_table<'de, D: Deserializer<'de>, T: DeserializeOwned>(
 mod tests {
     use super::*;
 
-    #[derive(Debug, Deserialize)]
+    #[derive(Debug, Deserialize, Serialize)]
     #[serde(deny_unknown_fields)]
     struct Doc {
         #[serde(deserialize_with = "transfer")]
-        transfer: Transfer,
+        transfer: Option<Transfer>,
         #[serde(default, deserialize_with = "wall")]
         wall: Option<Wall>,
+        #[serde(default, deserialize_with = "linear")]
+        linear: Option<LinearSpec>,
+        #[serde(default, with = "displacement")]
+        displacement: Vec<Option<f64>>,
     }
 
     fn read(text: &str) -> Result<Doc, String> {
@@ -140,7 +215,7 @@ mod tests {
                 Transfer::Flip { alpha: 0.9 },
             ),
         ] {
-            assert_eq!(read(text).unwrap().transfer, transfer, "{text}");
+            assert_eq!(read(text).unwrap().transfer, Some(transfer), "{text}");
         }
         let doc = read("transfer = \"pic\"\nwall = \"slip\"").unwrap();
         assert_eq!(doc.wall, Some(Wall::new(WallKind::Slip)));
@@ -152,6 +227,44 @@ mod tests {
                 separable: true
             })
         );
+    }
+
+    #[test]
+    fn linear_solver_short_and_table_forms() {
+        use crate::schema::{LinearKind, PreconditionerKind};
+        let doc = read("transfer = \"pic\"\nlinear = \"cholesky\"").unwrap();
+        assert_eq!(
+            doc.linear,
+            Some(LinearSpec {
+                kind: LinearKind::Cholesky,
+                ..LinearSpec::default()
+            })
+        );
+        let doc =
+            read("transfer = \"pic\"\nlinear = { type = \"cg\", preconditioner = \"jacobi\" }");
+        let linear = doc.unwrap().linear.unwrap();
+        assert_eq!(linear.kind, LinearKind::Cg);
+        assert_eq!(linear.preconditioner, Some(PreconditionerKind::Jacobi));
+        let err = read("transfer = \"pic\"\nlinear = { type = \"lu\", tol = 1 }").unwrap_err();
+        assert!(err.contains("unknown field `tol`"), "{err}");
+    }
+
+    #[test]
+    fn displacement_components_are_numbers_or_free() {
+        let doc = read("transfer = \"pic\"\ndisplacement = [0.5, \"free\", -2]").unwrap();
+        assert_eq!(doc.displacement, vec![Some(0.5), None, Some(-2.0)]);
+        let text = toml::to_string(&doc).unwrap();
+        assert!(
+            text.contains("displacement = [0.5, \"free\", -2.0]"),
+            "{text}"
+        );
+        for bad in ["[\"fixed\"]", "[true]", "[[0.0]]"] {
+            let err = read(&format!("transfer = \"pic\"\ndisplacement = {bad}")).unwrap_err();
+            assert!(
+                err.contains("expected a number (a displacement, m) or \"free\""),
+                "{bad}: {err}"
+            );
+        }
     }
 
     #[test]

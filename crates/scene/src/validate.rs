@@ -2,13 +2,15 @@
 //!
 //! [`Scene::validate`] collects every problem it finds, each naming the field path and what
 //! was expected, so one `loam check` shows them all. Checks run in two stages: the fields
-//! (ranges, finiteness, coordinate counts, names, the grid) and then, only when the fields
-//! are sound, the particle generation itself (every body must produce particles).
+//! (ranges, finiteness, coordinate counts, names, the grid, which keys the solver family
+//! uses) and then, only when the fields are sound, what depends on the grid and the
+//! particles (every body must produce particles, every constraint box must hold a grid node,
+//! every point load must find its particles).
 
 use crate::error::{Issue, SceneError};
 use crate::geometry::twice_signed_area;
-use crate::schema::{BodyShape, BodySpec, Scene};
-use loam_core::{ModelKind, TimeStep, Transfer};
+use crate::schema::{BodyShape, BodySpec, Scene, SolverKind};
+use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
 use std::collections::HashSet;
 
 /// Tolerance, relative to the domain size, for a body's bounding box to stick out of the
@@ -22,18 +24,70 @@ const MAX_CELLS: f64 = (1u64 << 32) as f64;
 /// The most particles per cell along one axis.
 const MAX_PARTICLES_PER_CELL: u32 = 8;
 
+/// Tolerance, relative to the cell size, for a grid node to lie in a constraint box (the
+/// solver's, [`loam_core::NodeConstraint::contains`]).
+const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+
 impl Scene {
     /// Checks every field and the particle generation; the `from_*` loaders call it.
     pub fn validate(&self) -> Result<(), SceneError> {
         let mut issues = self.field_issues();
         if issues.is_empty() {
             issues = match self.dim() {
-                2 => self.seed::<2>(|_, _| {}),
-                3 => self.seed::<3>(|_, _| {}),
+                2 => self.generation_issues::<2>(),
+                3 => self.generation_issues::<3>(),
                 _ => Vec::new(),
             };
         }
         self.issues_to_result(issues)
+    }
+
+    /// The second stage on sound fields of dimension `D`: particle generation, then
+    /// [`Scene::placement_issues`].
+    fn generation_issues<const D: usize>(&self) -> Vec<Issue> {
+        let mut count = 0usize;
+        let mut issues = self.seed::<D>(|_, _| count += 1);
+        issues.extend(self.placement_issues::<D>(count));
+        issues
+    }
+
+    /// What depends on the grid nodes and the particles (the fields must be sound and of
+    /// dimension `D`; `particles` is the number generated): every constraint box holds a
+    /// grid node of the domain, every point load asks for no more particles than there are.
+    pub(crate) fn placement_issues<const D: usize>(&self, particles: usize) -> Vec<Issue> {
+        let mut c = Checker::default();
+        let g = &self.grid;
+        let h = g.cell_size;
+        for (i, k) in self.constraints.iter().enumerate() {
+            // Node indices k·h from grid.lo inside [lo − ε, hi + ε], within the domain.
+            let tol = CONSTRAINT_TOLERANCE * h;
+            let has_node = (0..D).all(|a| {
+                let cells = ((g.hi[a] - g.lo[a]) / h).round();
+                let first = ((k.lo[a] - tol - g.lo[a]) / h).ceil().max(0.0);
+                let last = ((k.hi[a] + tol - g.lo[a]) / h).floor().min(cells);
+                first <= last
+            });
+            if !has_node {
+                c.issue(
+                    format!("constraints[{i}]"),
+                    format!(
+                        "the box contains no grid node; node spacing is h = {h} m from grid.lo"
+                    ),
+                );
+            }
+        }
+        for (i, l) in self.point_loads.iter().enumerate() {
+            if l.count > particles {
+                c.issue(
+                    format!("point_loads[{i}].count"),
+                    format!(
+                        "asks for {} particles but the scene has {particles}",
+                        l.count
+                    ),
+                );
+            }
+        }
+        c.issues
     }
 
     /// `Ok` when there are no issues, else an invalid-scene error naming the source file.
@@ -64,6 +118,8 @@ impl Scene {
         if let (Some(g), Some(dim)) = (&self.loads.gravity, dim) {
             c.coords("loads.gravity", g, dim);
         }
+        self.check_constraints(&mut c, dim);
+        self.check_point_loads(&mut c, dim);
         self.check_solver(&mut c);
         self.check_output(&mut c);
         c.issues
@@ -210,6 +266,12 @@ impl Scene {
                 format!("must be between 1 and {MAX_PARTICLES_PER_CELL}, got {ppc}"),
             );
         }
+        if body.velocity.is_some() && self.solver.kind == SolverKind::Implicit {
+            c.issue(
+                format!("{path}.velocity"),
+                "not used by the implicit solver (a quasi-static run has no inertia); remove it",
+            );
+        }
         let Some(dim) = dim else { return };
         if let Some(v) = &body.velocity {
             c.coords(&format!("{path}.velocity"), v, dim);
@@ -245,18 +307,155 @@ impl Scene {
     fn check_boundaries(&self, c: &mut Checker, dim: Option<usize>) {
         let Some(dim) = dim else { return };
         for (name, axis, _, wall) in self.boundaries.faces() {
-            if wall.is_some() && axis >= dim {
+            let Some(wall) = wall else { continue };
+            if axis >= dim {
                 c.issue(
                     format!("boundaries.{name}"),
                     format!("the grid is {dim}D; it has no {} faces", AXES[axis]),
+                );
+            } else if wall.separable
+                && wall.kind != WallKind::Free
+                && self.solver.kind == SolverKind::Implicit
+            {
+                c.issue(
+                    format!("boundaries.{name}"),
+                    "the implicit solver has no separable walls (it would leave the face \
+                     free); remove `separable` for a wall that holds both ways",
                 );
             }
         }
     }
 
+    fn check_constraints(&self, c: &mut Checker, dim: Option<usize>) {
+        if self.constraints.is_empty() {
+            return;
+        }
+        if self.solver.kind != SolverKind::Implicit {
+            c.issue("constraints", IMPLICIT_ONLY_LOADING);
+            return;
+        }
+        let Some(dim) = dim else { return };
+        for (i, k) in self.constraints.iter().enumerate() {
+            let path = format!("constraints[{i}]");
+            if c.coords(&format!("{path}.lo"), &k.lo, dim)
+                & c.coords(&format!("{path}.hi"), &k.hi, dim)
+            {
+                for a in 0..dim {
+                    if k.hi[a] < k.lo[a] {
+                        c.issue(
+                            format!("{path}.hi[{a}]"),
+                            format!("must be at least lo[{a}] = {}, got {}", k.lo[a], k.hi[a]),
+                        );
+                    }
+                }
+            }
+            let dpath = format!("{path}.displacement");
+            if k.displacement.len() != dim {
+                c.issue(
+                    &dpath,
+                    format!(
+                        "expected {dim} components (the grid is {dim}D), each a number (m) or \
+                         \"free\", got {}",
+                        k.displacement.len()
+                    ),
+                );
+            } else if k.displacement.iter().all(Option::is_none) {
+                c.issue(
+                    &dpath,
+                    "every component is \"free\"; prescribe at least one (a displacement, m)",
+                );
+            } else {
+                for (a, u) in k.displacement.iter().enumerate() {
+                    if let Some(u) = *u {
+                        c.finite(&format!("{dpath}[{a}]"), u);
+                    }
+                }
+            }
+        }
+    }
+
+    fn check_point_loads(&self, c: &mut Checker, dim: Option<usize>) {
+        if self.point_loads.is_empty() {
+            return;
+        }
+        if self.solver.kind != SolverKind::Implicit {
+            c.issue("point_loads", IMPLICIT_ONLY_LOADING);
+            return;
+        }
+        for (i, l) in self.point_loads.iter().enumerate() {
+            let path = format!("point_loads[{i}]");
+            if l.count == 0 {
+                c.issue(format!("{path}.count"), "must be at least 1, got 0");
+            }
+            let Some(dim) = dim else { continue };
+            if c.coords(&format!("{path}.at"), &l.at, dim) {
+                let (lo, hi) = (&self.grid.lo, &self.grid.hi);
+                let grid_ok = lo.len() == dim
+                    && hi.len() == dim
+                    && lo.iter().chain(hi).all(|x| x.is_finite());
+                if grid_ok
+                    && !(0..dim).all(|a| {
+                        let tol = GEOMETRY_TOLERANCE * (hi[a] - lo[a]).abs();
+                        l.at[a] >= lo[a] - tol && l.at[a] <= hi[a] + tol
+                    })
+                {
+                    c.issue(
+                        format!("{path}.at"),
+                        format!(
+                            "the point {} lies outside the grid domain {}",
+                            Point(&l.at),
+                            Interval(lo, hi)
+                        ),
+                    );
+                }
+            }
+            c.vector(&format!("{path}.force"), &l.force, dim, "components");
+        }
+    }
+
     fn check_solver(&self, c: &mut Checker) {
         let s = &self.solver;
-        if let Transfer::Flip { alpha } = s.transfer
+        match s.kind {
+            SolverKind::Explicit => {
+                for (key, given) in [
+                    ("load_steps", s.load_steps.is_some()),
+                    ("newton", s.newton.is_some()),
+                    ("linear", s.linear.is_some()),
+                ] {
+                    if given {
+                        c.issue(
+                            format!("solver.{key}"),
+                            "only used by the implicit solver; remove it or set \
+                             solver.type = \"implicit\"",
+                        );
+                    }
+                }
+                self.check_explicit(c);
+            }
+            SolverKind::Implicit => {
+                for (key, given) in [
+                    ("scheme", s.scheme.is_some()),
+                    ("transfer", s.transfer.is_some()),
+                    ("time_step", s.time_step.is_some()),
+                    ("end_time", s.end_time.is_some()),
+                ] {
+                    if given {
+                        c.issue(
+                            format!("solver.{key}"),
+                            "only used by the explicit solver (an implicit run is quasi-static: \
+                             it applies the loads over solver.load_steps steps, with no time); \
+                             remove it or set solver.type = \"explicit\"",
+                        );
+                    }
+                }
+                self.check_implicit(c);
+            }
+        }
+    }
+
+    fn check_explicit(&self, c: &mut Checker) {
+        let s = &self.solver;
+        if let Some(Transfer::Flip { alpha }) = s.transfer
             && c.finite("solver.transfer.alpha", alpha)
             && !(0.0..=1.0).contains(&alpha)
         {
@@ -266,10 +465,11 @@ impl Scene {
             );
         }
         match s.time_step {
-            TimeStep::Fixed { dt } => {
+            None => c.issue("solver.time_step", "required for the explicit solver"),
+            Some(TimeStep::Fixed { dt }) => {
                 c.positive("solver.time_step.dt", dt);
             }
-            TimeStep::Adaptive { cfl, max_dt } => {
+            Some(TimeStep::Adaptive { cfl, max_dt }) => {
                 if c.finite("solver.time_step.cfl", cfl) && !(cfl > 0.0 && cfl <= 1.0) {
                     c.issue(
                         "solver.time_step.cfl",
@@ -279,7 +479,58 @@ impl Scene {
                 c.positive("solver.time_step.max_dt", max_dt);
             }
         }
-        c.positive("solver.end_time", s.end_time);
+        match s.end_time {
+            None => c.issue(
+                "solver.end_time",
+                "required for the explicit solver (the simulated time at which the run stops, s)",
+            ),
+            Some(t) => {
+                c.positive("solver.end_time", t);
+            }
+        }
+    }
+
+    fn check_implicit(&self, c: &mut Checker) {
+        let s = &self.solver;
+        match s.load_steps {
+            None => c.issue(
+                "solver.load_steps",
+                "required for the implicit solver (the number of load steps, at least 1)",
+            ),
+            Some(0) => c.issue("solver.load_steps", "must be at least 1, got 0"),
+            Some(_) => {}
+        }
+        if let Some(n) = &s.newton {
+            c.open_unit("solver.newton.residual_tol", n.residual_tol);
+            c.positive("solver.newton.increment_tol", n.increment_tol);
+            if n.max_iterations == 0 {
+                c.issue("solver.newton.max_iterations", "must be at least 1, got 0");
+            }
+        }
+        if let Some(l) = &s.linear {
+            if l.kind.is_iterative() {
+                if let Some(tol) = l.rel_tol {
+                    c.open_unit("solver.linear.rel_tol", tol);
+                }
+                if l.max_iterations == Some(0) {
+                    c.issue("solver.linear.max_iterations", "must be at least 1, got 0");
+                }
+            } else {
+                for (key, given) in [
+                    ("preconditioner", l.preconditioner.is_some()),
+                    ("rel_tol", l.rel_tol.is_some()),
+                    ("max_iterations", l.max_iterations.is_some()),
+                ] {
+                    if given {
+                        c.issue(
+                            format!("solver.linear.{key}"),
+                            "only used by the iterative solvers \"cg\" and \"bicgstab\"; \
+                             remove it or change solver.linear.type",
+                        );
+                    }
+                }
+            }
+        }
     }
 
     fn check_output(&self, c: &mut Checker) {
@@ -377,6 +628,11 @@ fn check_shape(c: &mut Checker, path: &str, shape: &BodyShape, dim: usize) -> bo
 /// Axis names for messages.
 const AXES: [&str; 3] = ["x", "y", "z"];
 
+/// Why `[[constraints]]` and `[[point_loads]]` are rejected in an explicit scene.
+const IMPLICIT_ONLY_LOADING: &str = "only applied by the implicit solver; set solver.type = \
+                                     \"implicit\" or remove them (the explicit solver takes \
+                                     [boundaries] and [loads])";
+
 /// Collects issues; the check helpers return `true` when the value passed.
 #[derive(Default)]
 struct Checker {
@@ -407,13 +663,30 @@ impl Checker {
         ok
     }
 
-    /// A point or vector of the scene's dimension with finite components.
+    /// A number in the open interval (0, 1).
+    fn open_unit(&mut self, path: &str, x: f64) -> bool {
+        if !self.finite(path, x) {
+            return false;
+        }
+        let ok = x > 0.0 && x < 1.0;
+        if !ok {
+            self.issue(path, format!("must be in (0, 1), got {x}"));
+        }
+        ok
+    }
+
+    /// A point of the scene's dimension with finite coordinates.
     fn coords(&mut self, path: &str, v: &[f64], dim: usize) -> bool {
+        self.vector(path, v, dim, "coordinates")
+    }
+
+    /// A vector of the scene's dimension with finite entries (`noun` names them).
+    fn vector(&mut self, path: &str, v: &[f64], dim: usize, noun: &str) -> bool {
         if v.len() != dim {
             self.issue(
                 path,
                 format!(
-                    "expected {dim} coordinates (the grid is {dim}D), got {}",
+                    "expected {dim} {noun} (the grid is {dim}D), got {}",
                     v.len()
                 ),
             );
@@ -422,6 +695,22 @@ impl Checker {
         v.iter().enumerate().fold(true, |ok, (a, &x)| {
             self.finite(&format!("{path}[{a}]"), x) && ok
         })
+    }
+}
+
+/// A point written `(x, y)` or `(x, y, z)`.
+struct Point<'a>(&'a [f64]);
+
+impl std::fmt::Display for Point<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("(")?;
+        for (a, x) in self.0.iter().enumerate() {
+            if a > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{x}")?;
+        }
+        f.write_str(")")
     }
 }
 

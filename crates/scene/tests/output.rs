@@ -183,6 +183,7 @@ fn run_summary_is_written_as_json() {
             total: 1.5,
         }],
         frames: vec!["frame_0000.vtu".into()],
+        load_steps: vec![],
     };
     write_summary(&path, &summary).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();

@@ -2,8 +2,11 @@
 //! with the expected particles, and the example scenes load.
 
 use loam_core::constitutive::{J2, Lame, Model};
-use loam_core::{Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
-use loam_scene::{Scene, SceneError};
+use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
+use loam_scene::{
+    ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, NewtonSpec, PreconditionerKind,
+    Scene, SceneError, SolverKind, SolverPlan, TangentKind,
+};
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {
@@ -151,6 +154,56 @@ const BAD: &[(&str, &[&str])] = &[
         "j2_without_yield_stress.toml",
         &[r#"materials[0].yield_stress: required for model "j2""#],
     ),
+    (
+        "implicit_without_load_steps.toml",
+        &["solver.load_steps: required for the implicit solver (the number of load steps"],
+    ),
+    (
+        "implicit_with_time_step.toml",
+        &["solver.time_step: only used by the explicit solver"],
+    ),
+    (
+        "explicit_with_constraints.toml",
+        &[r#"constraints: only applied by the implicit solver; set solver.type = "implicit""#],
+    ),
+    (
+        "explicit_without_time_step.toml",
+        &["solver.time_step: required for the explicit solver"],
+    ),
+    (
+        "constraint_wrong_length.toml",
+        &[
+            "constraints[0].displacement: expected 2 components (the grid is 2D), each a number \
+           (m) or \"free\", got 3",
+        ],
+    ),
+    (
+        "constraint_all_free.toml",
+        &[r#"constraints[1].displacement: every component is "free"; prescribe at least one"#],
+    ),
+    (
+        "constraint_no_node.toml",
+        &["constraints[1]: the box contains no grid node; node spacing is h = 0.25 m from grid.lo"],
+    ),
+    (
+        "point_load_zero_count.toml",
+        &["point_loads[0].count: must be at least 1, got 0"],
+    ),
+    (
+        "point_load_outside.toml",
+        &["point_loads[0].at: the point (20, 9.5) lies outside the grid domain [0, 15] × [0, 15]"],
+    ),
+    (
+        "unknown_tangent.toml",
+        &["solver.newton.tangent: unknown variant `exact`", "`colour`"],
+    ),
+    (
+        "cg_unknown_preconditioner.toml",
+        &[
+            "solver.linear.preconditioner: unknown variant `ilu`",
+            "`identity`, `jacobi`, `ilu0`",
+        ],
+    ),
 ];
 
 #[test]
@@ -255,9 +308,21 @@ fn box_fixture_builds_400_particles_with_the_expected_state() {
     assert_eq!(built.boundary.walls[1][0], Wall::new(WallKind::NoSlip));
     assert_eq!(built.boundary.walls[0][0], Wall::default());
     assert_eq!(built.material_names, vec!["rubber"]);
-    assert_eq!(built.solver.scheme, Scheme::Musl);
-    assert_eq!(built.solver.transfer, Transfer::Apic);
-    assert_eq!(built.solver.time_step, TimeStep::Fixed { dt: 1e-4 });
+    // Left out in the file: `None` as written, the defaults in the plan.
+    assert_eq!(built.solver.kind, SolverKind::Explicit);
+    assert_eq!(built.solver.scheme, None);
+    assert_eq!(built.solver.transfer, None);
+    assert_eq!(
+        built.plan,
+        SolverPlan::Explicit(ExplicitPlan {
+            scheme: Scheme::Musl,
+            transfer: Transfer::Apic,
+            time_step: TimeStep::Fixed { dt: 1e-4 },
+            end_time: 0.5,
+        })
+    );
+    assert!(built.constraints.is_empty() && built.point_loads.is_empty());
+    assert!(built.frame_steps().is_empty());
     assert_eq!(built.output.dir, Path::new("out/box_2d"));
     assert_eq!(built.output.frames, 20);
     assert_eq!(built.output.fields, loam_scene::output::Field::ALL);
@@ -280,8 +345,11 @@ fn disk_fixture_samples_the_disk_area() {
     );
     assert_eq!(built.grid.pad, 2);
     assert_eq!(built.shape, Shape::CubicBspline);
-    assert_eq!(built.solver.scheme, Scheme::Usl);
-    assert_eq!(built.solver.transfer, Transfer::Flip { alpha: 0.95 });
+    let SolverPlan::Explicit(plan) = built.plan else {
+        panic!("{:?}", built.plan)
+    };
+    assert_eq!(plan.scheme, Scheme::Usl);
+    assert_eq!(plan.transfer, Transfer::Flip { alpha: 0.95 });
     assert_eq!(
         built.boundary.walls[1][0],
         Wall {
@@ -395,6 +463,292 @@ fn j2_fixture_builds_plastic_materials() {
     }
 }
 
+/// The implicit 2D fixture: constraint boxes as written, each point load on the particles
+/// nearest its point (ties to the lower id), the settings written and the defaults.
+#[test]
+fn implicit_2d_fixture_builds_constraints_and_point_loads() {
+    let built = Scene::from_path(fixture("good/implicit_2d.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    let p = &built.particles;
+    assert_eq!(p.len(), 32);
+    // Ids run x fastest: id = column + 8 row.
+    assert_eq!(p.x[15], nalgebra::vector![2.375, 1.375]);
+    assert_eq!(p.x[23], nalgebra::vector![2.375, 1.625]);
+    assert_eq!(p.x[11], nalgebra::vector![1.375, 1.375]);
+    assert_eq!(p.x[20], nalgebra::vector![1.625, 1.625]);
+    assert_eq!(
+        built.constraints,
+        vec![
+            NodeConstraint {
+                lo: [0.5, -1.0e9],
+                hi: [0.5, 1.0e9],
+                displacement: [Some(0.0), None],
+            },
+            NodeConstraint {
+                lo: [0.5, 1.5],
+                hi: [0.5, 1.5],
+                displacement: [None, Some(0.0)],
+            },
+            NodeConstraint {
+                lo: [2.5, 1.0],
+                hi: [2.5, 2.0],
+                displacement: [Some(-0.1), Some(-0.05)],
+            },
+        ]
+    );
+    let load = |particle, force| PointLoad { particle, force };
+    assert_eq!(
+        built.point_loads,
+        vec![
+            load(15, [0.0, -50.0]),
+            load(23, [0.0, -50.0]),
+            load(0, [10.0, 0.0]),
+            load(11, [1.0, 2.0]),
+            load(12, [1.0, 2.0]),
+            load(19, [1.0, 2.0]),
+        ]
+    );
+    assert_eq!(built.solver.kind, SolverKind::Implicit);
+    assert_eq!(
+        built.plan,
+        SolverPlan::Implicit(ImplicitPlan {
+            load_steps: 20,
+            newton: NewtonSpec {
+                residual_tol: 1e-9,
+                increment_tol: 1e-10,
+                max_iterations: 40,
+                line_search: false,
+                max_cuts: 6,
+                tangent: TangentKind::Colour,
+            },
+            linear: LinearMethod::Cg(KrylovSettings {
+                preconditioner: PreconditionerKind::Jacobi,
+                rel_tol: 1e-10,
+                max_iterations: 500,
+            }),
+        })
+    );
+    assert_eq!(built.gravity, nalgebra::vector![0.0, -9.81]);
+    assert_eq!(built.boundary.walls[1][0], Wall::new(WallKind::Fixed));
+    assert_eq!(built.frame_steps(), vec![0, 5, 10, 15, 20]);
+    assert_eq!(built.frame_times(), vec![0.0, 0.25, 0.5, 0.75, 1.0]);
+}
+
+/// The minimal 3D implicit scene (JSON): defaults for Newton and the linear solver, every
+/// load step a frame when `frames` (default 20) exceeds `load_steps`.
+#[test]
+fn implicit_3d_fixture_builds_with_the_defaults() {
+    let scene = Scene::from_path(fixture("good/implicit_3d.json")).unwrap();
+    let built = scene.build::<3>().unwrap();
+    assert_eq!(built.particles.len(), 8);
+    assert_eq!(
+        built.constraints,
+        vec![NodeConstraint {
+            lo: [-1e9, -1e9, 0.25],
+            hi: [1e9, 1e9, 0.25],
+            displacement: [None, None, Some(0.0)],
+        }]
+    );
+    // The four top particles (z = 0.625) are equally near (0.5, 0.5, 1).
+    let loads: Vec<usize> = built.point_loads.iter().map(|l| l.particle).collect();
+    assert_eq!(loads, vec![4, 5, 6, 7]);
+    assert!(
+        built
+            .point_loads
+            .iter()
+            .all(|l| l.force == [0.0, 0.0, -2.0])
+    );
+    assert!(loads.iter().all(|&i| built.particles.x[i][2] == 0.625));
+    assert_eq!(
+        built.plan,
+        SolverPlan::Implicit(ImplicitPlan {
+            load_steps: 3,
+            newton: NewtonSpec::default(),
+            linear: LinearMethod::Lu,
+        })
+    );
+    assert_eq!(NewtonSpec::default().residual_tol, 1e-8);
+    assert_eq!(NewtonSpec::default().max_iterations, 25);
+    assert_eq!(built.frame_steps(), vec![0, 1, 2, 3]);
+    assert_eq!(built.frame_times().last(), Some(&1.0));
+}
+
+/// Rules of the implicit solver and its loading, each checked by editing the good fixture.
+#[test]
+fn implicit_rules_name_the_field() {
+    let text = std::fs::read_to_string(fixture("good/implicit_2d.toml")).unwrap();
+    for (from, to, want) in [
+        (
+            "load_steps = 20",
+            "load_steps = 20\nend_time = 1.0",
+            "solver.end_time: only used by the explicit solver (an implicit run is \
+             quasi-static: it applies the loads over solver.load_steps steps, with no time)",
+        ),
+        (
+            "load_steps = 20",
+            "load_steps = 20\nscheme = \"usl\"",
+            "solver.scheme: only used by the explicit solver",
+        ),
+        (
+            "load_steps = 20",
+            "load_steps = 0",
+            "solver.load_steps: must be at least 1, got 0",
+        ),
+        (
+            "load_steps = 20",
+            "load_steps = -2",
+            "solver.load_steps: invalid value: integer `-2`",
+        ),
+        (
+            "residual_tol = 1e-9",
+            "residual_tol = 1.0",
+            "solver.newton.residual_tol: must be in (0, 1), got 1",
+        ),
+        (
+            "residual_tol = 1e-9",
+            "increment_tol = 0.0",
+            "solver.newton.increment_tol: must be positive, got 0",
+        ),
+        (
+            "max_iterations = 40",
+            "max_iterations = 0",
+            "solver.newton.max_iterations: must be at least 1, got 0",
+        ),
+        (
+            "residual_tol = 1e-9",
+            "resiudal_tol = 1e-9",
+            "solver.newton.resiudal_tol: unknown field `resiudal_tol`",
+        ),
+        (
+            "type = \"cg\"",
+            "type = \"lu\"",
+            r#"solver.linear.preconditioner: only used by the iterative solvers "cg" and "bicgstab""#,
+        ),
+        (
+            "type = \"cg\"",
+            "type = \"gmres\"",
+            "solver.linear.type: unknown variant `gmres`",
+        ),
+        (
+            "max_iterations = 500",
+            "max_iterations = 500\nrel_tol = 2.0",
+            "solver.linear.rel_tol: must be in (0, 1), got 2",
+        ),
+        (
+            "count = 3",
+            "count = 33",
+            "point_loads[2].count: asks for 33 particles but the scene has 32",
+        ),
+        (
+            "force = [3.0, 6.0]",
+            "force = [3.0]",
+            "point_loads[2].force: expected 2 components (the grid is 2D), got 1",
+        ),
+        (
+            "force = [3.0, 6.0]",
+            "force = [3.0, nan]",
+            "point_loads[2].force[1]: must be a finite number, got NaN",
+        ),
+        (
+            "displacement = [-0.1, -0.05]",
+            "displacement = [-0.1, inf]",
+            "constraints[2].displacement[1]: must be a finite number, got inf",
+        ),
+        (
+            "displacement = [-0.1, -0.05]",
+            "displacement = [-0.1, \"fixed\"]",
+            r#"constraints[2].displacement[1]: invalid value: string "fixed", expected a number (a displacement, m) or "free""#,
+        ),
+        (
+            "hi = [2.5, 2.0]\ndisplacement",
+            "hi = [2.5, 0.5]\ndisplacement",
+            "constraints[2].hi[1]: must be at least lo[1] = 1, got 0.5",
+        ),
+        (
+            "lo = [2.5, 1.0]",
+            "lo = [2.5, 1.0, 0.0]",
+            "constraints[2].lo: expected 2 coordinates (the grid is 2D), got 3",
+        ),
+        (
+            "lo = [2.5, 1.0]\nhi = [2.5, 2.0]",
+            "lo = [-1.0, 1.0]\nhi = [-0.5, 2.0]",
+            "constraints[2]: the box contains no grid node",
+        ),
+        (
+            "x_max = \"slip\"",
+            "x_max = { kind = \"slip\", separable = true }",
+            "boundaries.x_max: the implicit solver has no separable walls",
+        ),
+        (
+            "particles_per_cell = 2",
+            "particles_per_cell = 2\nvelocity = [1.0, 0.0]",
+            "bodies[0].velocity: not used by the implicit solver",
+        ),
+        (
+            "type = \"implicit\"\nload_steps = 20",
+            "type = \"explicit\"\ntime_step = { type = \"fixed\", dt = 1e-4 }\nend_time = 1.0",
+            "point_loads: only applied by the implicit solver",
+        ),
+        (
+            "type = \"implicit\"\nload_steps = 20",
+            "type = \"explicit\"\ntime_step = { type = \"fixed\", dt = 1e-4 }",
+            "solver.end_time: required for the explicit solver",
+        ),
+        (
+            "type = \"implicit\"",
+            "type = \"explicit\"",
+            r#"solver.newton: only used by the implicit solver; remove it or set solver.type = "implicit""#,
+        ),
+        (
+            "type = \"implicit\"",
+            "type = \"static\"",
+            "solver.type: unknown variant `static`, expected `explicit` or `implicit`",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        match Scene::from_toml_str(&text.replacen(from, to, 1)) {
+            Ok(_) => panic!("{to}: loaded without error"),
+            Err(err) => assert!(err.to_string().contains(want), "{to}:\n{err}"),
+        }
+    }
+    // A constraint on the nodes of a wall is fine.
+    let on_wall = text.replacen(
+        "lo = [2.5, 1.0]\nhi = [2.5, 2.0]",
+        "lo = [4.0, 0.0]\nhi = [4.0, 4.0]",
+        1,
+    );
+    Scene::from_toml_str(&on_wall).unwrap_or_else(|e| panic!("{e}"));
+    // The short form of the linear solver gets the iterative defaults.
+    let short = text
+        .replacen(
+            "[solver.linear]\ntype = \"cg\"\npreconditioner = \"jacobi\"\nmax_iterations = 500\n",
+            "",
+            1,
+        )
+        .replacen(
+            "load_steps = 20\n",
+            "load_steps = 20\nlinear = \"bicgstab\"\n",
+            1,
+        );
+    let built = Scene::from_toml_str(&short)
+        .unwrap_or_else(|e| panic!("{e}\n{short}"))
+        .build::<2>()
+        .unwrap();
+    let SolverPlan::Implicit(plan) = built.plan else {
+        panic!()
+    };
+    assert_eq!(
+        plan.linear,
+        LinearMethod::Bicgstab(KrylovSettings {
+            preconditioner: PreconditionerKind::Ilu0,
+            rel_tol: 1e-10,
+            max_iterations: 1000,
+        })
+    );
+}
+
 #[test]
 fn scenes_round_trip_through_toml_and_json() {
     for name in [
@@ -403,6 +757,8 @@ fn scenes_round_trip_through_toml_and_json() {
         "overlap_2d.toml",
         "sphere_3d.json",
         "j2_2d.toml",
+        "implicit_2d.toml",
+        "implicit_3d.json",
     ] {
         let mut scene = Scene::from_path(fixture(&format!("good/{name}"))).unwrap();
         scene.source = None;
@@ -434,16 +790,66 @@ fn example_scenes_load_and_build() {
             count += 1;
         }
     }
-    assert!(count >= 2);
+    assert!(count >= 4);
 }
 
-/// The fenced blocks of `lang` in `text` that hold a whole scene (they set an end time).
+/// The implicit examples build the benchmarks they describe.
+#[test]
+fn implicit_examples_build_the_benchmarks() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let built = Scene::from_path(dir.join("cantilever.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    assert_eq!(built.particles.len(), 5760);
+    assert_eq!(built.grid.cells, [60, 60]);
+    assert_eq!(built.constraints.len(), 2);
+    // The two particles either side of the tip's mid-depth point, 50 kN each.
+    assert_eq!(built.point_loads.len(), 2);
+    for l in &built.point_loads {
+        let x = built.particles.x[l.particle];
+        assert!((x[0] - (10.25 - 0.25 / 12.0)).abs() < 1e-12, "{x}");
+        assert!(((x[1] - 9.5).abs() - 0.25 / 12.0).abs() < 1e-12, "{x}");
+        assert_eq!(l.force, [0.0, -50.0e3]);
+    }
+    let SolverPlan::Implicit(plan) = built.plan else {
+        panic!("{:?}", built.plan)
+    };
+    assert_eq!(plan.load_steps, 50);
+    assert_eq!(plan.linear, LinearMethod::Lu);
+    assert_eq!(plan.newton.tangent, TangentKind::Local);
+    assert_eq!(
+        built.frame_steps(),
+        (0..=10).map(|k| 5 * k).collect::<Vec<_>>()
+    );
+    assert_eq!(built.boundary, loam_core::Boundary::all(Wall::default()));
+
+    let built = Scene::from_path(dir.join("column_compaction.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    assert_eq!(built.particles.len(), 256);
+    assert_eq!(built.grid.cells, [1, 66]);
+    assert!((built.particles.total_mass() - 80.0 * 0.78125 * 50.0).abs() < 1e-9);
+    assert_eq!(built.gravity, nalgebra::vector![0.0, -10.0]);
+    assert_eq!(built.boundary.walls[0], [Wall::new(WallKind::Slip); 2]);
+    assert_eq!(built.boundary.walls[1][0], Wall::new(WallKind::Fixed));
+    assert_eq!(built.boundary.walls[1][1], Wall::default());
+    assert!(built.constraints.is_empty() && built.point_loads.is_empty());
+    let SolverPlan::Implicit(plan) = built.plan else {
+        panic!("{:?}", built.plan)
+    };
+    assert_eq!(plan.load_steps, 40);
+    assert_eq!(built.frame_steps().len(), 11);
+}
+
+/// The fenced blocks of `lang` in `text` that hold a whole scene (they set a cell size).
 fn scene_blocks<'a>(text: &'a str, lang: &str) -> Vec<&'a str> {
     let fence = format!("```{lang}\n");
     text.split(fence.as_str())
         .skip(1)
         .filter_map(|rest| rest.split("```").next())
-        .filter(|block| block.contains("end_time"))
+        .filter(|block| block.contains("cell_size"))
         .collect()
 }
 
@@ -453,10 +859,16 @@ fn documented_scenes_are_valid() {
     let guide = std::fs::read_to_string(root.join("../../docs/scene-format.md")).unwrap();
     let toml_blocks = scene_blocks(&guide, "toml");
     let json_blocks = scene_blocks(&guide, "json");
-    assert_eq!((toml_blocks.len(), json_blocks.len()), (1, 1));
+    // The explicit example in TOML and JSON, and the implicit one.
+    assert_eq!((toml_blocks.len(), json_blocks.len()), (2, 1));
     let from_toml = Scene::from_toml_str(toml_blocks[0]).unwrap_or_else(|e| panic!("{e}"));
     let from_json = Scene::from_json_str(json_blocks[0]).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(from_toml, from_json);
+    let implicit = Scene::from_toml_str(toml_blocks[1]).unwrap_or_else(|e| panic!("{e}"));
+    let built = implicit.build::<2>().unwrap();
+    assert_eq!(built.solver.kind, SolverKind::Implicit);
+    assert_eq!((built.constraints.len(), built.point_loads.len()), (1, 1));
+    assert_eq!(built.frame_steps(), vec![0, 2, 4, 6, 8, 10]);
 
     // The example in the crate documentation.
     let lib = std::fs::read_to_string(root.join("src/lib.rs")).unwrap();
@@ -501,6 +913,7 @@ fn mangled_scenes_give_errors_not_panics() {
         "disk_2d.toml",
         "overlap_2d.toml",
         "j2_2d.toml",
+        "implicit_2d.toml",
     ] {
         let text = std::fs::read_to_string(fixture(&format!("good/{name}"))).unwrap();
         let lines: Vec<&str> = text.lines().collect();

@@ -15,7 +15,7 @@ mod vtu;
 
 pub use field::{Field, hencky_strain, pressure, von_mises};
 pub use pvd::{PvdEntry, write_pvd};
-pub use summary::{EnergySample, RunStatus, RunSummary, write_summary};
+pub use summary::{EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary};
 pub use vtu::write_vtu;
 
 use loam_core::Particles;

@@ -31,6 +31,25 @@ pub struct EnergySample {
     pub total: f64,
 }
 
+/// One implicit load step: how Newton did.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LoadStepSummary {
+    /// Load step number (1-based).
+    pub step: u64,
+    /// Load factor reached (0 … 1).
+    pub load_factor: f64,
+    /// Newton iterations of the converged solves.
+    pub iterations: u64,
+    /// Times the step was cut in half.
+    pub cuts: u64,
+    /// Final residual norm relative to the step's reference.
+    pub residual: f64,
+    /// Linear-solver iterations, summed over the Newton iterations.
+    pub linear_iterations: u64,
+    /// Wall-clock time of the step (s).
+    pub wall_time_s: f64,
+}
+
 /// What a run did, written as `summary.json` next to its frames. Non-finite numbers (say
 /// `dt_min` of a run that failed before its first step) are written as JSON `null`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -68,6 +87,9 @@ pub struct RunSummary {
     pub energy: Vec<EnergySample>,
     /// Frame files written, relative to the output folder, in time order.
     pub frames: Vec<String>,
+    /// Implicit runs: the Newton report of every load step (empty for explicit runs).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub load_steps: Vec<LoadStepSummary>,
 }
 
 /// Writes the summary as pretty-printed JSON, atomically.

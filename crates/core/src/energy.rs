@@ -1,7 +1,10 @@
 //! Energy bookkeeping of a particle state.
 
-use loam_core::tensor::{Vector, to3};
-use loam_core::{Material, Particles, Scalar};
+use crate::constitutive::Material;
+use crate::particles::Particles;
+use crate::scalar::Scalar;
+use crate::tensor::{Vector, to3};
+
 /// Kinetic, stored (strain) and gravitational potential energy (real parts, joules; per
 /// metre of thickness in plane strain).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

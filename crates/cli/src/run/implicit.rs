@@ -1,0 +1,175 @@
+//! Implicit runs: load steps with a per-step Newton table.
+
+use super::Recorder;
+use crate::Outcome;
+use loam_implicit::linear::{LinearSolverKind, Preconditioner};
+use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings, TangentMethod};
+use loam_scene::output::LoadStepSummary;
+use loam_scene::{
+    Built, ImplicitPlan, KrylovSettings, LinearMethod, PreconditionerKind, TangentKind,
+};
+use std::time::Instant;
+
+fn preconditioner(p: PreconditionerKind) -> Preconditioner {
+    match p {
+        PreconditionerKind::Identity => Preconditioner::Identity,
+        PreconditionerKind::Jacobi => Preconditioner::Jacobi,
+        PreconditionerKind::Ilu0 => Preconditioner::Ilu0,
+    }
+}
+
+fn linear(m: LinearMethod) -> LinearSolverKind {
+    let krylov = |k: KrylovSettings| {
+        (
+            preconditioner(k.preconditioner),
+            k.rel_tol,
+            k.max_iterations,
+        )
+    };
+    match m {
+        LinearMethod::Lu => LinearSolverKind::Lu,
+        LinearMethod::Cholesky => LinearSolverKind::Cholesky,
+        LinearMethod::Cg(k) => {
+            let (preconditioner, rel_tol, max_iter) = krylov(k);
+            LinearSolverKind::Cg {
+                preconditioner,
+                rel_tol,
+                max_iter,
+            }
+        }
+        LinearMethod::Bicgstab(k) => {
+            let (preconditioner, rel_tol, max_iter) = krylov(k);
+            LinearSolverKind::Bicgstab {
+                preconditioner,
+                rel_tol,
+                max_iter,
+            }
+        }
+    }
+}
+
+/// The solver's settings from the scene's plan.
+fn settings(plan: &ImplicitPlan) -> NewtonSettings {
+    let n = &plan.newton;
+    NewtonSettings {
+        residual_tol: n.residual_tol,
+        increment_tol: n.increment_tol,
+        max_iterations: n.max_iterations,
+        line_search: n.line_search,
+        max_cuts: n.max_cuts,
+        tangent: match n.tangent {
+            TangentKind::Local => TangentMethod::Local,
+            TangentKind::Colour => TangentMethod::Colour,
+        },
+        linear: linear(plan.linear),
+    }
+}
+
+/// Runs an implicit scene, printing one line per load step (unless `quiet`).
+pub fn run<const D: usize>(
+    built: Built<D>,
+    plan: ImplicitPlan,
+    mut rec: Recorder<D>,
+    quiet: bool,
+) -> Outcome {
+    let frame_steps = built.frame_steps();
+    let config = ImplicitConfig {
+        grid: built.grid.clone(),
+        shape: built.shape,
+        boundary: built.boundary,
+        materials: built.materials.clone(),
+        gravity: built.gravity,
+        constraints: built.constraints.clone(),
+        point_loads: built.point_loads.clone(),
+        load_steps: plan.load_steps,
+        newton: settings(&plan),
+        min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
+    };
+    let mut particles = built.particles;
+    let mut solver = match ImplicitSolver::new(config, &particles) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Outcome::BadInput;
+        }
+    };
+    rec.summary.end_time = 1.0;
+    if !quiet {
+        println!(
+            "{:>5} {:>9} {:>8} {:>5} {:>5} {:>11} {:>7} {:>8}  residual history ‖R‖/ref",
+            "step", "load", "unknowns", "its", "cuts", "‖R‖/ref", "lin.its", "time(s)"
+        );
+    }
+    let start = Instant::now();
+    let mut failure = None;
+    if frame_steps.first() == Some(&0)
+        && let Err(e) = rec.frame(0, 0.0, &particles)
+    {
+        failure = Some(e);
+    }
+    while failure.is_none() && !solver.finished() {
+        let t = Instant::now();
+        let report = match solver.step(&mut particles) {
+            Ok(r) => r,
+            Err(e) => {
+                failure = Some(e.to_string());
+                break;
+            }
+        };
+        let wall = t.elapsed().as_secs_f64();
+        let last = report.solves.last();
+        let rel = last.map_or(0.0, |s| {
+            s.residuals.last().copied().unwrap_or(0.0) / s.reference
+        });
+        let lin: usize = report
+            .solves
+            .iter()
+            .flat_map(|s| s.linear_iterations.iter())
+            .sum();
+        rec.summary.load_steps.push(LoadStepSummary {
+            step: report.step as u64,
+            load_factor: report.load_factor,
+            iterations: report.iterations() as u64,
+            cuts: report.cuts as u64,
+            residual: rel,
+            linear_iterations: lin as u64,
+            wall_time_s: wall,
+        });
+        if !quiet {
+            let history: Vec<String> = last
+                .map(|s| {
+                    s.residuals
+                        .iter()
+                        .map(|r| format!("{:.1e}", r / s.reference))
+                        .collect()
+                })
+                .unwrap_or_default();
+            println!(
+                "{:>5} {:>9.4} {:>8} {:>5} {:>5} {:>11.3e} {:>7} {:>8.3}  {}",
+                report.step,
+                report.load_factor,
+                report.unknowns,
+                report.iterations(),
+                report.cuts,
+                rel,
+                lin,
+                wall,
+                history.join(" ")
+            );
+        }
+        if frame_steps.contains(&report.step)
+            && let Err(e) = rec.frame(report.step, report.load_factor, &particles)
+        {
+            failure = Some(e);
+        }
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let iterations: u64 = rec.summary.load_steps.iter().map(|s| s.iterations).sum();
+    let done = format!(
+        "{} load steps to load factor {:.4} in {wall:.2} s, {iterations} Newton iterations ({} particles)",
+        solver.steps(),
+        solver.load_factor(),
+        particles.len()
+    );
+    rec.finish(solver.steps(), solver.load_factor(), wall, failure, &done)
+}
