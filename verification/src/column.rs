@@ -83,11 +83,11 @@ impl Setup {
         (config, particles)
     }
 
-    /// Runs all load steps; returns `(Y₀, σ_yy)` per particle and the Newton iterations.
+    /// Runs all load steps; returns `(Y₀, σ_yy, σ_xx)` per particle and the Newton iterations.
     pub fn run(
         &self,
         material: Material<f64>,
-    ) -> Result<(Vec<(f64, f64)>, usize), loam_implicit::ImplicitError> {
+    ) -> Result<(Vec<(f64, f64, f64)>, usize), loam_implicit::ImplicitError> {
         let (config, mut particles) = self.build(material);
         let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
         let mut solver = ImplicitSolver::new(config, &particles)?;
@@ -95,12 +95,12 @@ impl Setup {
         while !solver.finished() {
             iterations += solver.step(&mut particles)?.iterations();
         }
-        Ok((
-            y0.into_iter()
-                .zip(particles.stress.iter().map(|s| s[(1, 1)]))
-                .collect(),
-            iterations,
-        ))
+        let samples = y0
+            .into_iter()
+            .zip(&particles.stress)
+            .map(|(y, st)| (y, st[(1, 1)], st[(0, 0)]))
+            .collect();
+        Ok((samples, iterations))
     }
 }
 
@@ -109,13 +109,43 @@ pub fn exact_stress(y0: f64) -> f64 {
     -DENSITY * GRAVITY * (HEIGHT - y0)
 }
 
-/// `Σ |σ − σ_exact| / Σ ρ₀ g H` over particles of equal volume.
-pub fn error_norm(stress: &[(f64, f64)]) -> f64 {
-    let num: f64 = stress
-        .iter()
-        .map(|&(y0, s)| (s - exact_stress(y0)).abs())
-        .sum();
-    num / (stress.len() as f64 * DENSITY * GRAVITY * HEIGHT)
+/// `Σ |σ − σ_exact| / Σ ρ₀ g H` over particles of equal volume, for pairs (computed, exact).
+pub fn error_norm(pairs: impl ExactSizeIterator<Item = (f64, f64)>) -> f64 {
+    let n = pairs.len() as f64;
+    let num: f64 = pairs.map(|(s, e)| (s - e).abs()).sum();
+    num / (n * DENSITY * GRAVITY * HEIGHT)
+}
+
+/// Yield stress of the J2 column, `σ_y = √3 κ` with the shear strength κ = 5 kPa.
+pub fn j2_yield_stress() -> f64 {
+    3f64.sqrt() * 5.0e3
+}
+
+/// Closed form of the perfectly plastic J2 column (ν = 0): the lateral Cauchy stress at a
+/// particle whose vertical stress is `s = −ρ₀ g (H − Y₀)`.
+///
+/// Uniaxial strain with both lateral directions constrained (slip walls and plane strain)
+/// keeps `τ_xx = τ_zz`. Elastic (`λ = 0` for ν = 0): `τ_xx = 0`, `τ_yy = E ln J`. The von Mises
+/// surface `‖dev τ‖ = √(2/3) σ_y` is `|τ_yy − τ_xx| = σ_y`; once yielded under compression
+/// `τ_xx = τ_yy + σ_y`, and the plastic flow is isochoric, so `tr τ = E ln J` gives
+/// `τ_yy = (E ln J − 2σ_y)/3`. `J` follows from `τ_yy / J = s` (bisection on (0, 1]).
+pub fn j2_lateral_stress(s: f64) -> f64 {
+    let sy = j2_yield_stress();
+    let solve = |f: &dyn Fn(f64) -> f64| {
+        // f(J) = τ_yy(J)/J − s is increasing in J on (0, 1] for these laws.
+        let (mut lo, mut hi) = (1e-6, 1.0);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) > 0.0 { hi = mid } else { lo = mid }
+        }
+        0.5 * (lo + hi)
+    };
+    let je = solve(&|j: f64| YOUNG * j.ln() / j - s);
+    if (YOUNG * je.ln()).abs() <= sy {
+        return 0.0;
+    }
+    let jp = solve(&|j: f64| (YOUNG * j.ln() - 2.0 * sy) / (3.0 * j) - s);
+    s + sy / jp
 }
 
 /// Runs the case: error at 64 cells and the refinement study.
@@ -143,7 +173,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     for &n in levels {
         let s = Setup::new(n);
         let (stress, its) = s.run(hencky.clone()).map_err(err)?;
-        let e = error_norm(&stress);
+        let e = error_norm(stress.iter().map(|&(y0, syy, _)| (syy, exact_stress(y0))));
         let rate = prev.map(|p| (p / e).log2());
         if let Some(r) = rate {
             last_rate = r;
@@ -159,12 +189,40 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         }
     }
     let (main_err, stress) = main.expect("the main level is in the refinement list");
+    // The same column, perfectly plastic J2 (κ = 5 kPa): σ_yy is still fixed by equilibrium,
+    // σ_xx follows the closed form of `j2_lateral_stress`.
+    let j2 = Material::j2(YOUNG, 0.0, j2_yield_stress(), 0.0, DENSITY);
+    let (plastic, _) = Setup::new(main_cells).run(j2).map_err(err)?;
+    let j2_yy = error_norm(plastic.iter().map(|&(y0, syy, _)| (syy, exact_stress(y0))));
+    let j2_xx = error_norm(
+        plastic
+            .iter()
+            .map(|&(y0, _, sxx)| (sxx, j2_lateral_stress(exact_stress(y0)))),
+    );
+    table.push_str(&format!(
+        "\nJ2 (κ = 5 kPa, perfectly plastic) at {main_cells} cells: σ_yy error {j2_yy:.3e}, σ_xx error {j2_xx:.3e}\n"
+    ));
     let csv = out.join("column_compaction.csv");
     let rows: Vec<Vec<f64>> = stress
         .iter()
-        .map(|&(y0, s)| vec![y0, s, exact_stress(y0)])
+        .zip(&plastic)
+        .map(|(&(y0, s, _), &(_, syy, sxx))| {
+            let e = exact_stress(y0);
+            vec![y0, s, e, syy, sxx, j2_lateral_stress(e)]
+        })
         .collect();
-    write_csv(&csv, &["y0", "sigma_yy", "sigma_exact"], &rows)?;
+    write_csv(
+        &csv,
+        &[
+            "y0",
+            "sigma_yy_hencky",
+            "sigma_yy_exact",
+            "sigma_yy_j2",
+            "sigma_xx_j2",
+            "sigma_xx_j2_exact",
+        ],
+        &rows,
+    )?;
     let png = out.join("column_compaction.png");
     write_plot(
         &png,
@@ -179,7 +237,26 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             },
             Series {
                 name: "loam".into(),
-                points: stress.iter().step_by(2).copied().collect(),
+                points: stress.iter().step_by(2).map(|&(y, s, _)| (y, s)).collect(),
+                markers: true,
+            },
+            Series {
+                name: "J2 sigma_xx exact".into(),
+                points: (0..=100)
+                    .map(|k| {
+                        let y = HEIGHT * k as f64 / 100.0;
+                        (y, j2_lateral_stress(exact_stress(y)))
+                    })
+                    .collect(),
+                markers: false,
+            },
+            Series {
+                name: "J2 sigma_xx loam".into(),
+                points: plastic
+                    .iter()
+                    .step_by(2)
+                    .map(|&(y, _, sxx)| (y, sxx))
+                    .collect(),
                 markers: true,
             },
         ],
@@ -203,6 +280,27 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
                 },
             ),
             Metric::at_least(CASE, "observed_order", last_rate, 1.0),
+            // J2 (no goal in the benchmark definition): measured σ_yy 3.3e-3 / 1.35e-3 and
+            // σ_xx 9.4e-4 / 3.9e-4 at 32 / 64 cells (order ≈ 1.3); the bounds leave ~25 % margin
+            // so that a regression in the return mapping or the tangent shows up.
+            Metric::at_most(
+                CASE,
+                "j2_sigma_yy_error_norm",
+                j2_yy,
+                match size {
+                    Size::Full => 1.7e-3,
+                    Size::Reduced => 4.1e-3,
+                },
+            ),
+            Metric::at_most(
+                CASE,
+                "j2_sigma_xx_error_norm",
+                j2_xx,
+                match size {
+                    Size::Full => 5e-4,
+                    Size::Reduced => 1.2e-3,
+                },
+            ),
         ],
         files: vec![csv, png, md],
     })
