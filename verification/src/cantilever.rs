@@ -163,7 +163,7 @@ impl Setup {
 
     /// Runs all load steps; returns the tip displacement (mean of the loaded particles,
     /// `(u_x, u_y)`) after each step and the step reports.
-    pub fn run(&self) -> Result<(Vec<[f64; 2]>, Vec<StepReport>), ImplicitError> {
+    pub fn run(&self) -> Result<(Vec<[f64; 2]>, Vec<StepReport<2>>), ImplicitError> {
         let (config, mut particles, loaded) = self.build();
         let start: Vec<Vector<f64, 2>> = loaded.iter().map(|&p| particles.x[p]).collect();
         let mut solver = ImplicitSolver::new(config, &particles)?;
@@ -234,7 +234,7 @@ fn solve(setup: &Setup) -> Result<(Outcome, Vec<[f64; 2]>), VerifyError> {
         Outcome {
             v: -last[1],
             u: -last[0],
-            iterations: reports.iter().map(StepReport::iterations).sum(),
+            iterations: reports.iter().map(StepReport::<2>::iterations).sum(),
             wall: start.elapsed().as_secs_f64(),
         },
         tips,

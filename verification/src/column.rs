@@ -22,6 +22,9 @@ pub const DENSITY: f64 = 80.0;
 /// Gravity (m/s²).
 pub const GRAVITY: f64 = 10.0;
 
+/// A particle's reference height `Y₀` and its final `σ_yy`, `σ_xx` (Pa).
+pub type Sample = (f64, f64, f64);
+
 /// Discretisation of the column.
 #[derive(Clone, Copy, Debug)]
 pub struct Setup {
@@ -87,7 +90,7 @@ impl Setup {
     pub fn run(
         &self,
         material: Material<f64>,
-    ) -> Result<(Vec<(f64, f64, f64)>, usize), loam_implicit::ImplicitError> {
+    ) -> Result<(Vec<Sample>, usize), loam_implicit::ImplicitError> {
         let (config, mut particles) = self.build(material);
         let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
         let mut solver = ImplicitSolver::new(config, &particles)?;

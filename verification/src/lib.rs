@@ -10,6 +10,7 @@ pub mod cantilever;
 pub mod column;
 pub mod disk_collision;
 pub mod elastica;
+pub mod footing;
 pub mod newton_quadratic;
 mod output;
 pub mod tangent_fd;
@@ -168,6 +169,11 @@ pub fn cases() -> Vec<Case> {
             name: "column-compaction",
             description: "soil column compacting under self-weight (Hencky, 40 load steps) vs the exact stress",
             run: column::run,
+        },
+        Case {
+            name: "footing-prandtl",
+            description: "rigid strip footing on weightless Tresca (J2) soil: limit pressure vs (2 + π) c_u",
+            run: footing::run,
         },
         Case {
             name: "disk-collision",

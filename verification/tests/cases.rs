@@ -53,3 +53,8 @@ fn cantilever() {
 fn column_compaction() {
     check("column-compaction");
 }
+
+#[test]
+fn footing_prandtl() {
+    check("footing-prandtl");
+}

@@ -84,7 +84,7 @@ pub enum ImplicitError {
 
 /// What one load step did.
 #[derive(Clone, Debug, PartialEq)]
-pub struct StepReport {
+pub struct StepReport<const D: usize> {
     /// Load step number (1-based).
     pub step: usize,
     /// Load factor reached.
@@ -95,9 +95,12 @@ pub struct StepReport {
     pub solves: Vec<NewtonReport>,
     /// Times the step was cut.
     pub cuts: usize,
+    /// Per entry of `ImplicitConfig::constraints`, the total force the prescribed components
+    /// exert on the material at the end of the step (the reaction; N per m in 2D).
+    pub constraint_forces: Vec<Vector<f64, D>>,
 }
 
-impl StepReport {
+impl<const D: usize> StepReport<D> {
     /// Newton iterations of the converged solves.
     pub fn iterations(&self) -> usize {
         self.solves
@@ -262,8 +265,38 @@ impl<const D: usize> ImplicitSolver<D> {
         }))
     }
 
+    /// Reaction of every user constraint: the internal force on the prescribed components of
+    /// the grid nodes inside its box.
+    fn constraint_forces(&self, system: &StepSystem<D>, x: &[f64]) -> Vec<Vector<f64, D>> {
+        let Ok(f) = system.nodal_internal_force(x, &self.materials) else {
+            return vec![Vector::zeros(); self.config.constraints.len()];
+        };
+        let grid = &self.config.grid;
+        self.config
+            .constraints
+            .iter()
+            .map(|k| {
+                let mut total = Vector::<f64, D>::zeros();
+                for (n, fn_) in f.iter().enumerate() {
+                    let pos: Vector<f64, D> = grid.node_position(grid.multi(n));
+                    if k.contains(&std::array::from_fn(|a| pos[a]), grid.h) {
+                        for a in 0..D {
+                            if k.displacement[a].is_some() {
+                                total[a] += fn_[a];
+                            }
+                        }
+                    }
+                }
+                total
+            })
+            .collect()
+    }
+
     /// Advances one load step (cutting it into halves as needed) and updates the particles.
-    pub fn step(&mut self, particles: &mut Particles<f64, D>) -> Result<StepReport, ImplicitError> {
+    pub fn step(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+    ) -> Result<StepReport<D>, ImplicitError> {
         let n = self.config.load_steps as f64;
         let target = (self.steps + 1) as f64 / n;
         let mut report = StepReport {
@@ -272,6 +305,7 @@ impl<const D: usize> ImplicitSolver<D> {
             unknowns: 0,
             solves: Vec::new(),
             cuts: 0,
+            constraint_forces: vec![Vector::zeros(); self.config.constraints.len()],
         };
         let mut from = self.load_factor;
         let mut size = target - from;
@@ -294,6 +328,9 @@ impl<const D: usize> ImplicitSolver<D> {
             } else {
                 None
             };
+            if update.is_some() {
+                report.constraint_forces = self.constraint_forces(&system, &x);
+            }
             match update {
                 Some(update) => {
                     for (i, u) in update.into_iter().enumerate() {

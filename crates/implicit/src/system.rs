@@ -234,6 +234,24 @@ impl<const D: usize> StepSystem<D> {
         Ok(f)
     }
 
+    /// Internal force `f_i = Σ_p V⁰τΔF⁻ᵀ ∇N_i` on every grid node (flat index), before any
+    /// folding of ghost nodes: at prescribed nodes it is the reaction the constraint exerts.
+    pub fn nodal_internal_force(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<Vec<Vector<f64, D>>, Inverted> {
+        let mut f = vec![Vector::<f64, D>::zeros(); self.grid.num_nodes()];
+        for (p, fr) in self.frozen.iter().enumerate() {
+            let (s, _, _) =
+                particle_stress(&materials.real[fr.material], fr, &self.delta_f_real(p, x))
+                    .ok_or(Inverted { particle: p })?;
+            fr.stencil
+                .for_each(|node| f[node.flat] += s * node.gradient);
+        }
+        Ok(f)
+    }
+
     /// Residual `R(x) = f_int(x) − f_ext`.
     pub fn residual(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
         let mut r = self.internal_force(x, materials)?;
