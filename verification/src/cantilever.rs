@@ -156,6 +156,7 @@ impl Setup {
                 .collect(),
             load_steps: self.steps,
             newton: self.newton,
+            dynamics: None,
             min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
         };
         (config, particles, loaded)

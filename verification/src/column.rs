@@ -72,6 +72,7 @@ impl Setup {
             point_loads: Vec::new(),
             load_steps: self.steps,
             newton: NewtonSettings::default(),
+            dynamics: None,
             min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
         };
         let mut particles = Particles::default();

@@ -50,6 +50,7 @@ pub fn load_curve(
         point_loads: Vec::new(),
         load_steps: steps,
         newton: NewtonSettings::default(),
+        dynamics: None,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
     };
     let mut particles = Particles::default();

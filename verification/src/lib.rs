@@ -11,6 +11,7 @@ pub mod column;
 pub mod disk_collision;
 pub mod elastica;
 pub mod footing;
+pub mod newmark_bar;
 pub mod newton_quadratic;
 mod output;
 pub mod tangent_fd;
@@ -149,6 +150,11 @@ pub fn cases() -> Vec<Case> {
             name: "axial-bar",
             description: "1D axial vibration of a fixed-free elastic bar vs the modal solution v_cm(t) = v0/(β1 L) cos(ω1 t)",
             run: axial_bar::run,
+        },
+        Case {
+            name: "axial-bar-newmark",
+            description: "the axial bar by the implicit solver with Newmark dynamics at twice the explicit stability limit",
+            run: newmark_bar::run,
         },
         Case {
             name: "tangent-fd",

@@ -58,3 +58,8 @@ fn column_compaction() {
 fn footing_prandtl() {
     check("footing-prandtl");
 }
+
+#[test]
+fn axial_bar_newmark() {
+    check("axial-bar-newmark");
+}

@@ -14,6 +14,8 @@ pub struct Particles<T: Scalar, const D: usize> {
     pub x: Vec<Vector<T, D>>,
     /// Velocity `v_p`.
     pub v: Vec<Vector<T, D>>,
+    /// Acceleration `a_p` (carried by implicit Newmark dynamics; zero otherwise).
+    pub a: Vec<Vector<T, D>>,
     /// Deformation gradient `F_p` (in-plane block in plane strain, where `F_zz = 1`).
     pub f: Vec<Tensor<T, D>>,
     /// APIC affine velocity matrix `C_p = B_p D_p⁻¹` (zero for PIC / FLIP).
@@ -37,6 +39,7 @@ impl<T: Scalar, const D: usize> Default for Particles<T, D> {
         Self {
             x: Vec::new(),
             v: Vec::new(),
+            a: Vec::new(),
             f: Vec::new(),
             c: Vec::new(),
             stress: Vec::new(),
@@ -75,6 +78,7 @@ impl<T: Scalar, const D: usize> Particles<T, D> {
         }
         self.x.push(x);
         self.v.push(v);
+        self.a.push(Vector::zeros());
         self.f.push(Tensor::<T, D>::identity());
         self.c.push(Tensor::<T, D>::zeros());
         self.stress.push(Matrix3::zeros());

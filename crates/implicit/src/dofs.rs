@@ -176,6 +176,16 @@ impl<const D: usize> DofMap<D> {
         self.owners[dof]
     }
 
+    /// The value of a node component of a field given on the unknowns (velocities,
+    /// accelerations): `sign · v[dof]` for a free component, zero otherwise.
+    #[inline]
+    pub fn field(&self, flat: usize, c: usize, v: &[f64]) -> f64 {
+        match self.nodes[flat][c] {
+            NodeDof::Free { dof, sign } => sign * v[dof],
+            _ => 0.0,
+        }
+    }
+
     /// `Δu` of a node component for the unknown vector `x`.
     #[inline]
     pub fn value(&self, flat: usize, c: usize, x: &[f64]) -> f64 {

@@ -32,6 +32,10 @@ pub struct ImplicitConfig<const D: usize> {
     pub load_steps: usize,
     /// Newton settings.
     pub newton: NewtonSettings,
+    /// Newmark dynamics (β = ¼, γ = ½) with this time step: each load step is a time step
+    /// of `dt` (cut steps are shorter), gravity and point loads act in full from the start and
+    /// prescribed displacements ramp over the steps. `None`: quasi-static.
+    pub dynamics: Option<f64>,
     /// A node takes part in a load step when its particle support `Σ_p w_ip V_p` exceeds
     /// this fraction of a cell volume (1e-4 by default; see `ImplicitConfig::DEFAULT_MIN_NODE_SUPPORT`).
     pub min_node_support: f64,
@@ -256,13 +260,20 @@ impl<const D: usize> ImplicitSolver<D> {
                 .and_then(|k| k.displacement[c].map(|u| u * dl))
         };
         let dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
+        // Quasi-static loads ramp with the load factor; dynamic loads act in full.
+        let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
         for l in &cfg.point_loads {
-            loads[l.particle] += Vector::<f64, D>::from(l.force) * to;
+            loads[l.particle] += Vector::<f64, D>::from(l.force) * factor;
         }
-        Ok(StepSystem::new(grid, frozen, dofs, |i| {
-            p.mass[i] * to * cfg.gravity + loads[i]
-        }))
+        let mut system = StepSystem::new(grid, frozen, dofs, |i| {
+            p.mass[i] * factor * cfg.gravity + loads[i]
+        });
+        if let Some(dt) = cfg.dynamics {
+            let step_dt = dt * cfg.load_steps as f64 * dl;
+            system.set_dynamic(step_dt, &p.mass, &p.v, &p.a);
+        }
+        Ok(system)
     }
 
     /// Reaction of every user constraint: the internal force on the prescribed components of
@@ -335,6 +346,8 @@ impl<const D: usize> ImplicitSolver<D> {
                 Some(update) => {
                     for (i, u) in update.into_iter().enumerate() {
                         particles.x[i] += u.displacement;
+                        particles.v[i] += u.velocity_increment;
+                        particles.a[i] += u.acceleration_increment;
                         particles.f[i] = u.f;
                         particles.stress[i] = u.stress;
                         particles.state[i] = u.state;

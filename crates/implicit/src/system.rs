@@ -52,8 +52,47 @@ impl Materials {
     }
 }
 
+/// The inertia of a Newmark step (β = ¼, γ = ½, the trapezoidal rule): with the consistent
+/// mass `M_ij = Σ_p m_p N_i N_j`, the grid velocity `vₙ` and acceleration `aₙ` projected from the
+/// particles, `a_{n+1} = (4/Δt²)(Δu − Δt vₙ) − aₙ` adds `M a_{n+1}` to the residual and
+/// `(4/Δt²) M` to the tangent.
+pub struct Inertia {
+    /// Consistent mass matrix on the step's pattern.
+    pub mass: SparseMatrix,
+    /// Time step Δt.
+    pub dt: f64,
+    /// Grid velocity at the start of the step, per unknown.
+    pub v_n: Vec<f64>,
+    /// Grid acceleration at the start of the step, per unknown.
+    pub a_n: Vec<f64>,
+}
+
+impl Inertia {
+    /// `a_{n+1}(Δu)` per unknown.
+    pub fn acceleration(&self, x: &[f64]) -> Vec<f64> {
+        let c0 = 4.0 / (self.dt * self.dt);
+        x.iter()
+            .zip(&self.v_n)
+            .zip(&self.a_n)
+            .map(|((x, v), a)| c0 * (x - self.dt * v) - a)
+            .collect()
+    }
+
+    /// `v_{n+1} = vₙ + Δt/2 (aₙ + a_{n+1})` per unknown.
+    pub fn velocity(&self, a_next: &[f64]) -> Vec<f64> {
+        self.v_n
+            .iter()
+            .zip(&self.a_n)
+            .zip(a_next)
+            .map(|((v, a0), a1)| v + 0.5 * self.dt * (a0 + a1))
+            .collect()
+    }
+}
+
 /// One load step's system.
 pub struct StepSystem<const D: usize> {
+    /// Newmark inertia for dynamic steps (`None`: quasi-static).
+    pub inertia: Option<Inertia>,
     /// Frozen particle data.
     pub frozen: Vec<Frozen<D>>,
     /// Unknown numbering.
@@ -157,6 +196,7 @@ impl<const D: usize> StepSystem<D> {
             })
             .collect();
         Self {
+            inertia: None,
             frozen,
             dofs,
             pattern,
@@ -252,11 +292,74 @@ impl<const D: usize> StepSystem<D> {
         Ok(f)
     }
 
-    /// Residual `R(x) = f_int(x) − f_ext`.
+    /// Residual `R(x) = f_int(x) − f_ext` (plus `M a_{n+1}(x)` for a dynamic step).
     pub fn residual(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
         let mut r = self.internal_force(x, materials)?;
         r.iter_mut().zip(&self.f_ext).for_each(|(r, f)| *r -= f);
+        if let Some(inertia) = &self.inertia {
+            let mut ma = vec![0.0; r.len()];
+            inertia.mass.mul_vec(&inertia.acceleration(x), &mut ma);
+            r.iter_mut().zip(&ma).for_each(|(r, m)| *r += m);
+        }
         Ok(r)
+    }
+
+    /// Adds the dynamic part `(4/Δt²) M` to a tangent (no-op for quasi-static steps).
+    fn add_inertia(&self, k: &mut SparseMatrix) {
+        if let Some(inertia) = &self.inertia {
+            let c0 = 4.0 / (inertia.dt * inertia.dt);
+            k.values
+                .iter_mut()
+                .zip(&inertia.mass.values)
+                .for_each(|(k, m)| *k += c0 * m);
+        }
+    }
+
+    /// Makes this a Newmark step of size `dt`: assembles the consistent mass and projects the
+    /// particle velocities and accelerations onto the unknowns (mass-weighted, through the
+    /// unknown map).
+    pub fn set_dynamic(
+        &mut self,
+        dt: f64,
+        mass: &[f64],
+        v: &[Vector<f64, D>],
+        a: &[Vector<f64, D>],
+    ) {
+        let n = self.len();
+        let mut m = SparseMatrix::zeros(self.pattern.clone());
+        let (mut mv, mut ma, mut lumped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for (p, fr) in self.frozen.iter().enumerate() {
+            let mut nodes = Vec::with_capacity(fr.stencil.len());
+            fr.stencil
+                .for_each(|node| nodes.push((node.flat, node.weight)));
+            for &(fi, wi) in &nodes {
+                for c in 0..D {
+                    let NodeDof::Free { dof: row, sign: si } = self.dofs.get(fi, c) else {
+                        continue;
+                    };
+                    lumped[row] += mass[p] * wi;
+                    mv[row] += si * mass[p] * wi * v[p][c];
+                    ma[row] += si * mass[p] * wi * a[p][c];
+                    for &(fj, wj) in &nodes {
+                        if let NodeDof::Free { dof: col, sign: sj } = self.dofs.get(fj, c) {
+                            m.values[self.slot(row, col)] += si * sj * mass[p] * wi * wj;
+                        }
+                    }
+                }
+            }
+        }
+        let div = |num: Vec<f64>| -> Vec<f64> {
+            num.iter()
+                .zip(&lumped)
+                .map(|(x, m)| if *m > 0.0 { x / m } else { 0.0 })
+                .collect()
+        };
+        self.inertia = Some(Inertia {
+            mass: m,
+            dt,
+            v_n: div(mv),
+            a_n: div(ma),
+        });
     }
 
     /// Tangent by per-particle forward-mode AD: `A = ∂(V⁰ τ ΔF⁻ᵀ)/∂ΔF` from `D²` passes with
@@ -281,6 +384,7 @@ impl<const D: usize> StepSystem<D> {
                 self.scatter_local(&self.frozen[p].stencil, &a, &mut k);
             }
         }
+        self.add_inertia(&mut k);
         Ok(k)
     }
 
@@ -436,6 +540,7 @@ impl<const D: usize> StepSystem<D> {
                 }
             }
         }
+        self.add_inertia(&mut k);
         Ok(k)
     }
 
@@ -450,13 +555,21 @@ impl<const D: usize> StepSystem<D> {
         c
     }
 
-    /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J` and the
-    /// displacement `Σ_i N_i Δu_i` of each particle.
+    /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J`, the
+    /// displacement `Σ_i N_i Δu_i` and, for a dynamic step, the velocity and acceleration
+    /// increments mapped from the grid (FLIP-style, so the projection does not damp them).
     pub fn particle_updates(
         &self,
         x: &[f64],
         materials: &Materials,
     ) -> Result<Vec<ParticleUpdate<D>>, Inverted> {
+        let grid_increments = self.inertia.as_ref().map(|inertia| {
+            let a1 = inertia.acceleration(x);
+            let v1 = inertia.velocity(&a1);
+            let dv: Vec<f64> = v1.iter().zip(&inertia.v_n).map(|(a, b)| a - b).collect();
+            let da: Vec<f64> = a1.iter().zip(&inertia.a_n).map(|(a, b)| a - b).collect();
+            (dv, da)
+        });
         (0..self.frozen.len())
             .into_par_iter()
             .map(|p| {
@@ -467,13 +580,20 @@ impl<const D: usize> StepSystem<D> {
                 let f = g * fr.f_n;
                 let j = det(&f);
                 let mut u = Vector::<f64, D>::zeros();
+                let (mut dv, mut da) = (Vector::<f64, D>::zeros(), Vector::<f64, D>::zeros());
                 fr.stencil.for_each(|n| {
                     for a in 0..D {
                         u[a] += n.weight * self.dofs.value(n.flat, a, x);
+                        if let Some((dvel, dacc)) = &grid_increments {
+                            dv[a] += n.weight * self.dofs.field(n.flat, a, dvel);
+                            da[a] += n.weight * self.dofs.field(n.flat, a, dacc);
+                        }
                     }
                 });
                 Ok(ParticleUpdate {
                     displacement: u,
+                    velocity_increment: dv,
+                    acceleration_increment: da,
                     f,
                     stress: tau / j,
                     state,
@@ -488,6 +608,10 @@ impl<const D: usize> StepSystem<D> {
 pub struct ParticleUpdate<const D: usize> {
     /// Displacement over the step.
     pub displacement: Vector<f64, D>,
+    /// Change of the particle velocity, `Σ_i N_i (v_i^{n+1} − v_iⁿ)` (zero when quasi-static).
+    pub velocity_increment: Vector<f64, D>,
+    /// Change of the particle acceleration, `Σ_i N_i (a_i^{n+1} − a_iⁿ)`.
+    pub acceleration_increment: Vector<f64, D>,
     /// New deformation gradient.
     pub f: Tensor<f64, D>,
     /// New Cauchy stress (3×3).

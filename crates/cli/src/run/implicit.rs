@@ -83,6 +83,7 @@ pub fn run<const D: usize>(
         point_loads: built.point_loads.clone(),
         load_steps: plan.load_steps,
         newton: settings(&plan),
+        dynamics: None,
         min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
     };
     let mut particles = built.particles;
