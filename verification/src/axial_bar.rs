@@ -6,7 +6,7 @@
 //! cell high between slip walls (so `v_y = 0` everywhere) with `ν = 0`, where the plane-strain
 //! constrained modulus equals `E`.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
 use loam_core::tensor::Vector;
 use loam_core::{
     Boundary, Grid, Material, ModelKind, Particles, Scalar, Scheme, Shape, TimeStep, Transfer,
@@ -235,10 +235,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         prev = Some(e);
     }
     let md = out.join("axial_bar_refinement.md");
-    std::fs::write(&md, &table).map_err(|e| VerifyError::Output {
-        path: md.clone(),
-        msg: e.to_string(),
-    })?;
+    write_text(&md, &table)?;
     let last_rate = rates.last().copied().unwrap_or(f64::NAN);
     Ok(CaseReport {
         metrics: vec![

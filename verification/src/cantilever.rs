@@ -12,7 +12,7 @@
 //! `α′ = PL²/(E′I) = 9.6`; both are reported.
 
 use crate::elastica::{tip_displacement, tip_displacement_reissner};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
 use loam_implicit::{
@@ -351,10 +351,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         }
     }
     let md = out.join("cantilever.md");
-    std::fs::write(&md, &table).map_err(|e| VerifyError::Output {
-        path: md.clone(),
-        msg: e.to_string(),
-    })?;
+    write_text(&md, &table)?;
     Ok(CaseReport {
         metrics: vec![
             // The benchmark's goal: tip deflection within 0.5 % of the beam solution at full

@@ -7,7 +7,7 @@
 //! stress at a particle that started at height Y₀: `σ_yy = −ρ₀ g (H − Y₀)`. The error norm is
 //! `Σ_p |σ_yy − σ_exact| V⁰_p / Σ_p ρ₀ g H V⁰_p`.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
 use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
@@ -266,10 +266,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         ],
     )?;
     let md = out.join("column_compaction.md");
-    std::fs::write(&md, &table).map_err(|e| VerifyError::Output {
-        path: md.clone(),
-        msg: e.to_string(),
-    })?;
+    write_text(&md, &table)?;
     Ok(CaseReport {
         metrics: vec![
             // Goal: 4e-4 at 64 cells. The reduced run (32 cells) measures 1.05e-3; with the

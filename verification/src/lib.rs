@@ -16,7 +16,7 @@ pub mod newton_quadratic;
 mod output;
 pub mod tangent_fd;
 
-pub use output::{Series, write_csv, write_plot};
+pub use output::{Series, write_csv, write_plot, write_text};
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};

@@ -29,6 +29,11 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> VerifyError {
     }
 }
 
+/// Writes a text file (Markdown tables of refinement studies).
+pub fn write_text(path: &Path, text: &str) -> Result<(), VerifyError> {
+    std::fs::write(path, text).map_err(|e| io_err(path, e))
+}
+
 /// Writes `header` and the rows as comma-separated values.
 pub fn write_csv(path: &Path, header: &[&str], rows: &[Vec<f64>]) -> Result<(), VerifyError> {
     let mut s = header.join(",");

@@ -7,7 +7,7 @@
 //! `(R(x + εe_j) − R(x − εe_j)) / 2ε` column by column. Also checked: the Hencky tangent at
 //! `F = I` (the first iteration of every step) and at repeated stretches is finite and exact.
 
-use crate::{CaseReport, Metric, Size, VerifyError};
+use crate::{CaseReport, Metric, Size, VerifyError, write_text};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Stencil, Wall, WallKind};
 use loam_implicit::dofs::DofMap;
@@ -194,10 +194,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         );
     }
     let md = out.join("tangent_fd.md");
-    std::fs::write(&md, &table).map_err(|e| VerifyError::Output {
-        path: md.clone(),
-        msg: e.to_string(),
-    })?;
+    write_text(&md, &table)?;
     Ok(CaseReport {
         metrics: vec![
             // Central differences with ε = 5e-7 m are accurate to ~1e-9 relative; 1e-6 is the
