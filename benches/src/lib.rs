@@ -8,6 +8,9 @@
 //! lower corner of a box twice its size along every axis and slumps under gravity against
 //! separable slip walls. The solver settings are the usual explicit defaults: quadratic
 //! B-splines, APIC, MUSL and an adaptive time step at CFL 0.4.
+//!
+//! The implicit benches use two quasi-static scenes ([`cantilever_2d`] and [`hencky_block_3d`]),
+//! returned as `ImplicitConfig` + `Particles`.
 
 use loam_core::tensor::Vector;
 use loam_core::{
@@ -15,6 +18,8 @@ use loam_core::{
     Wall, WallKind,
 };
 use loam_explicit::Config;
+use loam_implicit::{ImplicitConfig, NewtonSettings};
+use loam_verification::cantilever;
 
 /// Young's modulus of the block material (Pa): soft, so the block flows like a fluid.
 const YOUNG: f64 = 1.0e5;
@@ -91,6 +96,84 @@ fn fluid_block<T: Scalar, const D: usize>(
     (config, particles)
 }
 
+/// The reference large-deflection cantilever of the implicit benchmark
+/// (`loam_verification::cantilever::Setup::reference` with quadratic B-splines) at cell size
+/// `cell` (m), 6 × 6 particles per cell.
+///
+/// The 10 m × 1 m Hencky beam (E = 12 MPa, ν = 0.2) is held at its root and loaded by a tip
+/// load on the two particles nearest the tip's neutral axis, over 50 load steps. `cell = 0.25`
+/// is the reference (5,760 particles); 0.125 gives 23,040 and 0.0625 gives 92,160 particles.
+/// `cell` must divide 15 m and put a node row on the neutral axis y = 9.5 m.
+pub fn cantilever_2d(cell: f64) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    let setup = cantilever::Setup {
+        cell,
+        ..cantilever::Setup::reference(Shape::QuadraticBspline)
+    };
+    let (config, particles, _loaded) = setup.build();
+    (config, particles)
+}
+
+/// Young's modulus of the implicit 3D block (Pa).
+const BLOCK_YOUNG: f64 = 1.0e6;
+/// Poisson's ratio of the implicit 3D block.
+const BLOCK_POISSON: f64 = 0.3;
+/// Load steps of the implicit 3D block (gravity is ramped over them).
+const BLOCK_LOAD_STEPS: usize = 10;
+
+/// A quasi-static 3D block settling under gravity, with at least `target_particles` particles.
+///
+/// A 1 m cube of Hencky material (E = 1 MPa, ν = 0.3, ρ = 1000 kg/m³) rests on a fixed floor
+/// (y = 0) between frictionless (slip) walls on the four sides, which coincide with the block's
+/// faces; the top is free and the grid is one cell taller than the block. Gravity 9.81 m/s²
+/// along −y is ramped over 10 load steps (vertical strain ≈ ρgH/E ≈ 1 % at the bottom).
+/// Quadratic B-splines, 2 × 2 × 2 particles per cell; the block side in particles is the
+/// smallest even `n` with `n³ ≥ target_particles`: 25,000 gives 30³ = 27,000 particles on
+/// 15 × 16 × 15 cells.
+pub fn hencky_block_3d(target_particles: usize) -> (ImplicitConfig<3>, Particles<f64, 3>) {
+    const D: usize = 3;
+    let per_axis = particles_per_axis(target_particles, D);
+    let block_cells = per_axis / PARTICLES_PER_CELL_AXIS;
+    let h = BLOCK_SIDE / block_cells as f64;
+    let shape = Shape::QuadraticBspline;
+    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+    boundary.walls[1][0] = Wall::new(WallKind::Fixed);
+    boundary.walls[1][1] = Wall::new(WallKind::Free);
+    let config = ImplicitConfig {
+        grid: Grid::new(
+            [0.0; D],
+            [block_cells, block_cells + 1, block_cells],
+            h,
+            shape.ghost_cells(),
+        ),
+        shape,
+        boundary,
+        materials: vec![Material::elastic(
+            ModelKind::Hencky,
+            BLOCK_YOUNG,
+            BLOCK_POISSON,
+            DENSITY,
+        )],
+        gravity: Vector::<f64, D>::new(0.0, -9.81, 0.0),
+        constraints: Vec::new(),
+        point_loads: Vec::new(),
+        load_steps: BLOCK_LOAD_STEPS,
+        newton: NewtonSettings::default(),
+        dynamics: None,
+        min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
+    };
+    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
+    let half_width = Vector::<f64, D>::repeat(0.5 * dp);
+    let mut particles = Particles::default();
+    for k in 0..per_axis.pow(D as u32) {
+        let x = Vector::<f64, D>::from_fn(|a, _| {
+            let i = k / per_axis.pow(a as u32) % per_axis;
+            (i as f64 + 0.5) * dp
+        });
+        particles.push(x, Vector::zeros(), DENSITY, half_width, 0);
+    }
+    (config, particles)
+}
+
 /// The smallest even `n ≥ 2` with `n^dim ≥ target`.
 fn particles_per_axis(target: usize, dim: usize) -> usize {
     (PARTICLES_PER_CELL_AXIS..)
@@ -112,6 +195,26 @@ mod tests {
         assert_eq!(fluid_block_2d::<f64>(10_000).1.len(), 10_000);
         assert_eq!(fluid_block_3d::<f64>(100_000).1.len(), 110_592);
         assert_eq!(fluid_block_2d::<f32>(0).1.len(), 4);
+        assert_eq!(cantilever_2d(0.25).1.len(), 5_760);
+        assert_eq!(cantilever_2d(0.125).1.len(), 23_040);
+        assert_eq!(cantilever_2d(0.0625).1.len(), 92_160);
+        assert_eq!(hencky_block_3d(25_000).1.len(), 27_000);
+    }
+
+    #[test]
+    fn implicit_scenes_make_solvers() {
+        let (config, particles) = cantilever_2d(0.25);
+        loam_implicit::ImplicitSolver::new(config, &particles).expect("valid cantilever");
+        let (config, particles) = hencky_block_3d(1000);
+        assert_eq!(config.grid.cells, [5, 6, 5]);
+        let solver =
+            loam_implicit::ImplicitSolver::new(config, &particles).expect("valid 3D block");
+        let system = solver
+            .system(&particles, 0.0, 0.1)
+            .expect("block on the grid");
+        assert!(!system.is_empty());
+        // Gravity pushes down: the external force on the unknowns sums to −ρ g V λ along y.
+        assert!(system.f_ext.iter().sum::<f64>() < 0.0);
     }
 
     #[test]
