@@ -103,10 +103,11 @@ pub struct StepSystem<const D: usize> {
     pub f_ext: Vec<f64>,
     /// Per unknown (column), the value positions of its rows by neighbour offset.
     slots: Vec<u32>,
-    /// Grid multi-index and component of the owner node of each unknown.
-    owner_index: Vec<([usize; D], usize)>,
-    /// Edge of the neighbour box, `2b − 1`.
-    reach: usize,
+    /// Per unknown: the key `Σ_a i_a reach^a` of its owner node's multi-index and its
+    /// component; the neighbour offset of two unknowns is the difference of their keys.
+    owner_key: Vec<(isize, usize)>,
+    /// `Σ_a (b − 1) reach^a`, the key offset of a zero neighbour offset.
+    key_centre: isize,
     /// Neighbour offsets per node, `reach^D`.
     offsets: usize,
     b: usize,
@@ -189,12 +190,20 @@ impl<const D: usize> StepSystem<D> {
                 }
             });
         }
-        let owner_index = (0..n)
+        let key = |idx: [usize; D]| -> isize {
+            let mut k = 0isize;
+            for a in (0..D).rev() {
+                k = k * reach as isize + idx[a] as isize;
+            }
+            k
+        };
+        let owner_key = (0..n)
             .map(|d| {
                 let (node, c) = dofs.owner_of(d);
-                (grid.multi(node), c)
+                (key(grid.multi(node)), c)
             })
             .collect();
+        let key_centre = key([b - 1; D]);
         Self {
             inertia: None,
             frozen,
@@ -202,8 +211,8 @@ impl<const D: usize> StepSystem<D> {
             pattern,
             f_ext,
             slots,
-            owner_index,
-            reach,
+            owner_key,
+            key_centre,
             offsets,
             b,
             grid: grid.clone(),
@@ -223,13 +232,9 @@ impl<const D: usize> StepSystem<D> {
     /// Position in the value array of entry (row unknown, column unknown); both are owners.
     #[inline]
     fn slot(&self, row: usize, col: usize) -> usize {
-        let (ri, rc) = self.owner_index[row];
-        let (ci, _) = self.owner_index[col];
-        let mut k = 0;
-        for a in (0..D).rev() {
-            let o = ri[a] + self.b - 1 - ci[a];
-            k = k * self.reach + o;
-        }
+        let (kr, rc) = self.owner_key[row];
+        let (kc, _) = self.owner_key[col];
+        let k = (kr - kc + self.key_centre) as usize;
         let s = self.slots[(col * self.offsets + k) * D + rc];
         debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
         s as usize
