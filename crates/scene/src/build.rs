@@ -71,8 +71,11 @@ pub struct ExplicitPlan {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ImplicitPlan {
     /// Number of load steps; gravity, point loads and prescribed displacements reach
-    /// `step / load_steps` of their totals after step `step`.
+    /// `step / load_steps` of their totals after step `step` (prescribed displacements only,
+    /// in dynamics).
     pub load_steps: usize,
+    /// Newmark time step (s) for implicit dynamics; `None` for a quasi-static run.
+    pub newmark_dt: Option<f64>,
     /// Newton settings.
     pub newton: NewtonSpec,
     /// Linear solver of the Newton corrections.
@@ -135,6 +138,7 @@ impl SolverSpec {
             }),
             SolverKind::Implicit => SolverPlan::Implicit(ImplicitPlan {
                 load_steps: self.load_steps?,
+                newmark_dt: self.newmark_dt,
                 newton: self.newton.unwrap_or_default(),
                 linear: self.linear.unwrap_or_default().method(),
             }),

@@ -298,6 +298,11 @@ pub struct SolverSpec {
     /// Implicit (required): number of load steps over which the loads are ramped, `≥ 1`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_steps: Option<usize>,
+    /// Implicit, optional: run Newmark dynamics (β = ¼, γ = ½, consistent mass) with this time
+    /// step (s); every load step is then a time step, loads act in full from the start and
+    /// bodies may have an initial `velocity`. Omitted: quasi-static.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newmark_dt: Option<f64>,
     /// Implicit: Newton settings, `[solver.newton]` (default [`NewtonSpec::default`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSpec>,

@@ -266,10 +266,14 @@ impl Scene {
                 format!("must be between 1 and {MAX_PARTICLES_PER_CELL}, got {ppc}"),
             );
         }
-        if body.velocity.is_some() && self.solver.kind == SolverKind::Implicit {
+        if body.velocity.is_some()
+            && self.solver.kind == SolverKind::Implicit
+            && self.solver.newmark_dt.is_none()
+        {
             c.issue(
                 format!("{path}.velocity"),
-                "not used by the implicit solver (a quasi-static run has no inertia); remove it",
+                "not used by a quasi-static implicit run (it has no inertia); remove it, or set \
+                 solver.newmark_dt for implicit dynamics",
             );
         }
         let Some(dim) = dim else { return };
@@ -419,6 +423,7 @@ impl Scene {
             SolverKind::Explicit => {
                 for (key, given) in [
                     ("load_steps", s.load_steps.is_some()),
+                    ("newmark_dt", s.newmark_dt.is_some()),
                     ("newton", s.newton.is_some()),
                     ("linear", s.linear.is_some()),
                 ] {
@@ -499,6 +504,9 @@ impl Scene {
             ),
             Some(0) => c.issue("solver.load_steps", "must be at least 1, got 0"),
             Some(_) => {}
+        }
+        if let Some(dt) = s.newmark_dt {
+            c.positive("solver.newmark_dt", dt);
         }
         if let Some(n) = &s.newton {
             c.open_unit("solver.newton.residual_tol", n.residual_tol);

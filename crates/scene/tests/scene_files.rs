@@ -163,6 +163,14 @@ const BAD: &[(&str, &[&str])] = &[
         &["solver.time_step: only used by the explicit solver"],
     ),
     (
+        "newmark_dt_negative.toml",
+        &["solver.newmark_dt: must be positive"],
+    ),
+    (
+        "velocity_in_quasi_static.toml",
+        &["bodies[0].velocity: not used by a quasi-static implicit run"],
+    ),
+    (
         "explicit_with_constraints.toml",
         &[r#"constraints: only applied by the implicit solver; set solver.type = "implicit""#],
     ),
@@ -514,6 +522,7 @@ fn implicit_2d_fixture_builds_constraints_and_point_loads() {
     assert_eq!(
         built.plan,
         SolverPlan::Implicit(ImplicitPlan {
+            newmark_dt: None,
             load_steps: 20,
             newton: NewtonSpec {
                 residual_tol: 1e-9,
@@ -564,6 +573,7 @@ fn implicit_3d_fixture_builds_with_the_defaults() {
     assert_eq!(
         built.plan,
         SolverPlan::Implicit(ImplicitPlan {
+            newmark_dt: None,
             load_steps: 3,
             newton: NewtonSpec::default(),
             linear: LinearMethod::Lu,
@@ -684,7 +694,7 @@ fn implicit_rules_name_the_field() {
         (
             "particles_per_cell = 2",
             "particles_per_cell = 2\nvelocity = [1.0, 0.0]",
-            "bodies[0].velocity: not used by the implicit solver",
+            "bodies[0].velocity: not used by a quasi-static implicit run",
         ),
         (
             "type = \"implicit\"\nload_steps = 20",

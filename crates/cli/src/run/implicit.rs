@@ -83,7 +83,7 @@ pub fn run<const D: usize>(
         point_loads: built.point_loads.clone(),
         load_steps: plan.load_steps,
         newton: settings(&plan),
-        dynamics: None,
+        dynamics: plan.newmark_dt,
         min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
     };
     let mut particles = built.particles;
@@ -94,7 +94,11 @@ pub fn run<const D: usize>(
             return Outcome::BadInput;
         }
     };
-    rec.summary.end_time = 1.0;
+    // Frames and the summary use simulated time in dynamics, the load factor otherwise.
+    let time_scale = plan
+        .newmark_dt
+        .map_or(1.0, |dt| dt * plan.load_steps as f64);
+    rec.summary.end_time = time_scale;
     if !quiet {
         println!(
             "{:>5} {:>9} {:>8} {:>5} {:>5} {:>11} {:>7} {:>8}  residual history ‖R‖/ref",
@@ -159,18 +163,27 @@ pub fn run<const D: usize>(
             );
         }
         if frame_steps.contains(&report.step)
-            && let Err(e) = rec.frame(report.step, report.load_factor, &particles)
+            && let Err(e) = rec.frame(report.step, report.load_factor * time_scale, &particles)
         {
             failure = Some(e);
         }
     }
     let wall = start.elapsed().as_secs_f64();
     let iterations: u64 = rec.summary.load_steps.iter().map(|s| s.iterations).sum();
+    let reached = match plan.newmark_dt {
+        Some(_) => format!("t = {:.4} s", solver.load_factor() * time_scale),
+        None => format!("load factor {:.4}", solver.load_factor()),
+    };
     let done = format!(
-        "{} load steps to load factor {:.4} in {wall:.2} s, {iterations} Newton iterations ({} particles)",
+        "{} steps to {reached} in {wall:.2} s, {iterations} Newton iterations ({} particles)",
         solver.steps(),
-        solver.load_factor(),
         particles.len()
     );
-    rec.finish(solver.steps(), solver.load_factor(), wall, failure, &done)
+    rec.finish(
+        solver.steps(),
+        solver.load_factor() * time_scale,
+        wall,
+        failure,
+        &done,
+    )
 }
