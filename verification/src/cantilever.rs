@@ -335,7 +335,6 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     line(main.root, &main, &outcome);
     if size == Size::Full {
         for (root, cell, ppc) in [
-            (Root::Reference, 0.125, 4),
             (Root::Symmetry, 0.5, 4),
             (Root::Symmetry, 0.25, 6),
             (Root::Symmetry, 0.125, 4),

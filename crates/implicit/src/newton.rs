@@ -80,6 +80,9 @@ impl NewtonReport {
     }
 }
 
+/// Residuals the non-monotone line search compares with.
+const MEMORY: usize = 4;
+
 /// Largest growth of ‖R‖ a Newton step may cause before it is shortened.
 const GROWTH_LIMIT: f64 = 1e4;
 
@@ -143,8 +146,9 @@ pub fn solve<const D: usize>(
         // Safeguarded step. The first correction of a step may grow ‖R‖ by up to
         // `GROWTH_LIMIT`: the predictor of bending-dominated problems raises the residual
         // ~10²× through membrane forces and then converges quadratically, which a monotone
-        // test would reject. Later corrections must decrease ‖R‖ (Armijo, α halved up to 10
-        // times), which keeps plastic steps from wandering off; a trial that inverts a
+        // test would reject. Later corrections must decrease ‖R‖ below the largest of the
+        // last few residuals (α halved up to 10 times), which keeps plastic steps from
+        // wandering off without rejecting an occasional rise; a trial that inverts a
         // particle or is not finite is always shortened. A step that still does not converge
         // is cut by the load stepping.
         let mut alpha = 1.0;
@@ -157,10 +161,19 @@ pub fn solve<const D: usize>(
             report.time_residual += t.elapsed().as_secs_f64();
             if let Ok(rt) = rt {
                 let rtn = norm(&rt);
+                // Non-monotone Armijo test (Grippo–Lampariello–Lucidi): against the largest
+                // of the last `MEMORY` residuals, so an occasional rise is accepted but a
+                // sustained divergence is not.
+                let recent = report
+                    .residuals
+                    .iter()
+                    .rev()
+                    .take(MEMORY)
+                    .fold(0.0f64, |m, &r| m.max(r));
                 let bound = if iteration == 0 || !settings.line_search {
                     GROWTH_LIMIT * rn
                 } else {
-                    (1.0 - 1e-4 * alpha) * rn
+                    (1.0 - 1e-4 * alpha) * recent
                 };
                 if rtn.is_finite() && rtn <= bound {
                     accepted = Some((trial, rt, rtn));
