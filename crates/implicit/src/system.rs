@@ -151,34 +151,29 @@ impl<const D: usize> StepSystem<D> {
             NodeDof::Free { dof, .. } if dofs.owner_of(dof).0 == flat => Some(dof),
             _ => None,
         };
-        let mut entries = Vec::with_capacity(n * offsets * D);
-        for col in 0..n {
-            let (node, _) = dofs.owner_of(col);
-            for k in 0..offsets {
-                if let Some(m) = neighbour(node, k) {
-                    for c in 0..D {
-                        if let Some(row) = owner_dof(m, c) {
-                            entries.push((row, col));
+        // Every (column unknown, neighbour offset, row component, row unknown) coupling.
+        let couplings = |f: &mut dyn FnMut(usize, usize, usize, usize)| {
+            for col in 0..n {
+                let (node, _) = dofs.owner_of(col);
+                for k in 0..offsets {
+                    if let Some(m) = neighbour(node, k) {
+                        for c in 0..D {
+                            if let Some(row) = owner_dof(m, c) {
+                                f(col, k, c, row);
+                            }
                         }
                     }
                 }
             }
-        }
+        };
+        let mut entries = Vec::with_capacity(n * offsets * D);
+        couplings(&mut |col, _, _, row| entries.push((row, col)));
         let pattern = Arc::new(SparsePattern::new(n, entries));
         let mut slots = vec![NO_SLOT; n * offsets * D];
-        for col in 0..n {
-            let (node, _) = dofs.owner_of(col);
-            for k in 0..offsets {
-                if let Some(m) = neighbour(node, k) {
-                    for c in 0..D {
-                        if let Some(row) = owner_dof(m, c) {
-                            let pos = pattern.position(row, col).expect("entry was inserted");
-                            slots[(col * offsets + k) * D + c] = pos as u32;
-                        }
-                    }
-                }
-            }
-        }
+        couplings(&mut |col, k, c, row| {
+            let pos = pattern.position(row, col).expect("entry was inserted");
+            slots[(col * offsets + k) * D + c] = pos as u32;
+        });
         let mut f_ext = vec![0.0; n];
         for (p, fr) in frozen.iter().enumerate() {
             let fp = particle_force(p);
