@@ -7,7 +7,8 @@
 //!
 //! G2P gathers `v̄ = Σ w_ip v_i`, `L_p = Σ v_i ⊗ ∇w_ip` and, for APIC,
 //! `C_p = D_p⁻¹-scaled Σ w_ip v_i (x_i − x_p)ᵀ` (B-splines, `D_p = κ h² I`) or `C_p = L_p`
-//! (hat and GIMP, whose `D_p` is position dependent and may be singular).
+//! (hat and GIMP, whose `D_p` is position dependent and may be singular); TPIC always takes
+//! `C_p = L_p`.
 
 use crate::grid::Grid;
 use crate::scalar::Scalar;
@@ -30,12 +31,16 @@ pub enum Transfer {
     /// Affine particle-in-cell (Jiang et al. 2015): PIC plus the affine matrix `C_p`,
     /// conserving linear and angular momentum.
     Apic,
+    /// Taylor particle-in-cell (Nakamura et al. 2023): like APIC, but the particle carries the
+    /// velocity gradient `C_p = L_p = Σ_i v_i ⊗ ∇w_ip` for every shape function, a first-order
+    /// Taylor expansion of the grid velocity about the particle.
+    Tpic,
 }
 
 impl Transfer {
     /// Whether P2G carries the affine term `C_p (x_i − x_p)`.
     pub fn is_affine(&self) -> bool {
-        matches!(self, Transfer::Apic)
+        matches!(self, Transfer::Apic | Transfer::Tpic)
     }
 
     /// Whether G2P needs the grid velocity at the start of the step.
@@ -127,7 +132,7 @@ pub fn g2p<T: Scalar, const D: usize>(
         affine: Tensor::zeros(),
     };
     let flip = transfer.needs_old_grid_velocity();
-    let apic_b = if transfer.is_affine() {
+    let apic_b = if transfer == Transfer::Apic {
         shape.apic_inverse_inertia()
     } else {
         None
@@ -167,7 +172,7 @@ impl Transfer {
                 let a = T::cst(alpha);
                 ((v_old + g.dv) * a + g.v * (T::one() - a), Tensor::zeros())
             }
-            Transfer::Apic => (g.v, g.affine),
+            Transfer::Apic | Transfer::Tpic => (g.v, g.affine),
         }
     }
 }

@@ -45,6 +45,7 @@ fn linear_momentum_is_conserved_without_external_forces() {
         Transfer::Pic,
         Transfer::Flip { alpha: 0.95 },
         Transfer::Apic,
+        Transfer::Tpic,
     ] {
         for scheme in [Scheme::Usl, Scheme::Musl] {
             let (config, mut p) = block(

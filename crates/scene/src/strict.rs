@@ -23,6 +23,7 @@ enum TransferTable {
     Pic {},
     Flip { alpha: f64 },
     Apic {},
+    Tpic {},
 }
 
 impl From<TransferTable> for Transfer {
@@ -31,6 +32,7 @@ impl From<TransferTable> for Transfer {
             TransferTable::Pic {} => Transfer::Pic,
             TransferTable::Flip { alpha } => Transfer::Flip { alpha },
             TransferTable::Apic {} => Transfer::Apic,
+            TransferTable::Tpic {} => Transfer::Tpic,
         }
     }
 }
@@ -68,7 +70,7 @@ impl From<WallTable> for Wall {
     }
 }
 
-/// `solver.transfer`: `"pic"`, `"apic"` or `{ type = "flip", alpha = .. }`.
+/// `solver.transfer`: `"pic"`, `"apic"`, `"tpic"` or `{ type = "flip", alpha = .. }`.
 pub(crate) fn transfer<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Transfer>, D::Error> {
     name_or_table::<D, TransferTable>(d, "type").map(|t| Some(t.into()))
 }
@@ -209,6 +211,7 @@ mod tests {
         for (text, transfer) in [
             ("transfer = \"apic\"", Transfer::Apic),
             ("transfer = { type = \"apic\" }", Transfer::Apic),
+            ("transfer = \"tpic\"", Transfer::Tpic),
             ("transfer = \"pic\"", Transfer::Pic),
             (
                 "transfer = { type = \"flip\", alpha = 0.9 }",
