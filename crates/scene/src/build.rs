@@ -3,8 +3,8 @@
 use crate::error::{Issue, SceneError};
 use crate::output::Field;
 use crate::schema::{
-    DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind, LinearSpec, NewtonSpec,
-    PreconditionerKind, Scene, SolverKind, SolverSpec,
+    DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind,
+    LinearSpec, NewtonSpec, PreconditionerKind, Scene, SolverKind, SolverSpec,
 };
 use loam_core::{
     Boundary, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme, Shape,
@@ -227,16 +227,27 @@ impl Scene {
         let materials = self
             .materials
             .iter()
-            .map(|m| match (m.model, m.yield_stress) {
-                (ModelKind::J2, Some(yield_stress)) => Material::j2(
-                    m.youngs_modulus,
-                    m.poisson_ratio,
-                    yield_stress,
-                    m.hardening.unwrap_or(0.0),
-                    m.density,
-                ),
-                // Validated: `j2` always comes with a yield stress.
-                (kind, _) => Material::elastic(kind, m.youngs_modulus, m.poisson_ratio, m.density),
+            .map(|m| {
+                // Validated: the solid models come with E and ν (and `j2` with a yield
+                // stress), `fluid` with a sound speed or a bulk modulus.
+                let young = m.youngs_modulus.unwrap_or(f64::NAN);
+                let poisson = m.poisson_ratio.unwrap_or(f64::NAN);
+                match m.model {
+                    ModelKind::J2 => Material::j2(
+                        young,
+                        poisson,
+                        m.yield_stress.unwrap_or(f64::INFINITY),
+                        m.hardening.unwrap_or(0.0),
+                        m.density,
+                    ),
+                    ModelKind::Fluid => Material::fluid(
+                        m.fluid_bulk_modulus().unwrap_or(f64::NAN),
+                        m.gamma.unwrap_or(DEFAULT_FLUID_GAMMA),
+                        m.viscosity.unwrap_or(0.0),
+                        m.density,
+                    ),
+                    kind => Material::elastic(kind, young, poisson, m.density),
+                }
             })
             .collect();
         let material_names: Vec<String> = self.materials.iter().map(|m| m.name.clone()).collect();

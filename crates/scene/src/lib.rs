@@ -61,7 +61,7 @@ pub use build::{
 };
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use schema::{
-    BodyShape, BodySpec, BoundarySpec, ConstraintSpec, GridSpec, LinearKind, LinearSpec, LoadSpec,
-    MaterialSpec, NewtonSpec, OutputSpec, PointLoadSpec, PreconditionerKind, Scene, SolverKind,
-    SolverSpec, TangentKind,
+    BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, GridSpec, LinearKind,
+    LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, OutputSpec, PointLoadSpec, PreconditionerKind,
+    Scene, SolverKind, SolverSpec, TangentKind,
 };

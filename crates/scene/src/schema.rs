@@ -65,7 +65,12 @@ fn default_shape_function() -> Shape {
     Shape::QuadraticBspline
 }
 
-/// `[[materials]]`: a named isotropic material, elastic or (model `j2`) elastoplastic.
+/// `[[materials]]`: a named isotropic material, elastic, (model `j2`) elastoplastic or
+/// (model `fluid`) a weakly compressible Newtonian fluid.
+///
+/// Which keys apply depends on `model`: the solid models need `youngs_modulus` and
+/// `poisson_ratio`; `fluid` needs exactly one of `sound_speed` and `bulk_modulus` and takes
+/// `gamma` and `viscosity`. A key of another model is an error naming it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
@@ -75,10 +80,14 @@ pub struct MaterialSpec {
     pub model: ModelKind,
     /// Reference mass density `ρ₀` (kg/m³), positive.
     pub density: f64,
-    /// Young's modulus `E` (Pa), positive.
-    pub youngs_modulus: f64,
-    /// Poisson's ratio `ν`, in (−1, 0.5).
-    pub poisson_ratio: f64,
+    /// Young's modulus `E` (Pa), positive: required by the solid models, not allowed for
+    /// `fluid`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub youngs_modulus: Option<f64>,
+    /// Poisson's ratio `ν`, in (−1, 0.5): required by the solid models, not allowed for
+    /// `fluid`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poisson_ratio: Option<f64>,
     /// Uniaxial yield stress `σ_y` (Pa), positive: required by model `j2`, not allowed for
     /// the elastic models.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -87,6 +96,35 @@ pub struct MaterialSpec {
     /// perfect plasticity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hardening: Option<f64>,
+    /// Model `fluid`: reference sound speed `c` (m/s), positive; the bulk modulus is then
+    /// `K = ρ₀ c²`. Exactly one of `sound_speed` and `bulk_modulus` is required.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sound_speed: Option<f64>,
+    /// Model `fluid`: bulk modulus `K` (Pa) at the reference density, positive (instead of
+    /// `sound_speed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bulk_modulus: Option<f64>,
+    /// Model `fluid`: Tait exponent `γ ≥ 1` of `p = (K/γ)((ρ/ρ₀)^γ − 1)` (default 7).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Model `fluid`: dynamic viscosity `η` (Pa·s), `≥ 0` (default 0, inviscid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscosity: Option<f64>,
+}
+
+/// Default Tait exponent of model `fluid` (water).
+pub const DEFAULT_FLUID_GAMMA: f64 = 7.0;
+
+impl MaterialSpec {
+    /// The bulk modulus of a `fluid` material, `K` as written or `ρ₀ c²` from the sound
+    /// speed (`None` when neither is given or the model is not `fluid`).
+    pub fn fluid_bulk_modulus(&self) -> Option<f64> {
+        if self.model != ModelKind::Fluid {
+            return None;
+        }
+        self.bulk_modulus
+            .or_else(|| self.sound_speed.map(|c| self.density * c * c))
+    }
 }
 
 /// `[[bodies]]`: a region of one material filled with particles.

@@ -9,7 +9,7 @@
 
 use crate::error::{Issue, SceneError};
 use crate::geometry::twice_signed_area;
-use crate::schema::{BodyShape, BodySpec, Scene, SolverKind};
+use crate::schema::{BodyShape, BodySpec, MaterialSpec, Scene, SolverKind};
 use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
 use std::collections::HashSet;
 
@@ -198,13 +198,49 @@ impl Scene {
                 );
             }
             c.positive(&format!("{path}.density"), m.density);
-            c.positive(&format!("{path}.youngs_modulus"), m.youngs_modulus);
-            let nu = m.poisson_ratio;
-            if c.finite(&format!("{path}.poisson_ratio"), nu) && !(nu > -1.0 && nu < 0.5) {
-                c.issue(
-                    format!("{path}.poisson_ratio"),
-                    format!("must be in (-1, 0.5), got {nu}"),
-                );
+            let fluid = m.model == ModelKind::Fluid;
+            let model = m.model.name();
+            if fluid {
+                self.check_fluid(c, &path, m);
+            } else {
+                for (key, value) in [
+                    ("sound_speed", m.sound_speed),
+                    ("bulk_modulus", m.bulk_modulus),
+                    ("gamma", m.gamma),
+                    ("viscosity", m.viscosity),
+                ] {
+                    if value.is_some() {
+                        c.issue(
+                            format!("{path}.{key}"),
+                            "only used by model \"fluid\"; remove it or change the model",
+                        );
+                    }
+                }
+                match m.youngs_modulus {
+                    Some(e) => {
+                        c.positive(&format!("{path}.youngs_modulus"), e);
+                    }
+                    None => c.issue(
+                        format!("{path}.youngs_modulus"),
+                        format!("required for model \"{model}\" (Young's modulus, Pa)"),
+                    ),
+                }
+                match m.poisson_ratio {
+                    Some(nu) => {
+                        if c.finite(&format!("{path}.poisson_ratio"), nu)
+                            && !(nu > -1.0 && nu < 0.5)
+                        {
+                            c.issue(
+                                format!("{path}.poisson_ratio"),
+                                format!("must be in (-1, 0.5), got {nu}"),
+                            );
+                        }
+                    }
+                    None => c.issue(
+                        format!("{path}.poisson_ratio"),
+                        format!("required for model \"{model}\" (Poisson's ratio)"),
+                    ),
+                }
             }
             let plastic = m.model == ModelKind::J2;
             match m.yield_stress {
@@ -231,6 +267,52 @@ impl Scene {
                 } else if c.finite(&hpath, hardening) && hardening < 0.0 {
                     c.issue(hpath, format!("must be zero or positive, got {hardening}"));
                 }
+            }
+        }
+    }
+
+    /// The keys of a `fluid` material: exactly one of `sound_speed` and `bulk_modulus`,
+    /// `gamma ≥ 1` and `viscosity ≥ 0` if given, and no elastic constants.
+    fn check_fluid(&self, c: &mut Checker, path: &str, m: &MaterialSpec) {
+        for (key, value) in [
+            ("youngs_modulus", m.youngs_modulus),
+            ("poisson_ratio", m.poisson_ratio),
+        ] {
+            if value.is_some() {
+                c.issue(
+                    format!("{path}.{key}"),
+                    "not used by model \"fluid\" (give sound_speed or bulk_modulus); remove \
+                     it or change the model",
+                );
+            }
+        }
+        match (m.sound_speed, m.bulk_modulus) {
+            (None, None) => c.issue(
+                format!("{path}.sound_speed"),
+                "required for model \"fluid\" (the reference sound speed, m/s), unless \
+                 bulk_modulus (Pa) is given instead",
+            ),
+            (Some(_), Some(_)) => c.issue(
+                format!("{path}.bulk_modulus"),
+                "give either sound_speed or bulk_modulus for model \"fluid\", not both",
+            ),
+            (Some(speed), None) => {
+                c.positive(&format!("{path}.sound_speed"), speed);
+            }
+            (None, Some(k)) => {
+                c.positive(&format!("{path}.bulk_modulus"), k);
+            }
+        }
+        if let Some(gamma) = m.gamma {
+            let gpath = format!("{path}.gamma");
+            if c.finite(&gpath, gamma) && gamma < 1.0 {
+                c.issue(gpath, format!("must be at least 1, got {gamma}"));
+            }
+        }
+        if let Some(eta) = m.viscosity {
+            let vpath = format!("{path}.viscosity");
+            if c.finite(&vpath, eta) && eta < 0.0 {
+                c.issue(vpath, format!("must be zero or positive, got {eta}"));
             }
         }
     }
@@ -497,6 +579,16 @@ impl Scene {
 
     fn check_implicit(&self, c: &mut Checker) {
         let s = &self.solver;
+        for (i, m) in self.materials.iter().enumerate() {
+            if m.model == ModelKind::Fluid {
+                c.issue(
+                    format!("materials[{i}].model"),
+                    "\"fluid\" is for the explicit solver: the implicit path has no rate of \
+                     deformation (no viscosity) and a fluid has no shear stiffness, so its \
+                     tangent is singular",
+                );
+            }
+        }
         match s.load_steps {
             None => c.issue(
                 "solver.load_steps",

@@ -1,7 +1,7 @@
 //! Scene files: malformed fixtures give errors naming the offending field, good ones build
 //! with the expected particles, and the example scenes load.
 
-use loam_core::constitutive::{J2, Lame, Model};
+use loam_core::constitutive::{Fluid, J2, Lame, Model};
 use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
 use loam_scene::{
     ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, NewtonSpec, PreconditionerKind,
@@ -155,12 +155,26 @@ const BAD: &[(&str, &[&str])] = &[
         &[r#"materials[0].yield_stress: required for model "j2""#],
     ),
     (
+        "fluid_without_sound_speed.toml",
+        &[
+            r#"materials[0].sound_speed: required for model "fluid" (the reference sound speed, m/s), unless bulk_modulus (Pa) is given instead"#,
+        ],
+    ),
+    (
+        "fluid_with_youngs_modulus.toml",
+        &[r#"materials[0].youngs_modulus: not used by model "fluid""#],
+    ),
+    (
         "implicit_without_load_steps.toml",
         &["solver.load_steps: required for the implicit solver (the number of load steps"],
     ),
     (
         "implicit_with_time_step.toml",
         &["solver.time_step: only used by the explicit solver"],
+    ),
+    (
+        "fluid_in_implicit.toml",
+        &[r#"materials[0].model: "fluid" is for the explicit solver"#],
     ),
     (
         "newmark_dt_negative.toml",
@@ -467,6 +481,112 @@ fn j2_fixture_builds_plastic_materials() {
         ),
     ] {
         let err = Scene::from_toml_str(&text.replacen(from, to, 1)).unwrap_err();
+        assert!(err.to_string().contains(want), "{err}");
+    }
+}
+
+/// A `fluid` material gets its bulk modulus from the sound speed (`K = ρ₀ c²`) or as written,
+/// `γ` (default 7) and the viscosity (default 0); the rules on which keys a fluid takes, and
+/// that the solid models still need `E` and `ν`, name the field.
+#[test]
+fn fluid_fixture_builds_fluid_materials() {
+    let built = Scene::from_path(fixture("good/dam_break_2d.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    let expected = [
+        (
+            1000.0,
+            Fluid {
+                bulk_modulus: 1000.0 * 20.0 * 20.0,
+                gamma: 7.0,
+                viscosity: 1.0e-3,
+            },
+        ),
+        (
+            900.0,
+            Fluid {
+                bulk_modulus: 2.0e5,
+                gamma: 1.0,
+                viscosity: 0.0,
+            },
+        ),
+    ];
+    for (material, (density, fluid)) in built.materials.iter().zip(expected) {
+        assert_eq!(material.model, Model::Fluid(fluid));
+        assert_eq!(material.density, density);
+    }
+    assert!((built.materials[0].wave_speed() - 20.0).abs() < 1e-12);
+    let p = &built.particles;
+    assert_eq!(p.len(), 480);
+    assert_eq!(p.material.iter().filter(|&&m| m == 0).count(), 400);
+
+    let text = std::fs::read_to_string(fixture("good/dam_break_2d.toml")).unwrap();
+    for (from, to, want) in [
+        (
+            "sound_speed = 20.0",
+            "sound_speed = 20.0\nbulk_modulus = 1.0",
+            r#"materials[0].bulk_modulus: give either sound_speed or bulk_modulus for model "fluid", not both"#,
+        ),
+        (
+            "sound_speed = 20.0",
+            "sound_speed = 0.0",
+            "materials[0].sound_speed: must be positive, got 0",
+        ),
+        (
+            "bulk_modulus = 2.0e5",
+            "bulk_modulus = -2.0e5",
+            "materials[1].bulk_modulus: must be positive, got -200000",
+        ),
+        (
+            "gamma = 1.0",
+            "gamma = 0.5",
+            "materials[1].gamma: must be at least 1, got 0.5",
+        ),
+        (
+            "viscosity = 1.0e-3",
+            "viscosity = -1.0",
+            "materials[0].viscosity: must be zero or positive, got -1",
+        ),
+        (
+            "gamma = 1.0",
+            "gamma = 1.0\npoisson_ratio = 0.3",
+            r#"materials[1].poisson_ratio: not used by model "fluid""#,
+        ),
+        (
+            "gamma = 1.0",
+            "gamma = 1.0\nyield_stress = 1.0",
+            r#"materials[1].yield_stress: only used by model "j2""#,
+        ),
+        (
+            r#"model = "fluid"
+density = 900.0"#,
+            r#"model = "hencky"
+density = 900.0
+poisson_ratio = 0.3"#,
+            r#"materials[1].youngs_modulus: required for model "hencky" (Young's modulus, Pa)"#,
+        ),
+        (
+            r#"model = "fluid"
+density = 900.0"#,
+            r#"model = "neo_hookean"
+density = 900.0
+youngs_modulus = 1.0e6"#,
+            r#"materials[1].poisson_ratio: required for model "neo_hookean""#,
+        ),
+        (
+            r#"model = "fluid"
+density = 900.0"#,
+            r#"model = "hencky"
+density = 900.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3"#,
+            r#"materials[1].bulk_modulus: only used by model "fluid""#,
+        ),
+    ] {
+        let changed = text.replacen(from, to, 1);
+        assert_ne!(changed, text, "{from:?} not in the fixture");
+        let err = Scene::from_toml_str(&changed).unwrap_err();
         assert!(err.to_string().contains(want), "{err}");
     }
 }

@@ -5,11 +5,13 @@
 //! code. Parameters are generic over `T` so a derivative with respect to a material parameter
 //! is the same code run with a dual parameter.
 
+mod fluid;
 mod hencky;
 mod j2;
 mod linear_elastic;
 mod neo_hookean;
 
+pub use fluid::Fluid;
 pub use hencky::Hencky;
 pub use j2::J2;
 pub use linear_elastic::LinearElastic;
@@ -169,6 +171,21 @@ pub enum ModelKind {
     Hencky,
     /// [`J2`] (von Mises plasticity), written `j2`.
     J2,
+    /// [`Fluid`] (weakly compressible Newtonian fluid), written `fluid`.
+    Fluid,
+}
+
+impl ModelKind {
+    /// The name written in a scene file (`"linear_elastic"`, …, `"j2"`, `"fluid"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::LinearElastic => "linear_elastic",
+            Self::NeoHookean => "neo_hookean",
+            Self::Hencky => "hencky",
+            Self::J2 => "j2",
+            Self::Fluid => "fluid",
+        }
+    }
 }
 
 /// A material: density plus one constitutive model. The solver dispatches on the variant
@@ -192,6 +209,8 @@ pub enum Model<T> {
     Hencky(Hencky<T>),
     /// J2 (von Mises) plasticity in Hencky strain space.
     J2(J2<T>),
+    /// Weakly compressible Newtonian fluid (Tait pressure plus viscosity).
+    Fluid(Fluid<T>),
 }
 
 impl<T: Scalar> Material<T> {
@@ -199,6 +218,11 @@ impl<T: Scalar> Material<T> {
     ///
     /// [`ModelKind::J2`] gives a J2 material with an infinite yield stress, which never yields
     /// (Hencky elasticity carried in the J2 state); use [`Material::j2`] for a finite one.
+    ///
+    /// # Panics
+    ///
+    /// On [`ModelKind::Fluid`]: a fluid has no Young's modulus or Poisson's ratio (and no
+    /// shear stiffness), so there is no elastic fluid to build; use [`Material::fluid`].
     pub fn elastic(kind: ModelKind, young: T, poisson: T, density: f64) -> Self {
         let lame = Lame::from_young_poisson(young, poisson);
         let model = match kind {
@@ -210,6 +234,10 @@ impl<T: Scalar> Material<T> {
                 yield_stress: T::cst(f64::INFINITY),
                 hardening: T::zero(),
             }),
+            ModelKind::Fluid => panic!(
+                "Material::elastic: model `fluid` takes a bulk modulus, not E and ν; \
+                 use Material::fluid"
+            ),
         };
         Self { density, model }
     }
@@ -227,7 +255,22 @@ impl<T: Scalar> Material<T> {
         }
     }
 
-    /// Elastic P-wave speed `c = √(M/ρ₀)` (real part).
+    /// A weakly compressible Newtonian [`Fluid`] from its bulk modulus `K` (Pa), Tait exponent
+    /// `γ ≥ 1`, dynamic viscosity `η ≥ 0` (Pa·s) and `ρ₀`. (From a sound speed `c`:
+    /// `K = ρ₀ c²`, see [`Fluid::from_sound_speed`].)
+    pub fn fluid(bulk_modulus: T, gamma: T, viscosity: T, density: f64) -> Self {
+        Self {
+            density,
+            model: Model::Fluid(Fluid {
+                bulk_modulus,
+                gamma,
+                viscosity,
+            }),
+        }
+    }
+
+    /// Elastic P-wave speed `c = √(M/ρ₀)` (real part); the sound speed `√(K/ρ₀)` of a
+    /// [`Fluid`].
     pub fn wave_speed(&self) -> f64 {
         (self.constitutive().p_wave_modulus() / self.density).sqrt()
     }
@@ -239,12 +282,14 @@ impl<T: Scalar> Material<T> {
             Model::NeoHookean(m) => m,
             Model::Hencky(m) => m,
             Model::J2(m) => m,
+            Model::Fluid(m) => m,
         }
     }
 
     /// Stored (elastic) energy per unit reference volume: `ψ(F)` for the hyperelastic models
     /// (`state` unused), `ψ(bₑ) = μ ε:ε + ½λ (tr ε)²` with `ε = ½ ln bₑ` for [`J2`] (`f`
-    /// unused; the plastic work is dissipated, not stored).
+    /// unused; the plastic work is dissipated, not stored), the compression energy
+    /// `ψ(det F) = −∫₁ᴶ p dJ'` for [`Fluid`] (`state` unused; viscous work is dissipated).
     #[inline]
     pub fn energy_density(&self, f: &Matrix3<T>, state: &MaterialState<T>) -> T {
         match &self.model {
@@ -252,13 +297,16 @@ impl<T: Scalar> Material<T> {
             Model::NeoHookean(m) => m.energy_density(f),
             Model::Hencky(m) => m.energy_density(f),
             Model::J2(m) => m.stored_energy(state),
+            Model::Fluid(m) => m.energy_density(f),
         }
     }
 
     /// Kirchhoff stress `τ` and new state at the end of a step, without committing anything:
     /// for the hyperelastic models `τ(F)` of the total deformation gradient `f` with the state
     /// unchanged, for [`J2`] its return mapping on the relative deformation gradient `delta_f`
-    /// from `state` ([`J2::kirchhoff_update`]). For implicit solvers, which re-evaluate a step
+    /// from `state` ([`J2::kirchhoff_update`]), for [`Fluid`] the pressure part
+    /// `τ = −J p(J) I` only ([`Fluid::kirchhoff_stress`]: without a rate of deformation the
+    /// implicit path treats the fluid as inviscid). For implicit solvers, which re-evaluate a step
     /// from the last converged state at every Newton iterate; with dual inputs the derivative
     /// is the consistent tangent.
     pub fn kirchhoff_update(
@@ -272,6 +320,7 @@ impl<T: Scalar> Material<T> {
             Model::NeoHookean(m) => (m.kirchhoff_stress(f), *state),
             Model::Hencky(m) => (m.kirchhoff_stress(f), *state),
             Model::J2(m) => m.kirchhoff_update(delta_f, state),
+            Model::Fluid(m) => (m.kirchhoff_stress(f), *state),
         }
     }
 
@@ -283,6 +332,7 @@ impl<T: Scalar> Material<T> {
             Model::NeoHookean(m) => m.update(kin, state),
             Model::Hencky(m) => m.update(kin, state),
             Model::J2(m) => m.update(kin, state),
+            Model::Fluid(m) => m.update(kin, state),
         }
     }
 }
@@ -306,6 +356,7 @@ impl Material<f64> {
                 yield_stress: T::cst(m.yield_stress),
                 hardening: T::cst(m.hardening),
             }),
+            Model::Fluid(m) => Model::Fluid(m.lift()),
         };
         Material {
             density: self.density,
@@ -314,6 +365,8 @@ impl Material<f64> {
     }
 }
 
+#[cfg(test)]
+mod fluid_tests;
 #[cfg(test)]
 mod j2_tests;
 #[cfg(test)]
