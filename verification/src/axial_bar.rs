@@ -158,6 +158,43 @@ pub fn max_relative_error(history: &[(f64, f64)]) -> f64 {
         / vcm_amplitude()
 }
 
+/// Writes `<stem>.csv` (t, simulated and exact v_cm) and `<stem>.png` (both curves, at most
+/// ~200 simulated markers) for a v_cm history; returns their paths.
+pub fn write_history(
+    out: &Path,
+    stem: &str,
+    title: &str,
+    hist: &[(f64, f64)],
+) -> Result<(std::path::PathBuf, std::path::PathBuf), VerifyError> {
+    let csv = out.join(format!("{stem}.csv"));
+    let rows: Vec<Vec<f64>> = hist
+        .iter()
+        .map(|&(t, v)| vec![t, v, exact_vcm(t)])
+        .collect();
+    write_csv(&csv, &["t", "vcm_loam", "vcm_exact"], &rows)?;
+    let png = out.join(format!("{stem}.png"));
+    let stride = (hist.len() / 200).max(1);
+    write_plot(
+        &png,
+        title,
+        "t (s)",
+        "v_cm (m/s)",
+        &[
+            Series {
+                name: "exact".into(),
+                points: hist.iter().map(|&(t, _)| (t, exact_vcm(t))).collect(),
+                markers: false,
+            },
+            Series {
+                name: "loam".into(),
+                points: hist.iter().step_by(stride).copied().collect(),
+                markers: true,
+            },
+        ],
+    )?;
+    Ok((csv, png))
+}
+
 /// Simulated time of the runs: 2.5 first-mode periods.
 pub fn duration() -> f64 {
     2.5 * period()
@@ -182,34 +219,14 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let setup = Setup::new(main);
     let hist = solve(CASE, &setup)?;
     let err = max_relative_error(&hist);
-    let csv = out.join("axial_bar.csv");
-    let rows: Vec<Vec<f64>> = hist
-        .iter()
-        .map(|&(t, v)| vec![t, v, exact_vcm(t)])
-        .collect();
-    write_csv(&csv, &["t", "vcm_mpm", "vcm_exact"], &rows)?;
-    let png = out.join("axial_bar.png");
-    let stride = (hist.len() / 200).max(1);
-    write_plot(
-        &png,
+    let (csv, png) = write_history(
+        out,
+        "axial_bar",
         &format!(
             "Axial bar, {} cells, quadratic B-spline, APIC/MUSL",
             setup.cells
         ),
-        "t (s)",
-        "v_cm (m/s)",
-        &[
-            Series {
-                name: "exact".into(),
-                points: hist.iter().map(|&(t, _)| (t, exact_vcm(t))).collect(),
-                markers: false,
-            },
-            Series {
-                name: "loam".into(),
-                points: hist.iter().step_by(stride).copied().collect(),
-                markers: true,
-            },
-        ],
+        &hist,
     )?;
     // Refinement study: error and observed order p = log2(e_h / e_{h/2}).
     let mut table =

@@ -4,8 +4,8 @@
 //! The trapezoidal rule is unconditionally stable and conserves the energy of a linear system;
 //! its period error is O((ωΔt)²), so the error must fall with Δt at a fixed grid.
 
-use crate::axial_bar::{DENSITY, Setup, YOUNG, duration, exact_vcm, max_relative_error};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use crate::axial_bar::{DENSITY, Setup, YOUNG, duration, max_relative_error, write_history};
+use crate::{CaseReport, Metric, Size, VerifyError};
 use loam_core::tensor::Vector;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NewtonSettings};
 use std::path::Path;
@@ -56,30 +56,11 @@ pub fn run(_size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let (coarse, _) = history(cells, 4.0).map_err(err)?;
     let e = max_relative_error(&hist);
     let e_coarse = max_relative_error(&coarse);
-    let csv = out.join("axial_bar_newmark.csv");
-    let rows: Vec<Vec<f64>> = hist
-        .iter()
-        .map(|&(t, v)| vec![t, v, exact_vcm(t)])
-        .collect();
-    write_csv(&csv, &["t", "vcm_newmark", "vcm_exact"], &rows)?;
-    let png = out.join("axial_bar_newmark.png");
-    write_plot(
-        &png,
+    let (csv, png) = write_history(
+        out,
+        "axial_bar_newmark",
         &format!("Axial bar, implicit Newmark, {cells} cells, dt = 2 h/c"),
-        "t (s)",
-        "v_cm (m/s)",
-        &[
-            Series {
-                name: "exact".into(),
-                points: hist.iter().map(|&(t, _)| (t, exact_vcm(t))).collect(),
-                markers: false,
-            },
-            Series {
-                name: "loam (Newmark)".into(),
-                points: hist.clone(),
-                markers: true,
-            },
-        ],
+        &hist,
     )?;
     Ok(CaseReport {
         metrics: vec![

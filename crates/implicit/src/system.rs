@@ -243,24 +243,40 @@ impl<const D: usize> StepSystem<D> {
         })
     }
 
-    /// Internal force on the unknowns `f_int(x)`; `Err` names a particle the trial state
-    /// inverts.
-    pub fn internal_force(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
-        let mut f = vec![0.0; self.len()];
-        let mut local: Vec<Option<Tensor<f64, D>>> = Vec::new();
+    /// Evaluates `compute(p)` for every particle, in parallel chunks of [`CHUNK`], and hands
+    /// the results to `consume(p, result)` serially in particle order (so every sum it makes
+    /// is deterministic). A `None` result is a trial state that inverts particle `p`.
+    fn chunked<R: Send>(
+        &self,
+        compute: impl Fn(usize) -> Option<R> + Sync,
+        mut consume: impl FnMut(usize, R),
+    ) -> Result<(), Inverted> {
+        let mut local: Vec<Option<R>> = Vec::new();
         for start in (0..self.frozen.len()).step_by(CHUNK) {
             let end = (start + CHUNK).min(self.frozen.len());
             (start..end)
                 .into_par_iter()
-                .map(|p| {
-                    let fr = &self.frozen[p];
-                    particle_stress(&materials.real[fr.material], fr, &self.delta_f_real(p, x))
-                        .map(|s| s.0)
-                })
+                .map(&compute)
                 .collect_into_vec(&mut local);
-            for (k, s) in local.iter().enumerate() {
+            for (k, r) in local.drain(..).enumerate() {
                 let p = start + k;
-                let s = s.ok_or(Inverted { particle: p })?;
+                consume(p, r.ok_or(Inverted { particle: p })?);
+            }
+        }
+        Ok(())
+    }
+
+    /// Internal force on the unknowns `f_int(x)`; `Err` names a particle the trial state
+    /// inverts.
+    pub fn internal_force(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
+        let mut f = vec![0.0; self.len()];
+        self.chunked(
+            |p| {
+                let fr = &self.frozen[p];
+                particle_stress(&materials.real[fr.material], fr, &self.delta_f_real(p, x))
+                    .map(|s| s.0)
+            },
+            |p, s| {
                 self.frozen[p].stencil.for_each(|node| {
                     let fi = s * node.gradient;
                     for a in 0..D {
@@ -269,8 +285,8 @@ impl<const D: usize> StepSystem<D> {
                         }
                     }
                 });
-            }
-        }
+            },
+        )?;
         Ok(f)
     }
 
@@ -371,19 +387,10 @@ impl<const D: usize> StepSystem<D> {
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
-        let mut local: Vec<Option<[[Tensor<f64, D>; D]; D]>> = Vec::new();
-        for start in (0..self.frozen.len()).step_by(CHUNK) {
-            let end = (start + CHUNK).min(self.frozen.len());
-            (start..end)
-                .into_par_iter()
-                .map(|p| self.material_tangent(p, x, materials))
-                .collect_into_vec(&mut local);
-            for (i, a) in local.iter().enumerate() {
-                let p = start + i;
-                let a = a.ok_or(Inverted { particle: p })?;
-                self.scatter_local(&self.frozen[p].stencil, &a, &mut k);
-            }
-        }
+        self.chunked(
+            |p| self.material_tangent(p, x, materials),
+            |p, a| self.scatter_local(&self.frozen[p].stencil, &a, &mut k),
+        )?;
         self.add_inertia(&mut k);
         Ok(k)
     }
@@ -489,37 +496,28 @@ impl<const D: usize> StepSystem<D> {
     ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
         let colours = self.b.pow(D as u32);
-        type Local<const D: usize, const L: usize> =
-            Option<(Option<usize>, Tensor<DualSVec64<L>, D>)>;
-        let mut local: Vec<Local<D, L>> = Vec::new();
         for colour in 0..colours {
-            for start in (0..self.frozen.len()).step_by(CHUNK) {
-                let end = (start + CHUNK).min(self.frozen.len());
-                (start..end)
-                    .into_par_iter()
-                    .map(|p| {
-                        let fr = &self.frozen[p];
-                        // The seeded owner node of this colour in the stencil, if any.
-                        let mut seeded = None;
-                        let g = delta_f::<DualSVec64<L>, D>(&fr.stencil, |flat, c| {
-                            let v = self.dofs.value(flat, c, x);
-                            match self.dofs.get(flat, c) {
-                                NodeDof::Free { dof, sign } if self.colour(dof) == colour => {
-                                    seeded = Some(self.dofs.owner_of(dof).0);
-                                    let mut e = nalgebra::SVector::<f64, L>::zeros();
-                                    e[c] = sign;
-                                    DualSVec64::<L>::new(v, num_dual::Derivative::some(e))
-                                }
-                                _ => DualSVec64::<L>::from_re(v),
+            self.chunked(
+                |p| {
+                    let fr = &self.frozen[p];
+                    // The seeded owner node of this colour in the stencil, if any.
+                    let mut seeded = None;
+                    let g = delta_f::<DualSVec64<L>, D>(&fr.stencil, |flat, c| {
+                        let v = self.dofs.value(flat, c, x);
+                        match self.dofs.get(flat, c) {
+                            NodeDof::Free { dof, sign } if self.colour(dof) == colour => {
+                                seeded = Some(self.dofs.owner_of(dof).0);
+                                let mut e = nalgebra::SVector::<f64, L>::zeros();
+                                e[c] = sign;
+                                DualSVec64::<L>::new(v, num_dual::Derivative::some(e))
                             }
-                        });
-                        particle_stress(&mats[fr.material], fr, &g).map(|s| (seeded, s.0))
-                    })
-                    .collect_into_vec(&mut local);
-                for (i, s) in local.iter().enumerate() {
-                    let p = start + i;
-                    let (seeded, s) = s.as_ref().ok_or(Inverted { particle: p })?;
-                    let Some(owner) = *seeded else { continue };
+                            _ => DualSVec64::<L>::from_re(v),
+                        }
+                    });
+                    particle_stress(&mats[fr.material], fr, &g).map(|s| (seeded, s.0))
+                },
+                |p, (seeded, s)| {
+                    let Some(owner) = seeded else { return };
                     self.frozen[p].stencil.for_each(|node| {
                         let fi = s * node.gradient.map(DualSVec64::<L>::from_re);
                         for r in 0..D {
@@ -537,8 +535,8 @@ impl<const D: usize> StepSystem<D> {
                             }
                         }
                     });
-                }
-            }
+                },
+            )?;
         }
         self.add_inertia(&mut k);
         Ok(k)
