@@ -70,6 +70,7 @@ fn fluid_block<T: Scalar, const D: usize>(
             kind: WallKind::Slip,
             separable: true,
         }),
+        contact: Default::default(),
         gravity,
         materials: vec![Material::elastic(
             ModelKind::NeoHookean,

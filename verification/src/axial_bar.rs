@@ -106,6 +106,7 @@ impl Setup {
             transfer: self.transfer,
             scheme: self.scheme,
             boundary,
+            contact: Default::default(),
             gravity: Vector::zeros(),
             materials: vec![Material::elastic(
                 ModelKind::LinearElastic,

@@ -25,6 +25,7 @@ pub fn build(cells: usize, ppc: usize, transfer: Transfer) -> (Config<f64, 2>, P
         // The disks start tangent to the domain edges and move inward: no walls (as in the
         // original problem); the ghost layer gives their supports room.
         boundary: Boundary::all(Wall::new(WallKind::Free)),
+        contact: Default::default(),
         gravity: Vector::zeros(),
         materials: vec![Material::elastic(
             ModelKind::NeoHookean,

@@ -7,6 +7,7 @@
 
 pub mod boundary;
 pub mod constitutive;
+pub mod contact;
 pub mod energy;
 pub mod grid;
 pub mod particles;
@@ -20,6 +21,7 @@ pub mod transfer;
 
 pub use boundary::{Boundary, NodeConstraint, PointLoad, Wall, WallKind};
 pub use constitutive::{Material, MaterialState, ModelKind};
+pub use contact::Contact;
 pub use energy::Energy;
 pub use grid::Grid;
 pub use particles::Particles;

@@ -2,7 +2,7 @@
 
 use crate::error::ConfigError;
 use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, Scalar, Scheme, Shape, TimeStep, Transfer};
+use loam_core::{Boundary, Contact, Grid, Material, Scalar, Scheme, Shape, TimeStep, Transfer};
 
 /// Parameters of an explicit simulation (plain data; scenes build it).
 #[derive(Clone, Debug)]
@@ -17,6 +17,8 @@ pub struct Config<T: Scalar, const D: usize> {
     pub scheme: Scheme,
     /// Walls on the grid faces.
     pub boundary: Boundary<D>,
+    /// Frictional wall segments and rigid obstacles (applied before `boundary`).
+    pub contact: Contact<T, D>,
     /// Body-force acceleration `g`.
     pub gravity: Vector<T, D>,
     /// Material table, indexed by `Particles::material`.

@@ -74,6 +74,23 @@ pub enum StepError {
         /// Particle ids.
         ids: Vec<usize>,
     },
+    /// Particles crossed a wall (a face whose condition is not `free`) or entered an obstacle.
+    #[error(
+        "step {step} (t = {time:.6e} s): {} particle(s) crossed {what}, first ids {:?} at {:?}; reduce the time step or check the initial geometry",
+        ids.len(), &ids[..ids.len().min(8)], &positions[..positions.len().min(3)]
+    )]
+    Escaped {
+        /// Step number.
+        step: usize,
+        /// Simulated time.
+        time: f64,
+        /// The wall (`x_min`, `y_max`, ...) or obstacle (`obstacles[i]`) crossed.
+        what: String,
+        /// Particle ids.
+        ids: Vec<usize>,
+        /// Their positions (first few).
+        positions: Vec<Vec<f64>>,
+    },
     /// A fixed time step above the stability bound `h / (c + |v|)`.
     #[error(
         "step {step} (t = {time:.6e} s): time step {dt:.3e} s exceeds the stability limit {limit:.3e} s = h/(c + |v|) set by particle {particle} (c = {wave_speed:.4e} m/s, |v| = {speed:.4e} m/s); use a smaller dt or an adaptive step"

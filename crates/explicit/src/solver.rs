@@ -174,6 +174,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         self.steps += 1;
         self.time += dt;
         check_particles(particles, self.steps, self.time)?;
+        check_containment(&self.config, particles, self.steps, self.time)?;
         Ok(StepInfo {
             step: self.steps,
             time: self.time,
@@ -246,11 +247,14 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         self.blocks.accumulate(contribute);
         self.mass_floor = MASS_EPS * p.mass.iter().fold(0.0f64, |a, m| a.max(m.re()));
         let floor = self.mass_floor;
-        let (grid, boundary, gravity) = (
+        let (grid, boundary, contact, gravity) = (
             &self.config.grid,
             &self.config.boundary,
+            &self.config.contact,
             self.config.gravity,
         );
+        // Contact acts at the end of the step, when the grid velocity is reached.
+        let time = self.time + dt;
         // Gather the block buffers: momentum goes to `velocity_old`, force to `velocity`
         // until the velocities are formed below.
         let blocks = &self.blocks;
@@ -279,7 +283,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 if m.re() > floor {
                     *v_old /= m;
                     *v = *v_old + (*v / m + gravity) * dtt;
-                    boundary.apply(grid, grid.multi(n), v);
+                    let node = grid.multi(n);
+                    contact.apply(grid, node, time, v, true);
+                    boundary.apply(grid, node, v);
                 } else {
                     *v_old = Vector::zeros();
                     *v = Vector::zeros();
@@ -382,7 +388,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             self.blocks.accumulate(contribute);
         }
         {
-            let (grid, boundary, blocks) = (&self.config.grid, &self.config.boundary, &self.blocks);
+            let (grid, boundary, contact, blocks) = (
+                &self.config.grid,
+                &self.config.boundary,
+                &self.config.contact,
+                &self.blocks,
+            );
+            let time = self.time + dt;
             self.velocity
                 .par_iter_mut()
                 .enumerate()
@@ -396,7 +408,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 .for_each(|(n, (v, &m))| {
                     if m.re() > floor {
                         *v /= m;
-                        boundary.apply(grid, grid.multi(n), v);
+                        let node = grid.multi(n);
+                        contact.apply(grid, node, time, v, false);
+                        boundary.apply(grid, node, v);
                     } else {
                         *v = Vector::zeros();
                     }
@@ -497,6 +511,69 @@ fn check_particles<T: Scalar, const D: usize>(
             time,
             ids: inverted,
         });
+    }
+    Ok(())
+}
+
+/// Stops the run when a particle has crossed a wall (any face whose condition is not `free`)
+/// or lies inside an obstacle; the ids are those of the offending particles.
+fn check_containment<T: Scalar, const D: usize>(
+    cfg: &Config<T, D>,
+    p: &Particles<T, D>,
+    step: usize,
+    time: f64,
+) -> Result<(), StepError> {
+    const AXES: [&str; 3] = ["x", "y", "z"];
+    let (lo, hi) = (cfg.grid.lo, cfg.grid.hi());
+    let escaped = |what: String, ids: Vec<usize>| StepError::Escaped {
+        step,
+        time,
+        what,
+        positions: ids
+            .iter()
+            .take(3)
+            .map(|&i| p.x[i].iter().map(|v| v.re()).collect())
+            .collect(),
+        ids,
+    };
+    for axis in 0..D {
+        for side in 0..2 {
+            if cfg.boundary.walls[axis][side].kind == loam_core::WallKind::Free {
+                continue;
+            }
+            let ids: Vec<usize> =
+                p.x.par_iter()
+                    .enumerate()
+                    .filter(|(_, x)| {
+                        let c = x[axis].re();
+                        if side == 0 {
+                            c < lo[axis]
+                        } else {
+                            c > hi[axis]
+                        }
+                    })
+                    .map(|(i, _)| i)
+                    .collect();
+            if !ids.is_empty() {
+                let face = format!("the {}_{} wall", AXES[axis], ["min", "max"][side]);
+                return Err(escaped(face, ids));
+            }
+        }
+    }
+    if cfg.contact.is_empty() {
+        return Ok(());
+    }
+    let hits: Vec<(usize, usize)> =
+        p.x.par_iter()
+            .enumerate()
+            .filter_map(|(i, x)| {
+                let xr: [f64; D] = std::array::from_fn(|a| x[a].re());
+                cfg.contact.penetrated(&xr, time).map(|o| (i, o))
+            })
+            .collect();
+    if let Some(&(_, obstacle)) = hits.first() {
+        let ids = hits.iter().map(|&(i, _)| i).collect();
+        return Err(escaped(format!("into obstacles[{obstacle}]"), ids));
     }
     Ok(())
 }

@@ -18,6 +18,7 @@ fn scene<const D: usize>() -> (Config<f64, D>, Particles<f64, D>) {
         transfer: Transfer::Apic,
         scheme: Scheme::Musl,
         boundary,
+        contact: Default::default(),
         gravity,
         materials: vec![Material::elastic(ModelKind::NeoHookean, 2.0e5, 0.3, 1000.0)],
         time_step: TimeStep::Adaptive {

@@ -17,6 +17,7 @@ fn block(
         transfer,
         scheme,
         boundary,
+        contact: Default::default(),
         gravity: Vector::<f64, 2>::from(gravity),
         materials: vec![Material::elastic(ModelKind::NeoHookean, 1.0e4, 0.3, 100.0)],
         time_step: TimeStep::Adaptive {
@@ -184,6 +185,7 @@ fn slip_floor_supports_a_block_under_gravity() {
         transfer: Transfer::Pic,
         scheme: Scheme::Musl,
         boundary: Boundary::all(Wall::new(WallKind::Slip)),
+        contact: Default::default(),
         gravity: Vector::<f64, 2>::new(0.0, -10.0),
         materials: vec![Material::elastic(
             ModelKind::LinearElastic,
@@ -226,4 +228,25 @@ fn slip_floor_supports_a_block_under_gravity() {
         (mean - exact).abs() < 0.1 * exact.abs(),
         "σ_yy(H/2) = {mean}, expected {exact}"
     );
+}
+
+#[test]
+fn a_particle_beyond_a_wall_stops_the_run_with_its_id() {
+    let (config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Usl,
+        [0.0, -9.81],
+        Boundary::all(Wall::new(WallKind::Slip)),
+    );
+    // Particle 5 sits just outside the lower x wall (inside the ghost layer, so the grid
+    // still covers its stencil): the containment check must name it.
+    p.x[5] = Vector::<f64, 2>::new(-0.01, 1.0);
+    let mut solver = Solver::new(config, &p).unwrap();
+    match solver.step(&mut p, f64::INFINITY) {
+        Err(StepError::Escaped { what, ids, .. }) => {
+            assert_eq!(ids, vec![5]);
+            assert!(what.contains("x_min"), "{what}");
+        }
+        other => panic!("expected Escaped, got {other:?}"),
+    }
 }
