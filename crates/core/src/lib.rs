@@ -21,7 +21,7 @@ pub mod transfer;
 
 pub use boundary::{Boundary, NodeConstraint, PointLoad, Wall, WallKind};
 pub use constitutive::{Material, MaterialState, ModelKind};
-pub use contact::Contact;
+pub use contact::{Contact, FrictionSegment, Obstacle, ObstacleShape};
 pub use energy::Energy;
 pub use grid::Grid;
 pub use particles::Particles;

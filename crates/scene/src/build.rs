@@ -7,8 +7,8 @@ use crate::schema::{
     LinearSpec, NewtonSpec, PreconditionerKind, Scene, SolverKind, SolverSpec,
 };
 use loam_core::{
-    Boundary, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme, Shape,
-    TimeStep, Transfer,
+    Boundary, Contact, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme,
+    Shape, TimeStep, Transfer,
 };
 use nalgebra::SVector;
 use std::path::PathBuf;
@@ -43,6 +43,9 @@ pub struct Built<const D: usize> {
     pub plan: SolverPlan,
     /// What to write and where.
     pub output: OutputPlan,
+    /// Coulomb friction segments on walls and rigid obstacles (explicit solver; empty
+    /// otherwise), for [`loam_core::Contact::apply`].
+    pub contact: Contact<f64, D>,
 }
 
 /// The solver to run and its settings, defaults filled in.
@@ -228,8 +231,9 @@ impl Scene {
             .materials
             .iter()
             .map(|m| {
-                // Validated: the solid models come with E and ν (and `j2` with a yield
-                // stress), `fluid` with a sound speed or a bulk modulus.
+                // Validated: the solid models come with E and ν (`j2` with a yield stress,
+                // `drucker_prager` with a friction angle), `fluid` with a sound speed or a
+                // bulk modulus. Angles are degrees in the file, radians in the model.
                 let young = m.youngs_modulus.unwrap_or(f64::NAN);
                 let poisson = m.poisson_ratio.unwrap_or(f64::NAN);
                 match m.model {
@@ -238,6 +242,15 @@ impl Scene {
                         poisson,
                         m.yield_stress.unwrap_or(f64::INFINITY),
                         m.hardening.unwrap_or(0.0),
+                        m.density,
+                    ),
+                    ModelKind::DruckerPrager => Material::drucker_prager(
+                        young,
+                        poisson,
+                        m.friction_angle.unwrap_or(f64::NAN).to_radians(),
+                        m.dilation_angle.unwrap_or(0.0).to_radians(),
+                        m.cohesion.unwrap_or(0.0),
+                        m.tension_cutoff,
                         m.density,
                     ),
                     ModelKind::Fluid => Material::fluid(
@@ -297,6 +310,7 @@ impl Scene {
             solver: self.solver.clone(),
             plan,
             output: self.output_plan(),
+            contact: self.contact::<D>(),
         })
     }
 
@@ -369,6 +383,9 @@ impl Scene {
     ) -> Vec<Issue> {
         let grid = self.grid::<D>();
         let mut issues = Vec::new();
+        // Particles strictly inside an obstacle at t = 0 are not generated (the obstacle owns
+        // the overlap, as an earlier body would).
+        let contact = self.contact::<D>();
         for (b, body) in self.bodies.iter().enumerate() {
             let ppc = body.particles_per_cell as usize;
             let spacing = grid.h / ppc as f64;
@@ -386,7 +403,10 @@ impl Scene {
             for_each_index(first, end, |m| {
                 let x: [f64; D] =
                     std::array::from_fn(|a| grid.lo[a] + (m[a] as f64 + 0.5) * spacing);
-                if body.shape.contains(&x) && !earlier.iter().any(|e| e.shape.contains(&x)) {
+                if body.shape.contains(&x)
+                    && !earlier.iter().any(|e| e.shape.contains(&x))
+                    && contact.penetrated(&x, 0.0).is_none()
+                {
                     count += 1;
                     visit(b, x);
                 }
@@ -397,10 +417,11 @@ impl Scene {
                     format!(
                         "generates no particles: none of the particle positions (spaced \
                          {spacing}) lies inside its shape{}",
-                        if b > 0 {
-                            " and outside earlier bodies"
-                        } else {
-                            ""
+                        match (b > 0, !self.obstacles.is_empty()) {
+                            (true, true) => " and outside earlier bodies and the obstacles",
+                            (true, false) => " and outside earlier bodies",
+                            (false, true) => " and outside the obstacles",
+                            (false, false) => "",
                         }
                     ),
                 ));

@@ -6,7 +6,9 @@
 //! A scene is a TOML file (JSON is accepted too, chosen by the `.json` extension) with the
 //! sections `[grid]`, `[[materials]]`, `[[bodies]]`, `[boundaries]`, `[loads]`, `[solver]`
 //! and `[output]`, and for quasi-static implicit runs (`[solver] type = "implicit"`)
-//! `[[constraints]]` and `[[point_loads]]`; `docs/scene-format.md` documents every field.
+//! `[[constraints]]` and `[[point_loads]]`, for explicit runs `[[friction]]` (Coulomb
+//! friction segments on walls) and `[[obstacles]]` (rigid boxes and cylinders);
+//! `docs/scene-format.md` documents every field.
 //! A small 2D example:
 //!
 //! ```toml
@@ -48,6 +50,7 @@
 //! This crate depends on `loam-core` only: solvers take the plain structs it builds.
 
 mod build;
+mod contact;
 mod error;
 mod geometry;
 mod load;
@@ -61,7 +64,8 @@ pub use build::{
 };
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use schema::{
-    BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, GridSpec, LinearKind,
-    LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, OutputSpec, PointLoadSpec, PreconditionerKind,
-    Scene, SolverKind, SolverSpec, TangentKind,
+    AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
+    FrictionSpec, GridSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec,
+    ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, PreconditionerKind, Scene, SolverKind,
+    SolverSpec, TangentKind,
 };

@@ -35,6 +35,12 @@ pub struct Scene {
     /// Forces on particles (implicit solver only; default: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub point_loads: Vec<PointLoadSpec>,
+    /// Coulomb friction segments on walls (explicit solver only; default: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub friction: Vec<FrictionSpec>,
+    /// Rigid obstacles (explicit solver only; default: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub obstacles: Vec<ObstacleSpec>,
     /// The solver: explicit dynamics or implicit quasi-static load steps.
     pub solver: SolverSpec,
     /// What to write and where (default: every field, 20 frames, `out/<scene file stem>`).
@@ -65,12 +71,15 @@ fn default_shape_function() -> Shape {
     Shape::QuadraticBspline
 }
 
-/// `[[materials]]`: a named isotropic material, elastic, (model `j2`) elastoplastic or
-/// (model `fluid`) a weakly compressible Newtonian fluid.
+/// `[[materials]]`: a named isotropic material, elastic, (model `j2`) elastoplastic, (model
+/// `drucker_prager`) frictional elastoplastic or (model `fluid`) a weakly compressible
+/// Newtonian fluid.
 ///
 /// Which keys apply depends on `model`: the solid models need `youngs_modulus` and
-/// `poisson_ratio`; `fluid` needs exactly one of `sound_speed` and `bulk_modulus` and takes
-/// `gamma` and `viscosity`. A key of another model is an error naming it.
+/// `poisson_ratio`; `drucker_prager` also needs `friction_angle` and takes `dilation_angle`,
+/// `cohesion` and `tension_cutoff`; `fluid` needs exactly one of `sound_speed` and
+/// `bulk_modulus` and takes `gamma` and `viscosity`. A key of another model is an error naming
+/// it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
@@ -110,6 +119,20 @@ pub struct MaterialSpec {
     /// Model `fluid`: dynamic viscosity `η` (Pa·s), `≥ 0` (default 0, inviscid).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub viscosity: Option<f64>,
+    /// Model `drucker_prager`: friction angle `φ` in **degrees**, `0 < φ < 90` (required).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_angle: Option<f64>,
+    /// Model `drucker_prager`: dilation angle `ψ` in degrees, `0 ≤ ψ ≤ φ` (default 0,
+    /// isochoric plastic flow; `ψ = φ` is associated flow).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dilation_angle: Option<f64>,
+    /// Model `drucker_prager`: cohesion `c` (Pa), `≥ 0` (default 0, cohesionless).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cohesion: Option<f64>,
+    /// Model `drucker_prager`: tension cutoff `σ_t` (Pa) on the mean stress, `0 ≤ σ_t ≤
+    /// c cot φ` (default: the apex of the cone, `c cot φ`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tension_cutoff: Option<f64>,
 }
 
 /// Default Tait exponent of model `fluid` (water).
@@ -524,6 +547,128 @@ pub struct PointLoadSpec {
 
 fn default_point_load_count() -> usize {
     1
+}
+
+/// A face of the domain, named as in `[boundaries]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Face {
+    /// `x = lo[0]`.
+    XMin,
+    /// `x = hi[0]`.
+    XMax,
+    /// `y = lo[1]`.
+    YMin,
+    /// `y = hi[1]`.
+    YMax,
+    /// `z = lo[2]` (3D only).
+    ZMin,
+    /// `z = hi[2]` (3D only).
+    ZMax,
+}
+
+impl Face {
+    /// The axis the face is normal to and its side (0 lower, 1 upper).
+    pub fn axis_side(self) -> (usize, usize) {
+        match self {
+            Self::XMin => (0, 0),
+            Self::XMax => (0, 1),
+            Self::YMin => (1, 0),
+            Self::YMax => (1, 1),
+            Self::ZMin => (2, 0),
+            Self::ZMax => (2, 1),
+        }
+    }
+
+    /// The name written in the file (`"y_min"`, ...).
+    pub fn name(self) -> &'static str {
+        ["x_min", "x_max", "y_min", "y_max", "z_min", "z_max"][self as usize]
+    }
+}
+
+/// `[[friction]]` (explicit solver): a Coulomb friction segment on a wall.
+///
+/// The segment covers the part of the face `wall` between `from` and `to`, written in the
+/// face's tangential coordinates (the coordinates of the other axes in x, y, z order: one
+/// number in 2D, two in 3D; e.g. `[x, z]` on `y_min`), or the whole face when both are left
+/// out. The face must be declared a unilateral slip wall in `[boundaries]`
+/// (`{ kind = "slip", separable = true }`); segments of one face must not overlap (they may
+/// touch: a node on the shared edge takes the segment listed first).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionSpec {
+    /// The face.
+    pub wall: Face,
+    /// Coulomb coefficient `μ ≥ 0`.
+    pub mu: f64,
+    /// Start of the segment along the face (m), `D − 1` coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from: Option<Vec<f64>>,
+    /// End of the segment along the face (m), `D − 1` coordinates, greater than `from`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub to: Option<Vec<f64>>,
+}
+
+/// The shape of an obstacle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObstacleKind {
+    /// An axis-aligned box (`lo`, `hi`).
+    Box,
+    /// A circular cylinder (`centre`, `radius`; in 3D also `axis` and `length`); in 2D a
+    /// disk (an infinitely long cylinder, plane strain).
+    Cylinder,
+}
+
+/// A coordinate axis, written `"x"`, `"y"` or `"z"`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisName {
+    /// The x axis.
+    X,
+    /// The y axis.
+    Y,
+    /// The z axis.
+    Z,
+}
+
+/// `[[obstacles]]` (explicit solver): a rigid obstacle, static or moving with a constant
+/// velocity, with Coulomb friction against the material.
+///
+/// Which keys apply depends on `shape`: `"box"` takes `lo` and `hi`; `"cylinder"` takes
+/// `centre` and `radius`, and in 3D `axis` and `length` (a cylinder of that length along the
+/// coordinate axis, centred on `centre`). A key of the other shape is an error. Particles of
+/// the bodies that fall strictly inside an obstacle at `t = 0` are not generated.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    /// `"box"` or `"cylinder"`.
+    pub shape: ObstacleKind,
+    /// Box: lower corner (m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lo: Option<Vec<f64>>,
+    /// Box: upper corner (m), greater than `lo` on every axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hi: Option<Vec<f64>>,
+    /// Cylinder: the centre (m) (in 3D the middle of the axis).
+    #[serde(default, alias = "center", skip_serializing_if = "Option::is_none")]
+    pub centre: Option<Vec<f64>>,
+    /// Cylinder: radius (m), positive.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    /// Cylinder, 3D: the coordinate axis the cylinder's axis is parallel to.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<AxisName>,
+    /// Cylinder, 3D: length along the axis (m), positive.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<f64>,
+    /// Constant velocity (m/s), one component per axis (default zero): the obstacle is at
+    /// `x₀ + v t` at time `t`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<Vec<f64>>,
+    /// Coulomb coefficient `μ ≥ 0` against the material (default 0, frictionless).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
 }
 
 /// `[output]`: what to write and where.

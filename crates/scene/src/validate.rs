@@ -13,6 +13,8 @@ use crate::schema::{BodyShape, BodySpec, MaterialSpec, Scene, SolverKind};
 use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
 use std::collections::HashSet;
 
+mod contact;
+
 /// Tolerance, relative to the domain size, for a body's bounding box to stick out of the
 /// domain and for the domain to be a whole number of cells.
 const GEOMETRY_TOLERANCE: f64 = 1e-9;
@@ -120,6 +122,8 @@ impl Scene {
         }
         self.check_constraints(&mut c, dim);
         self.check_point_loads(&mut c, dim);
+        self.check_friction(&mut c, dim);
+        self.check_obstacles(&mut c, dim);
         self.check_solver(&mut c);
         self.check_output(&mut c);
         c.issues
@@ -242,6 +246,23 @@ impl Scene {
                     ),
                 }
             }
+            if m.model == ModelKind::DruckerPrager {
+                self.check_drucker_prager(c, &path, m);
+            } else {
+                for (key, value) in [
+                    ("friction_angle", m.friction_angle),
+                    ("dilation_angle", m.dilation_angle),
+                    ("cohesion", m.cohesion),
+                    ("tension_cutoff", m.tension_cutoff),
+                ] {
+                    if value.is_some() {
+                        c.issue(
+                            format!("{path}.{key}"),
+                            "only used by model \"drucker_prager\"; remove it or change the model",
+                        );
+                    }
+                }
+            }
             let plastic = m.model == ModelKind::J2;
             match m.yield_stress {
                 Some(sy) if plastic => {
@@ -266,6 +287,89 @@ impl Scene {
                     );
                 } else if c.finite(&hpath, hardening) && hardening < 0.0 {
                     c.issue(hpath, format!("must be zero or positive, got {hardening}"));
+                }
+            }
+        }
+    }
+
+    /// The keys of a `drucker_prager` material (besides `E` and `ν`): the friction angle
+    /// `0 < φ < 90` degrees (required), the dilation angle `0 ≤ ψ ≤ φ`, the cohesion `c ≥ 0`
+    /// and the tension cutoff `0 ≤ σ_t ≤ c cot φ` (the apex of the cone).
+    fn check_drucker_prager(&self, c: &mut Checker, path: &str, m: &MaterialSpec) {
+        let fpath = format!("{path}.friction_angle");
+        let phi = match m.friction_angle {
+            None => {
+                c.issue(
+                    fpath,
+                    "required for model \"drucker_prager\" (the friction angle φ in degrees, \
+                     0 < φ < 90)",
+                );
+                None
+            }
+            Some(phi) => {
+                if !c.finite(&fpath, phi) {
+                    None
+                } else if !(phi > 0.0 && phi < 90.0) {
+                    c.issue(fpath, format!("must be in (0, 90) degrees, got {phi}"));
+                    None
+                } else {
+                    Some(phi)
+                }
+            }
+        };
+        if let Some(psi) = m.dilation_angle {
+            let dpath = format!("{path}.dilation_angle");
+            if c.finite(&dpath, psi) {
+                match phi {
+                    Some(phi) if !(0.0..=phi).contains(&psi) => c.issue(
+                        dpath,
+                        format!("must be in [0, friction_angle] = [0, {phi}] degrees, got {psi}"),
+                    ),
+                    None if !(0.0..90.0).contains(&psi) => c.issue(
+                        dpath,
+                        format!("must be in [0, friction_angle] degrees, got {psi}"),
+                    ),
+                    _ => {}
+                }
+            }
+        }
+        let cohesion = match m.cohesion {
+            None => Some(0.0),
+            Some(coh) => {
+                let cpath = format!("{path}.cohesion");
+                if !c.finite(&cpath, coh) {
+                    None
+                } else if coh < 0.0 {
+                    c.issue(cpath, format!("must be zero or positive, got {coh}"));
+                    None
+                } else {
+                    Some(coh)
+                }
+            }
+        };
+        if let Some(t) = m.tension_cutoff {
+            let tpath = format!("{path}.tension_cutoff");
+            if c.finite(&tpath, t) {
+                match (phi, cohesion) {
+                    (Some(phi), Some(coh)) => {
+                        // The apex c cot φ, with room for round-off when it is written out.
+                        let apex = coh / phi.to_radians().tan();
+                        if !(t >= 0.0 && t <= apex * (1.0 + 1e-12)) {
+                            // Six significant digits: cot 45° is not exactly 1 in floats.
+                            let apex = format!("{apex:.5e}").parse().unwrap_or(apex);
+                            c.issue(
+                                tpath,
+                                format!(
+                                    "must be in [0, c cot φ] = [0, {apex}] Pa (the apex of the \
+                                     cone, which is the default), got {t}"
+                                ),
+                            );
+                        }
+                    }
+                    _ if t < 0.0 => {
+                        c.issue(tpath, format!("must be zero or positive, got {t}"));
+                    }
+                    _ => {}
                 }
             }
         }
@@ -586,6 +690,13 @@ impl Scene {
                     "\"fluid\" is for the explicit solver: the implicit path has no rate of \
                      deformation (no viscosity) and a fluid has no shear stiffness, so its \
                      tangent is singular",
+                );
+            }
+            if m.model == ModelKind::DruckerPrager {
+                c.issue(
+                    format!("materials[{i}].model"),
+                    "\"drucker_prager\" is for the explicit solver: its hypoelastic Jaumann-rate \
+                     update is integrated over small time steps, not over implicit load steps",
                 );
             }
         }

@@ -1,7 +1,7 @@
 //! Scene files: malformed fixtures give errors naming the offending field, good ones build
 //! with the expected particles, and the example scenes load.
 
-use loam_core::constitutive::{Fluid, J2, Lame, Model};
+use loam_core::constitutive::{DruckerPrager, Fluid, J2, Lame, Model};
 use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
 use loam_scene::{
     ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, NewtonSpec, PreconditionerKind,
@@ -177,6 +177,39 @@ const BAD: &[(&str, &[&str])] = &[
         &[r#"materials[0].model: "fluid" is for the explicit solver"#],
     ),
     (
+        "drucker_prager_without_friction_angle.toml",
+        &[
+            r#"materials[0].friction_angle: required for model "drucker_prager" (the friction angle φ in degrees, 0 < φ < 90)"#,
+        ],
+    ),
+    (
+        "drucker_prager_friction_angle_range.toml",
+        &["materials[0].friction_angle: must be in (0, 90) degrees, got 90"],
+    ),
+    (
+        "drucker_prager_dilation_above_friction.toml",
+        &["materials[0].dilation_angle: must be in [0, friction_angle] = [0, 30] degrees, got 35"],
+    ),
+    (
+        "drucker_prager_negative_cohesion.toml",
+        &["materials[0].cohesion: must be zero or positive, got -1000"],
+    ),
+    (
+        "drucker_prager_tension_cutoff_above_apex.toml",
+        &[
+            "materials[0].tension_cutoff: must be in [0, c cot φ] = [0, 1000] Pa (the apex of the \
+             cone, which is the default), got 2000",
+        ],
+    ),
+    (
+        "drucker_prager_in_implicit.toml",
+        &[r#"materials[0].model: "drucker_prager" is for the explicit solver"#],
+    ),
+    (
+        "friction_angle_on_elastic.toml",
+        &[r#"materials[0].friction_angle: only used by model "drucker_prager""#],
+    ),
+    (
         "newmark_dt_negative.toml",
         &["solver.newmark_dt: must be positive"],
     ),
@@ -224,6 +257,94 @@ const BAD: &[(&str, &[&str])] = &[
         &[
             "solver.linear.preconditioner: unknown variant `ilu`",
             "`identity`, `jacobi`, `ilu0`",
+        ],
+    ),
+    (
+        "friction_on_free_face.toml",
+        &[
+            "friction[0].wall: friction needs a unilateral slip wall on y_min, which is not \
+             declared (free): set boundaries.y_min = { kind = \"slip\", separable = true }",
+        ],
+    ),
+    (
+        "friction_on_bilateral_wall.toml",
+        &["friction[0].wall: friction needs a unilateral slip wall on y_min, which is a bilateral"],
+    ),
+    (
+        "friction_negative_mu.toml",
+        &["friction[0].mu: must be zero or positive, got -0.2"],
+    ),
+    (
+        "friction_overlap.toml",
+        &["friction[1]: overlaps friction[0] on the y_min face"],
+    ),
+    (
+        "friction_wrong_dimension.toml",
+        &["friction[0].from: expected 1 coordinate along the face ([x]: the axes other than y"],
+    ),
+    (
+        "friction_off_face.toml",
+        &["friction[0]: the segment [1, 2.5] ([x]) does not lie on the y_min face [0, 2]"],
+    ),
+    (
+        "friction_without_to.toml",
+        &["friction[0].to: give both `from` and `to`"],
+    ),
+    (
+        "friction_z_face_in_2d.toml",
+        &["friction[0].wall: the grid is 2D; it has no z faces"],
+    ),
+    (
+        "friction_unknown_face.toml",
+        &["friction[0].wall: unknown variant `floor`", "`y_min`"],
+    ),
+    (
+        "friction_in_implicit.toml",
+        &[r#"friction: only applied by the explicit solver"#],
+    ),
+    (
+        "obstacle_outside_grid.toml",
+        &[
+            "obstacles[0]: obstacle lies outside the grid domain: its bounding box [1.5, 2.5] × \
+             [0, 0.2] is not inside [0, 2] × [0, 0.5]",
+        ],
+    ),
+    (
+        "obstacle_wrong_dimension.toml",
+        &["obstacles[0].lo: expected 2 coordinates (the grid is 2D), got 3"],
+    ),
+    (
+        "obstacle_negative_friction.toml",
+        &["obstacles[0].friction: must be zero or positive, got -0.1"],
+    ),
+    (
+        "obstacle_key_of_other_shape.toml",
+        &[r#"obstacles[0].lo: not used by shape "cylinder""#],
+    ),
+    (
+        "obstacle_axis_in_2d.toml",
+        &["obstacles[0].axis: not used in 2D: a cylinder in a 2D (plane-strain) scene is a disk"],
+    ),
+    (
+        "obstacle_cylinder_without_axis.toml",
+        &[
+            "obstacles[0].axis: required for a cylinder in 3D",
+            "obstacles[0].length: required for a cylinder in 3D",
+        ],
+    ),
+    (
+        "obstacle_unknown_shape.toml",
+        &["obstacles[0].shape: unknown variant `sphere`, expected `box` or `cylinder`"],
+    ),
+    (
+        "obstacle_in_implicit.toml",
+        &["obstacles: only applied by the explicit solver"],
+    ),
+    (
+        "body_inside_obstacle.toml",
+        &[
+            "bodies[0]: generates no particles",
+            "and outside the obstacles",
         ],
     ),
 ];
@@ -589,6 +710,117 @@ poisson_ratio = 0.3"#,
         let err = Scene::from_toml_str(&changed).unwrap_err();
         assert!(err.to_string().contains(want), "{err}");
     }
+}
+
+/// A `drucker_prager` material gets its angles converted from degrees to radians, the
+/// cohesion and cutoff as written, and the defaults `ψ = 0`, `c = 0`, cutoff at the apex; the
+/// range checks and the rules on which keys it takes name the field.
+#[test]
+fn drucker_prager_fixture_builds_frictional_materials() {
+    let built = Scene::from_path(fixture("good/drucker_prager_2d.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    let expected = [
+        (
+            2000.0,
+            DruckerPrager {
+                lame: Lame::from_young_poisson(5.0e6, 0.3),
+                friction_angle: 35f64.to_radians(),
+                dilation_angle: 5f64.to_radians(),
+                cohesion: 2.0e3,
+                tension_cutoff: Some(1.0e3),
+            },
+        ),
+        (
+            1600.0,
+            DruckerPrager {
+                lame: Lame::from_young_poisson(2.0e6, 0.25),
+                friction_angle: 30f64.to_radians(),
+                dilation_angle: 0.0,
+                cohesion: 0.0,
+                tension_cutoff: None,
+            },
+        ),
+    ];
+    for (material, (density, dp)) in built.materials.iter().zip(expected) {
+        assert_eq!(material.model, Model::DruckerPrager(dp));
+        assert_eq!(material.density, density);
+    }
+    // The time-step bound uses the elastic P-wave speed √((λ + 2μ)/ρ₀).
+    let m: f64 = Lame::from_young_poisson(5.0e6, 0.3).p_wave_modulus();
+    assert!((built.materials[0].wave_speed() - (m / 2000.0).sqrt()).abs() < 1e-9);
+    let p = &built.particles;
+    assert_eq!(p.len(), 600);
+    assert_eq!(p.material.iter().filter(|&&m| m == 0).count(), 400);
+
+    let text = std::fs::read_to_string(fixture("good/drucker_prager_2d.toml")).unwrap();
+    for (from, to, want) in [
+        (
+            "friction_angle = 35.0",
+            "friction_angle = 0.0",
+            "materials[0].friction_angle: must be in (0, 90) degrees, got 0",
+        ),
+        (
+            "dilation_angle = 5.0",
+            "dilation_angle = -1.0",
+            "materials[0].dilation_angle: must be in [0, friction_angle] = [0, 35] degrees, got -1",
+        ),
+        (
+            "tension_cutoff = 1.0e3",
+            "tension_cutoff = -1.0",
+            "materials[0].tension_cutoff: must be in [0, c cot φ] = [0, 2856.3] Pa",
+        ),
+        (
+            "friction_angle = 30.0",
+            "friction_angle = 30.0\ntension_cutoff = 1.0",
+            "materials[1].tension_cutoff: must be in [0, c cot φ] = [0, 0] Pa",
+        ),
+        (
+            "friction_angle = 30.0",
+            "friction_angle = 30.0\nyield_stress = 1.0",
+            r#"materials[1].yield_stress: only used by model "j2""#,
+        ),
+        (
+            "friction_angle = 30.0",
+            "friction_angle = 30.0\nviscosity = 1.0",
+            r#"materials[1].viscosity: only used by model "fluid""#,
+        ),
+        (
+            "poisson_ratio = 0.25\n",
+            "",
+            r#"materials[1].poisson_ratio: required for model "drucker_prager" (Poisson's ratio)"#,
+        ),
+        (
+            r#"model = "drucker_prager"
+density = 1600.0"#,
+            r#"model = "fluid"
+sound_speed = 10.0
+density = 1600.0"#,
+            r#"materials[1].friction_angle: only used by model "drucker_prager""#,
+        ),
+        (
+            r#"model = "drucker_prager"
+density = 1600.0"#,
+            r#"model = "j2"
+yield_stress = 1.0e4
+density = 1600.0"#,
+            r#"materials[1].friction_angle: only used by model "drucker_prager""#,
+        ),
+    ] {
+        let changed = text.replacen(from, to, 1);
+        assert_ne!(changed, text, "{from:?} not in the fixture");
+        let err = Scene::from_toml_str(&changed).unwrap_err();
+        assert!(err.to_string().contains(want), "{err}");
+    }
+    // The apex itself is an accepted cutoff (c cot φ written out to round-off).
+    let apex = 2.0e3 / 35f64.to_radians().tan();
+    let at_apex = text.replacen(
+        "tension_cutoff = 1.0e3",
+        &format!("tension_cutoff = {apex}"),
+        1,
+    );
+    Scene::from_toml_str(&at_apex).unwrap();
 }
 
 /// The implicit 2D fixture: constraint boxes as written, each point load on the particles
@@ -1044,6 +1276,7 @@ fn mangled_scenes_give_errors_not_panics() {
         "overlap_2d.toml",
         "j2_2d.toml",
         "implicit_2d.toml",
+        "contact_2d.toml",
     ] {
         let text = std::fs::read_to_string(fixture(&format!("good/{name}"))).unwrap();
         let lines: Vec<&str> = text.lines().collect();
@@ -1065,4 +1298,98 @@ fn mangled_scenes_give_errors_not_panics() {
             }
         }
     }
+}
+
+/// Friction segments and obstacles build into the core contact: segment ranges along the face
+/// (the whole face when `from`/`to` are left out), obstacle shapes, velocities and friction;
+/// particles inside an obstacle at t = 0 are not generated.
+#[test]
+fn contact_fixture_builds_segments_and_obstacles_and_clips_particles() {
+    use loam_core::{FrictionSegment, Obstacle, ObstacleShape};
+    let built = Scene::from_path(fixture("good/contact_2d.toml"))
+        .unwrap()
+        .build::<2>()
+        .unwrap();
+    let c = &built.contact;
+    assert_eq!(c.support, 1.5);
+    assert_eq!(
+        c.segments,
+        vec![
+            FrictionSegment {
+                axis: 1,
+                side: 0,
+                from: [0.0, 0.0],
+                to: [1.0, 0.0],
+                mu: 0.1
+            },
+            FrictionSegment {
+                axis: 1,
+                side: 0,
+                from: [1.0, 0.0],
+                to: [2.0, 0.0],
+                mu: 0.5
+            },
+            FrictionSegment {
+                axis: 0,
+                side: 1,
+                from: [2.0, 0.0],
+                to: [2.0, 0.5],
+                mu: 0.2
+            },
+        ]
+    );
+    assert_eq!(
+        c.obstacles,
+        vec![
+            Obstacle {
+                shape: ObstacleShape::Box {
+                    lo: [0.4, 0.1],
+                    hi: [0.6, 0.3]
+                },
+                velocity: [0.0, 0.0],
+                mu: 0.3
+            },
+            Obstacle {
+                shape: ObstacleShape::disk([1.5, 0.3], 0.1),
+                velocity: [-1.0, 0.0],
+                mu: 0.0
+            },
+        ]
+    );
+    // 20 × 10 cells × 4 particles, less the 5 × 5 cells under the box.
+    assert_eq!(built.particles.len(), 800 - 100);
+    assert!(
+        built
+            .particles
+            .x
+            .iter()
+            .all(|x| c.penetrated(&[x[0], x[1]], 0.0).is_none())
+    );
+    assert_eq!(
+        built.boundary.walls[1][0],
+        Wall {
+            kind: WallKind::Slip,
+            separable: true
+        }
+    );
+}
+
+#[test]
+fn cylinder_fixture_builds_3d_obstacles() {
+    use loam_core::ObstacleShape;
+    let built = Scene::from_path(fixture("good/cylinders_3d.json"))
+        .unwrap()
+        .build::<3>()
+        .unwrap();
+    let c = &built.contact;
+    assert_eq!(c.segments.len(), 1);
+    assert_eq!(c.segments[0].from, [0.5, 0.0, 0.0]);
+    assert_eq!(c.segments[0].to, [1.0, 0.0, 0.4]);
+    assert_eq!(
+        c.obstacles[0].shape,
+        ObstacleShape::cylinder([0.6, 0.2, 0.1], 0.05, 1, 0.4)
+    );
+    assert_eq!(c.obstacles[1].velocity, [0.0, 0.0, 0.1]);
+    // Without obstacles in the way the column holds 6 × 4 × 8 cells × 8 particles.
+    assert_eq!(built.particles.len(), 1536);
 }

@@ -21,7 +21,7 @@ pub fn run<const D: usize>(
         transfer: plan.transfer,
         scheme: plan.scheme,
         boundary: built.boundary,
-        contact: Default::default(),
+        contact: built.contact.clone(),
         gravity: built.gravity,
         materials: built.materials.clone(),
         time_step: plan.time_step,

@@ -5,12 +5,14 @@
 //! code. Parameters are generic over `T` so a derivative with respect to a material parameter
 //! is the same code run with a dual parameter.
 
+mod drucker_prager;
 mod fluid;
 mod hencky;
 mod j2;
 mod linear_elastic;
 mod neo_hookean;
 
+pub use drucker_prager::{DpRegion, DruckerPrager};
 pub use fluid::Fluid;
 pub use hencky::Hencky;
 pub use j2::J2;
@@ -173,10 +175,14 @@ pub enum ModelKind {
     J2,
     /// [`Fluid`] (weakly compressible Newtonian fluid), written `fluid`.
     Fluid,
+    /// [`DruckerPrager`] (non-associated Drucker–Prager plasticity with a tension cutoff,
+    /// Jaumann-rate hypoelastic; explicit path), written `drucker_prager`.
+    DruckerPrager,
 }
 
 impl ModelKind {
-    /// The name written in a scene file (`"linear_elastic"`, …, `"j2"`, `"fluid"`).
+    /// The name written in a scene file (`"linear_elastic"`, …, `"j2"`, `"fluid"`,
+    /// `"drucker_prager"`).
     pub fn name(self) -> &'static str {
         match self {
             Self::LinearElastic => "linear_elastic",
@@ -184,6 +190,7 @@ impl ModelKind {
             Self::Hencky => "hencky",
             Self::J2 => "j2",
             Self::Fluid => "fluid",
+            Self::DruckerPrager => "drucker_prager",
         }
     }
 }
@@ -211,6 +218,9 @@ pub enum Model<T> {
     J2(J2<T>),
     /// Weakly compressible Newtonian fluid (Tait pressure plus viscosity).
     Fluid(Fluid<T>),
+    /// Non-associated Drucker–Prager plasticity with a tension cutoff (Jaumann-rate
+    /// hypoelastic).
+    DruckerPrager(DruckerPrager<T>),
 }
 
 impl<T: Scalar> Material<T> {
@@ -218,6 +228,9 @@ impl<T: Scalar> Material<T> {
     ///
     /// [`ModelKind::J2`] gives a J2 material with an infinite yield stress, which never yields
     /// (Hencky elasticity carried in the J2 state); use [`Material::j2`] for a finite one.
+    /// Likewise [`ModelKind::DruckerPrager`] gives an infinite cohesion (`φ = ψ = 0`,
+    /// `c = ∞`), which never yields: Jaumann-rate hypoelasticity; use
+    /// [`Material::drucker_prager`] for a frictional one.
     ///
     /// # Panics
     ///
@@ -233,6 +246,13 @@ impl<T: Scalar> Material<T> {
                 lame,
                 yield_stress: T::cst(f64::INFINITY),
                 hardening: T::zero(),
+            }),
+            ModelKind::DruckerPrager => Model::DruckerPrager(DruckerPrager {
+                lame,
+                friction_angle: T::zero(),
+                dilation_angle: T::zero(),
+                cohesion: T::cst(f64::INFINITY),
+                tension_cutoff: None,
             }),
             ModelKind::Fluid => panic!(
                 "Material::elastic: model `fluid` takes a bulk modulus, not E and ν; \
@@ -269,6 +289,32 @@ impl<T: Scalar> Material<T> {
         }
     }
 
+    /// A non-associated [`DruckerPrager`] material from `E`, `ν`, the friction angle `φ` and
+    /// the dilation angle `ψ` (**radians**, `0 < φ < π/2`, `0 ≤ ψ ≤ φ`), the cohesion `c ≥ 0`
+    /// (Pa), the tension cutoff `σ_t` on the mean stress (Pa; `None` for the apex of the
+    /// cone, `c cot φ`) and `ρ₀`. The cone is the plane-strain match of Mohr–Coulomb,
+    /// `α = tan φ / √(9 + 12 tan²φ)`, `k = 3c / √(9 + 12 tan²φ)`.
+    pub fn drucker_prager(
+        young: T,
+        poisson: T,
+        friction_angle: T,
+        dilation_angle: T,
+        cohesion: T,
+        tension_cutoff: Option<T>,
+        density: f64,
+    ) -> Self {
+        Self {
+            density,
+            model: Model::DruckerPrager(DruckerPrager {
+                lame: Lame::from_young_poisson(young, poisson),
+                friction_angle,
+                dilation_angle,
+                cohesion,
+                tension_cutoff,
+            }),
+        }
+    }
+
     /// Elastic P-wave speed `c = √(M/ρ₀)` (real part); the sound speed `√(K/ρ₀)` of a
     /// [`Fluid`].
     pub fn wave_speed(&self) -> f64 {
@@ -283,13 +329,16 @@ impl<T: Scalar> Material<T> {
             Model::Hencky(m) => m,
             Model::J2(m) => m,
             Model::Fluid(m) => m,
+            Model::DruckerPrager(m) => m,
         }
     }
 
     /// Stored (elastic) energy per unit reference volume: `ψ(F)` for the hyperelastic models
     /// (`state` unused), `ψ(bₑ) = μ ε:ε + ½λ (tr ε)²` with `ε = ½ ln bₑ` for [`J2`] (`f`
     /// unused; the plastic work is dissipated, not stored), the compression energy
-    /// `ψ(det F) = −∫₁ᴶ p dJ'` for [`Fluid`] (`state` unused; viscous work is dissipated).
+    /// `ψ(det F) = −∫₁ᴶ p dJ'` for [`Fluid`] (`state` unused; viscous work is dissipated), the
+    /// elastic energy of the stress `det F · ½ σ:C⁻¹:σ` for [`DruckerPrager`]
+    /// ([`DruckerPrager::stored_energy`], from the elastic strain the state carries).
     #[inline]
     pub fn energy_density(&self, f: &Matrix3<T>, state: &MaterialState<T>) -> T {
         match &self.model {
@@ -298,6 +347,7 @@ impl<T: Scalar> Material<T> {
             Model::Hencky(m) => m.energy_density(f),
             Model::J2(m) => m.stored_energy(state),
             Model::Fluid(m) => m.energy_density(f),
+            Model::DruckerPrager(m) => m.stored_energy(f, state),
         }
     }
 
@@ -306,9 +356,11 @@ impl<T: Scalar> Material<T> {
     /// unchanged, for [`J2`] its return mapping on the relative deformation gradient `delta_f`
     /// from `state` ([`J2::kirchhoff_update`]), for [`Fluid`] the pressure part
     /// `τ = −J p(J) I` only ([`Fluid::kirchhoff_stress`]: without a rate of deformation the
-    /// implicit path treats the fluid as inviscid). For implicit solvers, which re-evaluate a step
-    /// from the last converged state at every Newton iterate; with dual inputs the derivative
-    /// is the consistent tangent.
+    /// implicit path treats the fluid as inviscid), for [`DruckerPrager`] its Jaumann update and
+    /// return mapping with `Δt L = ΔF − I` from the stress its state stands for
+    /// ([`DruckerPrager::kirchhoff_update`]; scenes keep it out of the implicit solver). For
+    /// implicit solvers, which re-evaluate a step from the last converged state at every
+    /// Newton iterate; with dual inputs the derivative is the consistent tangent.
     pub fn kirchhoff_update(
         &self,
         delta_f: &Matrix3<T>,
@@ -321,6 +373,7 @@ impl<T: Scalar> Material<T> {
             Model::Hencky(m) => (m.kirchhoff_stress(f), *state),
             Model::J2(m) => m.kirchhoff_update(delta_f, state),
             Model::Fluid(m) => (m.kirchhoff_stress(f), *state),
+            Model::DruckerPrager(m) => m.kirchhoff_update(delta_f, f, state),
         }
     }
 
@@ -333,6 +386,7 @@ impl<T: Scalar> Material<T> {
             Model::Hencky(m) => m.update(kin, state),
             Model::J2(m) => m.update(kin, state),
             Model::Fluid(m) => m.update(kin, state),
+            Model::DruckerPrager(m) => m.update(kin, state),
         }
     }
 }
@@ -357,6 +411,7 @@ impl Material<f64> {
                 hardening: T::cst(m.hardening),
             }),
             Model::Fluid(m) => Model::Fluid(m.lift()),
+            Model::DruckerPrager(m) => Model::DruckerPrager(m.lift()),
         };
         Material {
             density: self.density,
@@ -365,6 +420,8 @@ impl Material<f64> {
     }
 }
 
+#[cfg(test)]
+mod drucker_prager_tests;
 #[cfg(test)]
 mod fluid_tests;
 #[cfg(test)]

@@ -1,0 +1,305 @@
+//! Rigid obstacles: analytic signed distances and normals of boxes and cylinders that may move
+//! with a constant velocity.
+//!
+//! Geometry is plain `f64` (it is never differentiated); only the friction coefficient is a
+//! scalar `T`.
+
+use crate::scalar::Scalar;
+
+/// The shape of a rigid obstacle at time 0.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ObstacleShape<const D: usize> {
+    /// The axis-aligned box `lo ≤ x ≤ hi`.
+    Box {
+        /// Lower corner.
+        lo: [f64; D],
+        /// Upper corner (greater than `lo` on every axis).
+        hi: [f64; D],
+    },
+    /// A circular cylinder of radius `radius` around the line through `centre` along the
+    /// coordinate axis `axis`, of length `length` centred on `centre`:
+    /// `|x − c|_⊥ ≤ r` and `|x_axis − c_axis| ≤ L/2`, where `|·|_⊥` omits the `axis`
+    /// component. With `axis ≥ D` the axis is out of the plane and the cylinder is the disk
+    /// `|x − c| ≤ r` (in 2D, plane strain: an infinitely long cylinder; `length` is unused).
+    Cylinder {
+        /// A point on the axis, the middle of the cylinder.
+        centre: [f64; D],
+        /// Radius, positive.
+        radius: f64,
+        /// Coordinate axis the cylinder's axis is parallel to; `≥ D` for a 2D disk.
+        axis: usize,
+        /// Length along the axis (ignored for a disk).
+        length: f64,
+    },
+}
+
+impl<const D: usize> ObstacleShape<D> {
+    /// A disk `|x − c| ≤ r` (2D; in 3D it would be an infinitely long cylinder along z, so use
+    /// [`ObstacleShape::cylinder`] there).
+    pub fn disk(centre: [f64; D], radius: f64) -> Self {
+        Self::Cylinder {
+            centre,
+            radius,
+            axis: D,
+            length: f64::INFINITY,
+        }
+    }
+
+    /// A cylinder along the coordinate axis `axis` (`< D`) of the given length, centred on
+    /// `centre`.
+    pub fn cylinder(centre: [f64; D], radius: f64, axis: usize, length: f64) -> Self {
+        Self::Cylinder {
+            centre,
+            radius,
+            axis,
+            length,
+        }
+    }
+
+    /// The axis-aligned bounding box `(lo, hi)` at time 0.
+    pub fn bounds(&self) -> ([f64; D], [f64; D]) {
+        match self {
+            Self::Box { lo, hi } => (*lo, *hi),
+            Self::Cylinder {
+                centre,
+                radius,
+                axis,
+                length,
+            } => {
+                let reach = |a: usize| if a == *axis { 0.5 * length } else { *radius };
+                (
+                    std::array::from_fn(|a| centre[a] - reach(a)),
+                    std::array::from_fn(|a| centre[a] + reach(a)),
+                )
+            }
+        }
+    }
+
+    /// A length that characterises the shape's size: the smallest half-extent of a box, the
+    /// radius (or half-length, if smaller) of a cylinder.
+    pub fn size(&self) -> f64 {
+        match self {
+            Self::Box { lo, hi } => (0..D)
+                .map(|a| 0.5 * (hi[a] - lo[a]))
+                .fold(f64::INFINITY, f64::min),
+            Self::Cylinder {
+                radius,
+                axis,
+                length,
+                ..
+            } => {
+                if *axis < D {
+                    radius.min(0.5 * length)
+                } else {
+                    *radius
+                }
+            }
+        }
+    }
+
+    /// Signed distance `φ(x)` to the surface (negative inside) and the outward unit normal
+    /// `n = ∇φ`, for the shape at rest (time 0).
+    ///
+    /// Box with centre `c` and half-extents `e`: `q = |x − c| − e` per axis; outside,
+    /// `φ = |max(q, 0)|` and `n = sign(x − c) ∘ max(q, 0)/φ`; inside, `φ = max_a q_a ≤ 0` and
+    /// `n = sign(x_a − c_a) e_a` for the axis `a` of the nearest face (the lowest on a tie).
+    /// Cylinder: the same construction in the two coordinates (radial distance `ρ = |x − c|_⊥`,
+    /// `|x_axis − c_axis|`) with half-extents `(r, L/2)`. Where a normal is undefined (the
+    /// centre of a box or on a cylinder's axis) a coordinate direction is returned.
+    pub fn distance(&self, x: &[f64; D]) -> (f64, [f64; D]) {
+        match self {
+            Self::Box { lo, hi } => {
+                let mut q = [0.0; D];
+                let mut sign = [0.0; D];
+                for a in 0..D {
+                    let c = 0.5 * (lo[a] + hi[a]);
+                    let d = x[a] - c;
+                    sign[a] = if d < 0.0 { -1.0 } else { 1.0 };
+                    q[a] = d.abs() - 0.5 * (hi[a] - lo[a]);
+                }
+                if q.iter().any(|&qa| qa > 0.0) {
+                    let out: [f64; D] = std::array::from_fn(|a| q[a].max(0.0));
+                    let phi = out.iter().map(|o| o * o).sum::<f64>().sqrt();
+                    (phi, std::array::from_fn(|a| sign[a] * out[a] / phi))
+                } else {
+                    let mut k = 0;
+                    for a in 1..D {
+                        if q[a] > q[k] {
+                            k = a;
+                        }
+                    }
+                    let mut n = [0.0; D];
+                    n[k] = sign[k];
+                    (q[k], n)
+                }
+            }
+            Self::Cylinder {
+                centre,
+                radius,
+                axis,
+                length,
+            } => {
+                let mut radial = [0.0; D];
+                for a in (0..D).filter(|a| a != axis) {
+                    radial[a] = x[a] - centre[a];
+                }
+                let rho = radial.iter().map(|r| r * r).sum::<f64>().sqrt();
+                let r_hat: [f64; D] = if rho > 0.0 {
+                    std::array::from_fn(|a| radial[a] / rho)
+                } else {
+                    // On the axis: any radial direction (the first axis that is not `axis`).
+                    let first = if *axis == 0 { 1 } else { 0 };
+                    std::array::from_fn(|a| if a == first { 1.0 } else { 0.0 })
+                };
+                let q_r = rho - radius;
+                let (q_z, s_z) = if *axis < D {
+                    let d = x[*axis] - centre[*axis];
+                    (d.abs() - 0.5 * length, if d < 0.0 { -1.0 } else { 1.0 })
+                } else {
+                    (f64::NEG_INFINITY, 0.0)
+                };
+                let e_z = |a: usize| if a == *axis { s_z } else { 0.0 };
+                if q_r > 0.0 || q_z > 0.0 {
+                    let (or, oz) = (q_r.max(0.0), q_z.max(0.0));
+                    let phi = (or * or + oz * oz).sqrt();
+                    (
+                        phi,
+                        std::array::from_fn(|a| (or * r_hat[a] + oz * e_z(a)) / phi),
+                    )
+                } else if q_r >= q_z {
+                    (q_r, r_hat)
+                } else {
+                    (q_z, std::array::from_fn(e_z))
+                }
+            }
+        }
+    }
+}
+
+/// A rigid obstacle: a shape moving with a constant velocity, `x(t) = x(0) + v t`, with a
+/// Coulomb friction coefficient against the material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Obstacle<T: Scalar, const D: usize> {
+    /// The shape at time 0.
+    pub shape: ObstacleShape<D>,
+    /// Constant velocity `v_o` (m/s); zero for a static obstacle.
+    pub velocity: [f64; D],
+    /// Coulomb friction coefficient `μ ≥ 0` (0: frictionless).
+    pub mu: T,
+}
+
+impl<T: Scalar, const D: usize> Obstacle<T, D> {
+    /// A static obstacle.
+    pub fn fixed(shape: ObstacleShape<D>, mu: T) -> Self {
+        Self {
+            shape,
+            velocity: [0.0; D],
+            mu,
+        }
+    }
+
+    /// Signed distance `φ(x, t)` (negative inside) and outward normal at time `t`: the shape's
+    /// at `x − v_o t`.
+    #[inline]
+    pub fn distance(&self, x: &[f64; D], time: f64) -> (f64, [f64; D]) {
+        let x0: [f64; D] = std::array::from_fn(|a| x[a] - self.velocity[a] * time);
+        self.shape.distance(&x0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: &[f64], b: &[f64]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-12)
+    }
+
+    #[test]
+    fn box_distance_and_normals() {
+        let b = ObstacleShape::<2>::Box {
+            lo: [0.0, 0.0],
+            hi: [2.0, 1.0],
+        };
+        // Outside a face, outside a corner, inside near the top face.
+        let (d, n) = b.distance(&[3.0, 0.5]);
+        assert!((d - 1.0).abs() < 1e-15 && close(&n, &[1.0, 0.0]));
+        let (d, n) = b.distance(&[-3.0, -4.0]);
+        assert!((d - 5.0).abs() < 1e-15 && close(&n, &[-0.6, -0.8]));
+        let (d, n) = b.distance(&[1.5, 0.9]);
+        assert!((d + 0.1).abs() < 1e-15 && close(&n, &[0.0, 1.0]));
+        assert_eq!(b.bounds(), ([0.0, 0.0], [2.0, 1.0]));
+        assert_eq!(b.size(), 0.5);
+    }
+
+    #[test]
+    fn disk_and_cylinder_distance_and_normals() {
+        let d2 = ObstacleShape::<2>::disk([1.0, 1.0], 0.5);
+        let (d, n) = d2.distance(&[1.0, 2.0]);
+        assert!((d - 0.5).abs() < 1e-15 && close(&n, &[0.0, 1.0]));
+        let (d, n) = d2.distance(&[1.3, 1.4]);
+        assert!((d - 0.0).abs() < 1e-15 && close(&n, &[0.6, 0.8]));
+        assert_eq!(d2.bounds(), ([0.5, 0.5], [1.5, 1.5]));
+        // Cylinder along y from y = 0 to y = 2, radius 1, centred at (0, 1, 0).
+        let c = ObstacleShape::<3>::cylinder([0.0, 1.0, 0.0], 1.0, 1, 2.0);
+        let (d, n) = c.distance(&[0.0, 1.5, 2.0]);
+        assert!((d - 1.0).abs() < 1e-15 && close(&n, &[0.0, 0.0, 1.0]));
+        let (d, n) = c.distance(&[0.0, 3.0, 0.0]);
+        assert!((d - 1.0).abs() < 1e-15 && close(&n, &[0.0, 1.0, 0.0]));
+        // Beyond the rim: distance to the circle edge.
+        let (d, n) = c.distance(&[4.0, 6.0, 0.0]);
+        assert!((d - 5.0).abs() < 1e-15 && close(&n, &[0.6, 0.8, 0.0]));
+        // Inside, nearer the end cap than the mantle.
+        let (d, n) = c.distance(&[0.1, 0.2, 0.0]);
+        assert!((d + 0.2).abs() < 1e-15 && close(&n, &[0.0, -1.0, 0.0]));
+        assert_eq!(c.bounds(), ([-1.0, 0.0, -1.0], [1.0, 2.0, 1.0]));
+    }
+
+    /// The normal is the gradient of the distance (central differences off the medial axis).
+    #[test]
+    fn normals_are_distance_gradients() {
+        let shapes = [
+            ObstacleShape::<3>::Box {
+                lo: [0.0, 0.0, 0.0],
+                hi: [1.0, 2.0, 3.0],
+            },
+            ObstacleShape::<3>::cylinder([0.5, 0.5, 0.5], 0.4, 2, 1.0),
+        ];
+        let points = [
+            [1.7, 0.3, 1.1],
+            [-0.2, 2.5, 3.3],
+            [0.9, 1.0, 1.4],
+            [0.55, 0.61, 0.7],
+            [1.2, 0.7, 1.3],
+        ];
+        let eps = 1e-6;
+        for s in &shapes {
+            for x in &points {
+                let (_, n) = s.distance(x);
+                for a in 0..3 {
+                    let mut xp = *x;
+                    let mut xm = *x;
+                    xp[a] += eps;
+                    xm[a] -= eps;
+                    let g = (s.distance(&xp).0 - s.distance(&xm).0) / (2.0 * eps);
+                    assert!((g - n[a]).abs() < 1e-6, "{s:?} at {x:?}: {g} vs {n:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn moving_obstacles_translate() {
+        let o = Obstacle::<f64, 2> {
+            shape: ObstacleShape::Box {
+                lo: [0.0, 0.0],
+                hi: [1.0, 1.0],
+            },
+            velocity: [2.0, 0.0],
+            mu: 0.0,
+        };
+        assert!((o.distance(&[2.5, 0.5], 0.0).0 - 1.5).abs() < 1e-15);
+        assert!((o.distance(&[2.5, 0.5], 0.5).0 - 0.5).abs() < 1e-15);
+        assert!(o.distance(&[2.5, 0.5], 1.0).0 < 0.0);
+    }
+}
