@@ -6,14 +6,20 @@
 //! size; the test suite runs them at reduced size.
 
 pub mod axial_bar;
+pub mod bui;
 pub mod cantilever;
 pub mod column;
+pub mod dambreak;
 pub mod disk_collision;
 pub mod elastica;
 pub mod footing;
+pub mod granular;
+pub mod incline;
 pub mod newmark_bar;
 pub mod newton_quadratic;
+pub mod obstacles;
 mod output;
+pub mod runout;
 pub mod tangent_fd;
 
 pub use output::{Series, write_csv, write_plot, write_text};
@@ -185,6 +191,31 @@ pub fn cases() -> Vec<Case> {
             name: "disk-collision",
             description: "Sulsky's two elastic disks: total energy drift through the collision (APIC)",
             run: disk_collision::run,
+        },
+        Case {
+            name: "bui-collapse",
+            description: "plane-strain collapse of Bui et al.'s (2008) aluminium-bar column (Drucker–Prager φ = 19.8°, Coulomb floor): final runout and height at the wall",
+            run: bui::run,
+        },
+        Case {
+            name: "column-runout",
+            description: "granular column collapse, a = 0.5, 1, 2, 4 (Drucker–Prager φ = 30°, Coulomb floor): (L∞ − L0)/L0 between Lube et al. (2005) and Lajeunesse et al. (2005)",
+            run: runout::run,
+        },
+        Case {
+            name: "dambreak-2d",
+            description: "2D dam break on a frictionless bed (weakly compressible fluid; APIC, TPIC, FLIP): surge front vs Ritter's x_f = L0 + 2√(gH0) t",
+            run: dambreak::run,
+        },
+        Case {
+            name: "incline-friction",
+            description: "block on a 30° incline with Coulomb friction: acceleration vs g(sin α − μ cos α) for μ = 0.1, 0.3; sticking for μ = 0.7 > tan α",
+            run: incline::run,
+        },
+        Case {
+            name: "dambreak-obstacles-3d",
+            description: "3D dam break against two rigid cylinders: no particle inside a column, mass conserved on particles and grid, energy never above its initial value",
+            run: obstacles::run,
         },
     ]
 }

@@ -63,3 +63,28 @@ fn footing_prandtl() {
 fn axial_bar_newmark() {
     check("axial-bar-newmark");
 }
+
+#[test]
+fn dambreak_2d() {
+    check("dambreak-2d");
+}
+
+#[test]
+fn incline_friction() {
+    check("incline-friction");
+}
+
+#[test]
+fn dambreak_obstacles_3d() {
+    check("dambreak-obstacles-3d");
+}
+
+#[test]
+fn bui_collapse() {
+    check("bui-collapse");
+}
+
+#[test]
+fn column_runout() {
+    check("column-runout");
+}

@@ -1,0 +1,496 @@
+//! 2D dam break on a frictionless bed against Ritter's shallow-water solution.
+//!
+//! A water column `L₀ = 1 m` long and `H₀ = 0.1 m` high stands in the left corner of a
+//! 2.0 m × 0.12 m tank with slip walls on every face and collapses under gravity at `t = 0`
+//! (the JAX-MPM validation case). Ritter (1892) solved the shallow-water equations for this
+//! release over a dry frictionless bed: a centred rarefaction whose surface is
+//!
+//! ```text
+//! x(y, t) = L₀ + (2√(gH₀) − 3√(g y)) t,      0 ≤ y ≤ H₀,
+//! ```
+//!
+//! (undisturbed, `y = H₀`, left of `x = L₀ − √(gH₀) t`), with a zero-depth front moving at the
+//! constant speed `2√(gH₀)`: `x_front(t) = L₀ + 2√(gH₀) t`.
+//!
+//! Water is the weakly compressible Newtonian fluid: Tait equation of state with `γ = 7`,
+//! `K = ρ₀c²` for an artificial sound speed `c = 35 m/s` (about 18 times the front speed),
+//! inviscid. Quadratic B-splines, MUSL, 2 × 2 particles per cell, fixed `Δt`.
+//!
+//! **Front.** [`front_position`]: the largest `x` of a particle that has another particle
+//! within one cell size, plus half a particle spacing (so the front is `L₀` at `t = 0`). The
+//! neighbour condition ignores a lone particle flung ahead of the flow; the thin tip of the
+//! surge, which is part of Ritter's solution, still counts.
+//!
+//! **Window.** Ritter's front reaches the right wall (`x = 2 m`) at `t ≈ 0.505 s`, after which
+//! the two cannot be compared, so the full case runs to `T_W = 0.5 s` (not 0.6 s). The metric
+//! is the mean of `|x_f − x_R| / x_R` over the last third of the window, `[⅔ T_W, T_W]`:
+//! Ritter's ideal front is ahead of any real or numerical one early on (the release is not
+//! hydrostatic and the corner of the column needs `t ≈ 2–3 √(H₀/g)` to turn into a shallow
+//! flow, and the zero-depth tip is not representable by particles of finite size), and that
+//! start-up lag is what the relative error then decays from.
+
+use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
+use loam_core::tensor::Vector;
+use loam_core::{
+    Boundary, Grid, Material, Particles, Scheme, Shape, TimeStep, Transfer, Wall, WallKind,
+};
+use loam_explicit::{Config, Solver};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Tank length (m).
+pub const TANK_LENGTH: f64 = 2.0;
+/// Tank height (m).
+pub const TANK_HEIGHT: f64 = 0.12;
+/// Initial column length `L₀` (m).
+pub const L0: f64 = 1.0;
+/// Initial column height `H₀` (m).
+pub const H0: f64 = 0.1;
+/// Water density `ρ₀` (kg/m³).
+pub const DENSITY: f64 = 1000.0;
+/// Artificial sound speed `c` (m/s); `K = ρ₀ c²`.
+pub const SOUND_SPEED: f64 = 35.0;
+/// Tait exponent `γ`.
+pub const GAMMA: f64 = 7.0;
+/// Gravitational acceleration `g` (m/s²).
+pub const G: f64 = 9.8;
+/// Particles per cell per axis in the case.
+pub const PPC: usize = 2;
+
+/// Ritter's front speed `2√(gH₀)`.
+pub fn front_speed() -> f64 {
+    2.0 * (G * H0).sqrt()
+}
+
+/// Ritter's front `x_front(t) = L₀ + 2√(gH₀) t`.
+pub fn ritter_front(t: f64) -> f64 {
+    L0 + front_speed() * t
+}
+
+/// Ritter's free surface as `x(y, t) = L₀ + (2√(gH₀) − 3√(g y)) t`, `0 ≤ y ≤ H₀`.
+pub fn ritter_surface_x(y: f64, t: f64) -> f64 {
+    L0 + (front_speed() - 3.0 * (G * y).sqrt()) * t
+}
+
+/// Ritter's depth `h(x, t)`: `H₀` behind the rarefaction, `(2√(gH₀) − (x − L₀)/t)²/(9g)` in it,
+/// zero ahead of the front.
+pub fn ritter_depth(x: f64, t: f64) -> f64 {
+    if t <= 0.0 {
+        return if x <= L0 { H0 } else { 0.0 };
+    }
+    let s = (front_speed() - (x - L0) / t).max(0.0);
+    (s * s / (9.0 * G)).min(H0)
+}
+
+/// Discretisation of one run.
+#[derive(Clone, Copy, Debug)]
+pub struct Setup {
+    /// Cell size `h` (m); must divide 0.1 m, 0.12 m and 2 m (0.004, 0.005, 0.01, 0.02, …).
+    pub h: f64,
+    /// Particles per cell per axis.
+    pub ppc: usize,
+    /// Fixed time step (s).
+    pub dt: f64,
+    /// Transfer scheme.
+    pub transfer: Transfer,
+}
+
+impl Setup {
+    /// Particle spacing `h / ppc`.
+    pub fn spacing(&self) -> f64 {
+        self.h / self.ppc as f64
+    }
+}
+
+/// Builds the tank and the water column (at rest, stress-free).
+pub fn build(setup: &Setup) -> (Config<f64, 2>, Particles<f64, 2>) {
+    let h = setup.h;
+    let cells = |len: f64| (len / h).round() as usize;
+    let config = Config {
+        grid: Grid::new([0.0, 0.0], [cells(TANK_LENGTH), cells(TANK_HEIGHT)], h, 2),
+        shape: Shape::QuadraticBspline,
+        transfer: setup.transfer,
+        scheme: Scheme::Musl,
+        // Bilateral slip walls: frictionless symmetry planes (docs/architecture.md).
+        boundary: Boundary::all(Wall::new(WallKind::Slip)),
+        contact: Default::default(),
+        gravity: Vector::<f64, 2>::new(0.0, -G),
+        materials: vec![Material::fluid(
+            DENSITY * SOUND_SPEED * SOUND_SPEED,
+            GAMMA,
+            0.0,
+            DENSITY,
+        )],
+        time_step: TimeStep::Fixed { dt: setup.dt },
+    };
+    let dp = setup.spacing();
+    let hw = Vector::<f64, 2>::repeat(dp / 2.0);
+    let (nx, ny) = ((L0 / dp).round() as usize, (H0 / dp).round() as usize);
+    let mut particles = Particles::default();
+    for j in 0..ny {
+        for i in 0..nx {
+            let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
+            particles.push(x, Vector::zeros(), DENSITY, hw, 0);
+        }
+    }
+    (config, particles)
+}
+
+/// The surge front: the largest `x` of a particle with another particle within `radius`,
+/// plus `half_spacing` (half the initial particle spacing, the edge of the particle's
+/// domain). `NaN` when no particle has a neighbour.
+pub fn front_position(p: &Particles<f64, 2>, radius: f64, half_spacing: f64) -> f64 {
+    let mut order: Vec<usize> = (0..p.len()).collect();
+    order.sort_by(|&a, &b| p.x[a][0].total_cmp(&p.x[b][0]));
+    let r2 = radius * radius;
+    // From the right: the first particle with a neighbour. Candidates for a neighbour lie
+    // within `radius` in x, i.e. next to it in the sorted order.
+    for q in (0..order.len()).rev() {
+        let xi = p.x[order[q]];
+        let near = |k: usize| (p.x[order[k]] - xi).norm_squared() <= r2;
+        let left = (0..q)
+            .rev()
+            .take_while(|&k| xi[0] - p.x[order[k]][0] <= radius)
+            .any(near);
+        let right = (q + 1..order.len())
+            .take_while(|&k| p.x[order[k]][0] - xi[0] <= radius)
+            .any(near);
+        if left || right {
+            return xi[0] + half_spacing;
+        }
+    }
+    f64::NAN
+}
+
+/// Free-surface height of a particle state: per column of width `width` from `x = 0`, the
+/// highest particle plus `half_spacing`, as `(column centre, height)`; empty columns are
+/// left out.
+pub fn surface_profile(p: &Particles<f64, 2>, width: f64, half_spacing: f64) -> Vec<(f64, f64)> {
+    let columns = (TANK_LENGTH / width).round() as usize;
+    let mut top = vec![f64::NEG_INFINITY; columns];
+    for x in &p.x {
+        let k = ((x[0] / width).floor().max(0.0) as usize).min(columns - 1);
+        top[k] = top[k].max(x[1] + half_spacing);
+    }
+    top.iter()
+        .enumerate()
+        .filter(|(_, y)| y.is_finite())
+        .map(|(k, &y)| ((k as f64 + 0.5) * width, y))
+        .collect()
+}
+
+/// The front history of one run.
+#[derive(Clone, Debug)]
+pub struct FrontHistory {
+    /// `(t, x_front)` samples, `t = 0` included.
+    pub front: Vec<(f64, f64)>,
+    /// The largest particle `x` plus half a spacing at the same times (no neighbour test).
+    pub max_x: Vec<f64>,
+    /// `(t, surface profile)` at the requested times.
+    pub profiles: Vec<(f64, Vec<(f64, f64)>)>,
+    /// Steps taken.
+    pub steps: usize,
+    /// Particle count.
+    pub particles: usize,
+    /// Wall-clock time of the run (s).
+    pub wall: f64,
+}
+
+/// Runs the dam break to `t_end`, sampling the front `samples` times at equal intervals and
+/// the surface profile at each of `profile_times` (each must be one of the sample times).
+pub fn simulate(
+    setup: &Setup,
+    t_end: f64,
+    samples: usize,
+    profile_times: &[f64],
+) -> Result<FrontHistory, VerifyError> {
+    const CASE: &str = "dambreak-2d";
+    let (config, mut particles) = build(setup);
+    let (radius, half) = (setup.h, 0.5 * setup.spacing());
+    let mut solver = Solver::new(config, &particles).map_err(|source| VerifyError::Config {
+        case: CASE.into(),
+        source,
+    })?;
+    let start = std::time::Instant::now();
+    let max_x =
+        |p: &Particles<f64, 2>| p.x.iter().fold(f64::NEG_INFINITY, |a, x| a.max(x[0])) + half;
+    let mut front = vec![(0.0, front_position(&particles, radius, half))];
+    let mut max = vec![max_x(&particles)];
+    let mut profiles = Vec::new();
+    for k in 1..=samples {
+        let t = t_end * k as f64 / samples as f64;
+        solver
+            .advance_to(&mut particles, t, |_, _| {})
+            .map_err(|source| VerifyError::Solver {
+                case: CASE.into(),
+                source,
+            })?;
+        front.push((t, front_position(&particles, radius, half)));
+        max.push(max_x(&particles));
+        if profile_times
+            .iter()
+            .any(|&tp| (tp - t).abs() <= 1e-9 * t_end)
+        {
+            profiles.push((t, surface_profile(&particles, setup.h, half)));
+        }
+    }
+    Ok(FrontHistory {
+        front,
+        max_x: max,
+        profiles,
+        steps: solver.steps(),
+        particles: particles.len(),
+        wall: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Relative error of the front position, `(x_f − x_R)/x_R`.
+pub fn relative_error(t: f64, x: f64) -> f64 {
+    (x - ritter_front(t)) / ritter_front(t)
+}
+
+/// Mean of `|x_f − x_R|/x_R` over the samples with `t ≥ ⅔ t_w`.
+pub fn late_error(front: &[(f64, f64)], t_w: f64) -> f64 {
+    let late: Vec<f64> = front
+        .iter()
+        .filter(|(t, _)| *t >= 2.0 / 3.0 * t_w * (1.0 - 1e-9))
+        .map(|&(t, x)| relative_error(t, x).abs())
+        .collect();
+    late.iter().sum::<f64>() / late.len().max(1) as f64
+}
+
+/// Least-squares slope of `x_f(t)` over the samples with `t ≥ ⅔ t_w` (m/s).
+pub fn late_speed(front: &[(f64, f64)], t_w: f64) -> f64 {
+    let late: Vec<(f64, f64)> = front
+        .iter()
+        .copied()
+        .filter(|(t, _)| *t >= 2.0 / 3.0 * t_w * (1.0 - 1e-9))
+        .collect();
+    let n = late.len() as f64;
+    let (mt, mx) = late
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(t, x)| (a + t / n, b + x / n));
+    let (sxy, sxx) = late.iter().fold((0.0, 0.0), |(a, b), &(t, x)| {
+        (a + (t - mt) * (x - mx), b + (t - mt) * (t - mt))
+    });
+    sxy / sxx
+}
+
+/// Runs the case: the front of APIC, TPIC and FLIP (α = 0.99) runs against Ritter.
+pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+    const CASE: &str = "dambreak-2d";
+    // Full: the defined case (dx = 0.004 m, 500 × 30 cells, 25,000 particles, Δt = 1e-5 s,
+    // CFL (c + 2√(gH₀))Δt/h ≈ 0.09), to the window end T_W = 0.5 s: 50,000 steps per
+    // transfer. Reduced: dx = 0.01 m (200 × 12 cells, 4,000 particles), Δt = 1e-4 s
+    // (CFL ≈ 0.37), T_W = 0.3 s, APIC only: 3,000 steps, a few seconds.
+    let (h, dt, t_w) = match size {
+        Size::Reduced => (0.01, 1e-4, 0.3),
+        Size::Full => (0.004, 1e-5, 0.5),
+    };
+    let transfers: &[(&str, Transfer)] = match size {
+        Size::Reduced => &[("APIC", Transfer::Apic)],
+        Size::Full => &[
+            ("APIC", Transfer::Apic),
+            ("TPIC", Transfer::Tpic),
+            ("FLIP 0.99", Transfer::Flip { alpha: 0.99 }),
+        ],
+    };
+    // Relative position error, mean over [⅔ T_W, T_W].
+    // Full size: the goal, 5 %, for every transfer. Measured: APIC 6.85 %, TPIC 6.85 %,
+    // FLIP 15.5 % (not met; docs/verification.md).
+    // Reduced size: measured 9.9 % for APIC at dx = 0.01 m, Δt = 1e-4 s (the start-up lag
+    // grows on coarser grids: 23 % at dx = 0.02 m); 12 % bounds it with margin, while a
+    // front that did not move at all would score 33 %.
+    let tolerance = match size {
+        Size::Reduced => 0.12,
+        Size::Full => 0.05,
+    };
+    // A multiple of 3, so that the profile times are sample times.
+    let samples = 120;
+    let profile_times = [t_w / 3.0, 2.0 * t_w / 3.0, t_w];
+    let mut runs = Vec::new();
+    for &(name, transfer) in transfers {
+        let setup = Setup {
+            h,
+            ppc: PPC,
+            dt,
+            transfer,
+        };
+        runs.push((name, simulate(&setup, t_w, samples, &profile_times)?));
+    }
+
+    let mut files = Vec::new();
+    // Front histories.
+    let mut header = vec!["t".to_string(), "ritter".to_string()];
+    for (name, _) in &runs {
+        let key = name.split(' ').next().unwrap_or(name).to_lowercase();
+        header.push(format!("front_{key}"));
+        header.push(format!("rel_error_{key}"));
+        header.push(format!("max_x_{key}"));
+    }
+    let rows: Vec<Vec<f64>> = (0..=samples)
+        .map(|k| {
+            let t = runs[0].1.front[k].0;
+            let mut row = vec![t, ritter_front(t)];
+            for (_, run) in &runs {
+                let x = run.front[k].1;
+                row.push(x);
+                row.push(if t > 0.0 { relative_error(t, x) } else { 0.0 });
+                row.push(run.max_x[k]);
+            }
+            row
+        })
+        .collect();
+    let csv = out.join("dambreak_front.csv");
+    let header_refs: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&csv, &header_refs, &rows)?;
+    files.push(csv);
+
+    let cells = format!(
+        "{} × {} cells",
+        (TANK_LENGTH / h).round(),
+        (TANK_HEIGHT / h).round()
+    );
+    let mut series = vec![Series {
+        name: "Ritter L0 + 2√(gH0) t".into(),
+        points: (0..=samples)
+            .map(|k| {
+                let t = t_w * k as f64 / samples as f64;
+                (t, ritter_front(t))
+            })
+            .collect(),
+        markers: false,
+    }];
+    for (name, run) in &runs {
+        series.push(Series {
+            name: format!("loam {name}"),
+            points: run.front.clone(),
+            markers: false,
+        });
+    }
+    // Where Ritter's depth is one particle spacing: particles cannot represent the film
+    // ahead of it.
+    let dp = h / PPC as f64;
+    series.push(Series {
+        name: format!("Ritter, depth = particle spacing {:.0} mm", 1e3 * dp),
+        points: (0..=samples)
+            .map(|k| {
+                let t = t_w * k as f64 / samples as f64;
+                (t, ritter_surface_x(dp, t))
+            })
+            .collect(),
+        markers: false,
+    });
+    let png = out.join("dambreak_front.png");
+    write_plot(
+        &png,
+        &format!("Dam break: surge front vs Ritter ({cells})"),
+        "t (s)",
+        "front x (m)",
+        &series,
+    )?;
+    files.push(png);
+
+    let error_series: Vec<Series> = runs
+        .iter()
+        .map(|(name, run)| Series {
+            name: format!("loam {name}"),
+            points: run
+                .front
+                .iter()
+                .skip(1)
+                .map(|&(t, x)| (t, 100.0 * relative_error(t, x)))
+                .collect(),
+            markers: false,
+        })
+        .collect();
+    let png = out.join("dambreak_front_error.png");
+    write_plot(
+        &png,
+        &format!("Dam break: (x_front − x_Ritter)/x_Ritter ({cells})"),
+        "t (s)",
+        "relative front error (%)",
+        &error_series,
+    )?;
+    files.push(png);
+
+    // Free-surface profiles of the first run (APIC) against Ritter's.
+    let apic = &runs[0].1;
+    let mut profile_rows = Vec::new();
+    let mut profile_series = Vec::new();
+    for (t, profile) in &apic.profiles {
+        for &(x, y) in profile {
+            profile_rows.push(vec![*t, x, y, ritter_depth(x, *t)]);
+        }
+        profile_series.push(Series {
+            name: format!("loam APIC t = {t:.3} s"),
+            points: profile.clone(),
+            markers: true,
+        });
+    }
+    for (t, _) in &apic.profiles {
+        let mut points = vec![(0.0, H0), (L0 - (G * H0).sqrt() * t, H0)];
+        points.extend((0..=50).map(|k| {
+            let y = H0 * (1.0 - k as f64 / 50.0);
+            (ritter_surface_x(y, *t), y)
+        }));
+        profile_series.push(Series {
+            name: format!("Ritter t = {t:.3} s"),
+            points,
+            markers: false,
+        });
+    }
+    let csv = out.join("dambreak_profiles.csv");
+    write_csv(
+        &csv,
+        &["t", "x", "surface_apic", "ritter_depth"],
+        &profile_rows,
+    )?;
+    files.push(csv);
+    let png = out.join("dambreak_profiles.png");
+    write_plot(
+        &png,
+        &format!("Dam break: free surface, APIC vs Ritter ({cells})"),
+        "x (m)",
+        "y (m)",
+        &profile_series,
+    )?;
+    files.push(png);
+
+    // Summary table.
+    let mut md = format!(
+        "Dam break, {cells}, Δt = {dt:e} s, window T_W = {t_w} s; Ritter front speed {:.4} m/s\n\n\
+         | transfer | mean \\|e\\| over [⅔T_W, T_W] | e(T_W) | travel error at T_W | late front speed (m/s) | particles | steps | wall (s) |\n\
+         |---|---|---|---|---|---|---|---|\n",
+        front_speed()
+    );
+    let mut metrics = Vec::new();
+    for (name, run) in &runs {
+        let late = late_error(&run.front, t_w);
+        let (t_last, x_last) = run.front[samples];
+        let travel = (x_last - L0) / (ritter_front(t_last) - L0) - 1.0;
+        writeln!(
+            md,
+            "| {name} | {:.2} % | {:+.2} % | {:+.1} % | {:.3} | {} | {} | {:.1} |",
+            100.0 * late,
+            100.0 * relative_error(t_last, x_last),
+            100.0 * travel,
+            late_speed(&run.front, t_w),
+            run.particles,
+            run.steps,
+            run.wall
+        )
+        .expect("writing to a String cannot fail");
+        let key = name.split(' ').next().unwrap_or(name).to_lowercase();
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("late_front_rel_error_{key}"),
+            late,
+            tolerance,
+        ));
+    }
+    let text = out.join("dambreak.md");
+    write_text(&text, &md)?;
+    files.push(text);
+    Ok(CaseReport { metrics, files })
+}
