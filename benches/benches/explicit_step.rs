@@ -1,8 +1,8 @@
 //! Wall-clock cost of one explicit MPM step (P2G, grid update, G2P, stress update).
 //!
-//! Every bench builds a fluid-like block collapse (see `loam_benches`), takes a few steps so
-//! the solver's scratch is allocated and the block is moving, and then times one
-//! `Solver::step` per iteration. Each timed step starts from a fresh copy of that warmed
+//! Every bench builds a scene (a fluid-like block collapse, or the friction dam-break of
+//! `loam_benches::dambreak_friction_2d`), takes a few steps so the solver's scratch is
+//! allocated and the material is moving, and then times one `Solver::step` per iteration. Each timed step starts from a fresh copy of that warmed
 //! particle state (`iter_batched_ref`, the copy is not timed), so every iteration does the
 //! same work and a long measurement cannot drift the scene into a different regime.
 //! The throughput is set to the particle count, so criterion's elements/s are
@@ -14,7 +14,7 @@ use criterion::measurement::WallTime;
 use criterion::{
     BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
 };
-use loam_benches::{fluid_block_2d, fluid_block_3d};
+use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d};
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
 
@@ -57,5 +57,18 @@ fn explicit_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, explicit_step);
+/// The `explicit_dambreak` group: the friction dam-break (6,000 water particles, fixed
+/// Δt = 3e-5 s), whose per-step fixed costs dominate; f64 and f32.
+fn explicit_dambreak(c: &mut Criterion) {
+    let mut group = c.benchmark_group("explicit_dambreak");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    bench_step(&mut group, "2d_6k", dambreak_friction_2d::<f64>(1));
+    bench_step(&mut group, "2d_6k_f32", dambreak_friction_2d::<f32>(1));
+    group.finish();
+}
+
+criterion_group!(benches, explicit_step, explicit_dambreak);
 criterion_main!(benches);

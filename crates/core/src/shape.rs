@@ -74,6 +74,19 @@ impl Shape {
         }
     }
 
+    /// Index of the first node of the support of a particle at grid coordinate
+    /// `xi = (x − x_0)/h`; the same as [`ShapeFunction::weights_1d`]'s `base`, without the
+    /// weights (for sorting particles by their stencil).
+    #[inline]
+    pub fn first_node<T: Scalar>(self, xi: T) -> isize {
+        match self {
+            Shape::Linear => floor_index(xi),
+            Shape::Ugimp | Shape::Cpgimp => floor_index(xi + c(0.5)) - 1,
+            Shape::QuadraticBspline => floor_index(xi - c(0.5)),
+            Shape::CubicBspline => floor_index(xi) - 1,
+        }
+    }
+
     /// The APIC inertia-like tensor `D_p = Σ_i w_ip (x_i − x_p)(x_i − x_p)ᵀ` is `κ h² I` for
     /// B-splines (κ = 1/4 quadratic, 1/3 cubic); returns `1/κ`. For the hat and GIMP `D_p`
     /// depends on the particle position (and vanishes for the hat on a node), so APIC uses the
@@ -96,7 +109,7 @@ impl ShapeFunction for Shape {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn weights_1d<T: Scalar>(&self, xi: T, half_width: T, inv_h: T) -> Weights1D<T> {
         match self {
             Shape::Linear => linear(xi, inv_h),
@@ -107,15 +120,23 @@ impl ShapeFunction for Shape {
     }
 }
 
-#[inline]
+/// `⌊x⌋` (of the real part) as an index: the same value as `x.re().floor() as isize` (NaN gives
+/// 0, infinities saturate) without a call into libm, which baseline x86-64 makes for `floor`.
+#[inline(always)]
 fn floor_index<T: Scalar>(x: T) -> isize {
-    x.re().floor() as isize
+    let x = x.re();
+    let t = x as isize;
+    if (t as f64) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
 }
 
 /// Hat: `N = 1 − |ξ|` on the two nodes of the cell that holds the particle.
 #[inline]
 fn linear<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
-    let base = floor_index(xi);
+    let base = Shape::Linear.first_node(xi);
     let f = xi - c::<T>(base as f64);
     let z = T::zero();
     Weights1D {
@@ -129,7 +150,7 @@ fn linear<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 /// `N₀ = ½(3/2 − f)²`, `N₁ = 3/4 − (f − 1)²`, `N₂ = ½(f − ½)²`.
 #[inline]
 fn quadratic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
-    let base = floor_index(xi - c(0.5));
+    let base = Shape::QuadraticBspline.first_node(xi);
     let f = xi - c::<T>(base as f64);
     let (a, m, p) = (c::<T>(1.5) - f, f - T::one(), f - c(0.5));
     let z = T::zero();
@@ -149,7 +170,7 @@ fn quadratic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 /// `N(r) = ½|r|³ − r² + 2/3` for `|r| < 1`, `(2 − |r|)³/6` for `1 ≤ |r| < 2`.
 #[inline]
 fn cubic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
-    let base = floor_index(xi) - 1;
+    let base = Shape::CubicBspline.first_node(xi);
     let f = xi - c::<T>(base as f64); // ∈ [1, 2)
     let outer = |r: T| {
         // 1 ≤ r < 2 (r ≥ 0): N = (2 − r)³/6, dN/dr = −(2 − r)²/2
@@ -181,7 +202,7 @@ fn cubic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 /// `(1 + l − |r|)²/(4l)` for `1 − l ≤ |r| < 1 + l`; 0 beyond.
 #[inline]
 fn gimp<T: Scalar>(xi: T, l: T, inv_h: T) -> Weights1D<T> {
-    let base = floor_index(xi + c(0.5)) - 1;
+    let base = Shape::Ugimp.first_node(xi);
     let mut w = [T::zero(); MAX_SUPPORT];
     let mut dw = [T::zero(); MAX_SUPPORT];
     let (lr, one) = (l.re(), T::one());
@@ -208,6 +229,30 @@ fn gimp<T: Scalar>(xi: T, l: T, inv_h: T) -> Weights1D<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_index_matches_floor_as_isize() {
+        let xs = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            2.0,
+            -2.0,
+            2.999_999_999_999_999_6,
+            -1e-300,
+            1e300,
+            -1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            9.2e18,
+            -9.2e18,
+        ];
+        for x in xs {
+            assert_eq!(floor_index(x), x.floor() as isize, "x = {x}");
+        }
+    }
 
     /// Central difference of the 1D weights; the functions are C¹ (hat and GIMP: C⁰, so the
     /// sample points avoid their kinks), so the step-size error is O(ε²) ≈ 1e-12.

@@ -20,6 +20,58 @@ pub struct StencilNode<T: Scalar, const D: usize> {
     pub offset: Vector<T, D>,
 }
 
+/// How the nodes of a box of the grid map to the entries of an array:
+/// `index(node) = Σ_a (node_a − origin_a) · strides[a]`, axis 0 contiguous (stride 1), so a
+/// row of a stencil is a run of consecutive entries. The whole grid in flat order is
+/// [`Layout::grid`]; a block-local buffer is [`Layout::cube`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout<const D: usize> {
+    /// The node stored at index 0.
+    origin: [usize; D],
+    /// Index step per unit step of the node index along each axis (`strides[0] = 1`).
+    strides: [usize; D],
+}
+
+impl<const D: usize> Layout<D> {
+    /// The grid's own flat numbering, `i + nx·(j + ny·k)` ([`Grid::flat`]).
+    #[inline]
+    pub fn grid(grid: &Grid<D>) -> Self {
+        Self::grid_of_nodes(grid.nodes())
+    }
+
+    /// The flat numbering of a grid with `nodes` nodes per axis.
+    #[inline]
+    fn grid_of_nodes(nodes: [usize; D]) -> Self {
+        Self::cube_strides([0; D], |a| nodes[a])
+    }
+
+    /// A box from `origin` whose extent along axis `a` is `extent(a)` nodes, axis 0 fastest.
+    #[inline]
+    fn cube_strides(origin: [usize; D], extent: impl Fn(usize) -> usize) -> Self {
+        let mut strides = [1usize; D];
+        for a in 1..D {
+            strides[a] = strides[a - 1] * extent(a - 1);
+        }
+        Self { origin, strides }
+    }
+
+    /// A cube of `width^D` nodes from `origin`, axis 0 fastest.
+    #[inline]
+    pub fn cube(origin: [usize; D], width: usize) -> Self {
+        Self::cube_strides(origin, |_| width)
+    }
+
+    /// Index of `node`, which must lie in the box this layout describes.
+    #[inline]
+    pub fn index(&self, node: [usize; D]) -> usize {
+        let mut index = 0;
+        for a in 0..D {
+            index += (node[a] - self.origin[a]) * self.strides[a];
+        }
+        index
+    }
+}
+
 /// Weights `w_ip` and gradients `∇w_ip` of one particle on its `b^D` nodes.
 #[derive(Clone, Copy, Debug)]
 pub struct Stencil<T, const D: usize> {
@@ -35,31 +87,71 @@ pub struct Stencil<T, const D: usize> {
     nodes: [usize; D],
 }
 
+/// The grid coordinate `ξ = (x − x_0)/h` of a particle along one axis (in units of cells
+/// from node 0), computed the same way for [`Stencil::new`] and [`Stencil::first_node`].
+#[inline(always)]
+fn grid_coordinate<T: Scalar>(x: T, origin: f64, inv_h: T) -> T {
+    (x - T::cst(origin)) * inv_h
+}
+
 impl<T: Scalar, const D: usize> Stencil<T, D> {
     /// Stencil of a particle at `x`; `half_width` is the particle half-length per axis in
     /// physical units (used by GIMP only).
-    #[inline]
+    #[inline(always)]
     pub fn new(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>, half_width: &Vector<T, D>) -> Self {
+        let zero = Weights1D {
+            base: 0,
+            w: [T::zero(); MAX_SUPPORT],
+            dw: [T::zero(); MAX_SUPPORT],
+        };
+        let mut st = Self {
+            b: 0,
+            base: [0; D],
+            axes: [zero; D],
+            offsets: [[T::zero(); MAX_SUPPORT]; D],
+            nodes: [0; D],
+        };
+        st.set(shape, grid, x, half_width);
+        st
+    }
+
+    /// Makes this the stencil of a particle at `x` (the same as [`Stencil::new`], in place: a
+    /// solver that keeps one stencil per particle refills it without building and copying a
+    /// new value).
+    #[inline(always)]
+    pub fn set(
+        &mut self,
+        shape: Shape,
+        grid: &Grid<D>,
+        x: &Vector<T, D>,
+        half_width: &Vector<T, D>,
+    ) {
         let o = grid.origin();
         let inv_h = T::cst(1.0 / grid.h);
         let h = T::cst(grid.h);
         let b = shape.support_width();
-        let mut offsets = [[T::zero(); MAX_SUPPORT]; D];
-        let axes: [Weights1D<T>; D] = std::array::from_fn(|a| {
-            let xi = (x[a] - T::cst(o[a])) * inv_h;
-            let w = shape.weights_1d(xi, half_width[a] * inv_h, inv_h);
+        self.b = b;
+        self.nodes = grid.nodes();
+        // Field by field, with plain loops (the closures of `array::from_fn` are not always
+        // inlined): this runs for every particle in every step.
+        for a in 0..D {
+            let xi = grid_coordinate(x[a], o[a], inv_h);
+            self.axes[a] = shape.weights_1d(xi, half_width[a] * inv_h, inv_h);
+            let base = self.axes[a].base;
+            self.base[a] = base;
             for k in 0..b {
-                offsets[a][k] = (T::cst((w.base + k as isize) as f64) - xi) * h;
+                self.offsets[a][k] = (T::cst((base + k as isize) as f64) - xi) * h;
             }
-            w
-        });
-        Self {
-            b,
-            base: std::array::from_fn(|a| axes[a].base),
-            axes,
-            offsets,
-            nodes: grid.nodes(),
         }
+    }
+
+    /// The first node ([`Stencil::base`]) of the stencil of a particle at `x`, without the
+    /// weights: the same value `Stencil::new(shape, grid, x, _).base` has.
+    #[inline]
+    pub fn first_node(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>) -> [isize; D] {
+        let o = grid.origin();
+        let inv_h = T::cst(1.0 / grid.h);
+        std::array::from_fn(|a| shape.first_node(grid_coordinate(x[a], o[a], inv_h)))
     }
 
     /// Number of nodes, `b^D`.
@@ -85,45 +177,127 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
     /// The stencil must be [on the grid](Stencil::on_grid).
     #[inline]
     pub fn for_each(&self, mut f: impl FnMut(StencilNode<T, D>)) {
-        let mut local = [0usize; D];
-        let mut stride = [1usize; D];
-        for a in 1..D {
-            stride[a] = stride[a - 1] * self.nodes[a - 1];
-        }
-        let base_flat: usize = (0..D).map(|a| self.base[a] as usize * stride[a]).sum();
-        for _ in 0..self.len() {
-            let mut weight = T::one();
-            let mut flat = base_flat;
-            for a in 0..D {
-                weight *= self.axes[a].w[local[a]];
-                flat += local[a] * stride[a];
-            }
-            let gradient = Vector::<T, D>::from_fn(|a, _| {
-                let mut p = self.axes[a].dw[local[a]];
-                for c in 0..D {
-                    if c != a {
-                        p *= self.axes[c].w[local[c]];
-                    }
-                }
-                p
-            });
+        let layout = Layout::grid_of_nodes(self.nodes);
+        self.for_each_in(&layout, |flat, local, weight, gradient, offset| {
             f(StencilNode {
-                index: std::array::from_fn(|a| (self.base[a] + local[a] as isize) as usize),
+                index: std::array::from_fn(|a| self.base[a] as usize + local[a]),
                 flat,
                 weight,
                 gradient,
-                offset: Vector::<T, D>::from_fn(|a, _| self.offsets[a][local[a]]),
-            });
-            // Odometer increment of the local multi-index.
-            for a in 0..D {
-                local[a] += 1;
-                if local[a] < self.b {
-                    break;
+                offset,
+            })
+        });
+    }
+
+    /// Calls `f(index, local, w, ∇w, x_i − x_p)` for every node of the stencil (axis 0
+    /// fastest), with `index` the node's entry in an array of the given [`Layout`] (the flat
+    /// grid, or a block-local buffer) and `local` its offset from [`Stencil::base`]. The whole
+    /// stencil must lie in the layout's box.
+    #[inline(always)]
+    pub fn for_each_in(
+        &self,
+        layout: &Layout<D>,
+        mut f: impl FnMut(usize, [usize; D], T, Vector<T, D>, Vector<T, D>),
+    ) {
+        let [w0, dw0, o0] = self.axis0();
+        self.for_each_row(
+            layout,
+            #[inline(always)]
+            |row| {
+                for i in 0..self.width() {
+                    let mut gradient = row.gradient * w0[i];
+                    gradient[0] = dw0[i] * row.weight;
+                    let mut offset = row.offset;
+                    offset[0] = o0[i];
+                    let mut local = row.local;
+                    local[0] = i;
+                    f(row.index + i, local, w0[i] * row.weight, gradient, offset);
                 }
-                local[a] = 0;
+            },
+        );
+    }
+
+    /// Support width `b` (at most [`MAX_SUPPORT`]).
+    #[inline(always)]
+    pub fn width(&self) -> usize {
+        self.b.min(MAX_SUPPORT)
+    }
+
+    /// The 1D factors along axis 0, `[N_0(i), N'_0(i), x_i − x_p]` for the nodes
+    /// `i < b` of a row (entries from `b` on are unused).
+    #[inline(always)]
+    pub fn axis0(&self) -> [&[T; MAX_SUPPORT]; 3] {
+        [&self.axes[0].w, &self.axes[0].dw, &self.offsets[0]]
+    }
+
+    /// Calls `f` for every row of the stencil: the `b` nodes `base + (i, j, k)`, `i < b`, at
+    /// fixed `(j, k)`, in the order of [`Stencil::for_each`]. A row carries the factors of the
+    /// axes above 0, so a kernel forms per node only what depends on axis 0 (see
+    /// [`StencilRow`] for how the node's weight, gradient and offset follow).
+    #[inline(always)]
+    pub fn for_each_row(&self, layout: &Layout<D>, mut f: impl FnMut(StencilRow<T, D>)) {
+        assert!((1..=3).contains(&D), "stencils exist for D = 1, 2, 3");
+        let first = self.first_index(layout);
+        let ax = &self.axes;
+        let b = self.width();
+        let nj = if D > 1 { b } else { 1 };
+        let nk = if D > 2 { b } else { 1 };
+        for k in 0..nk {
+            for j in 0..nj {
+                let mut row = StencilRow {
+                    index: first,
+                    local: [0; D],
+                    weight: T::one(),
+                    gradient: Vector::zeros(),
+                    offset: Vector::zeros(),
+                };
+                // w_yz = Π_{a ≥ 1} N_a, and its derivatives along y and z.
+                if D == 2 {
+                    row.weight = ax[1].w[j];
+                    row.gradient[1] = ax[1].dw[j];
+                } else if D == 3 {
+                    row.weight = ax[1].w[j] * ax[2].w[k];
+                    row.gradient[1] = ax[1].dw[j] * ax[2].w[k];
+                    row.gradient[2] = ax[1].w[j] * ax[2].dw[k];
+                }
+                let local = [0, j, k];
+                for a in 1..D {
+                    row.index += local[a] * layout.strides[a];
+                    row.local[a] = local[a];
+                    row.offset[a] = self.offsets[a][local[a]];
+                }
+                f(row);
             }
         }
     }
+
+    /// Index of the stencil's first node in `layout`.
+    #[inline(always)]
+    fn first_index(&self, layout: &Layout<D>) -> usize {
+        let mut first = 0;
+        for a in 0..D {
+            first += (self.base[a] as usize - layout.origin[a]) * layout.strides[a];
+        }
+        first
+    }
+}
+
+/// One row of a stencil (see [`Stencil::for_each_row`]): the nodes `base + (i, j, k)`,
+/// `i < b`. With the axis-0 factors `[N, N', o] = `[`Stencil::axis0`]`()[..][i]`, node `i` has
+/// index `index + i`, weight `N·weight`, gradient `gradient·N` with component 0
+/// replaced by `N'·weight`, and offset `offset` with component 0 replaced by `o`.
+#[derive(Clone, Copy, Debug)]
+pub struct StencilRow<T: Scalar, const D: usize> {
+    /// Index of the row's first node (`i = 0`) in the layout.
+    pub index: usize,
+    /// Offset of the row's first node from [`Stencil::base`] (component 0 is 0).
+    pub local: [usize; D],
+    /// `Π_{a ≥ 1} N_a`.
+    pub weight: T,
+    /// `∂/∂x_a Π_{c ≥ 1} N_c` for `a ≥ 1`; component 0 is zero.
+    pub gradient: Vector<T, D>,
+    /// `x_i − x_p` along the axes `a ≥ 1`; component 0 is zero.
+    pub offset: Vector<T, D>,
 }
 
 /// Particle half-length per axis for the GIMP family: uGIMP keeps the reference size, cpGIMP

@@ -13,7 +13,7 @@
 use crate::grid::Grid;
 use crate::scalar::Scalar;
 use crate::shape::Shape;
-use crate::stencil::Stencil;
+use crate::stencil::{Layout, Stencil};
 use crate::tensor::{Tensor, Vector};
 use serde::{Deserialize, Serialize};
 
@@ -49,55 +49,116 @@ impl Transfer {
     }
 }
 
-/// The velocity a particle carries to a node: `v_p + C_p (x_i − x_p)` (APIC) or `v_p`.
+/// Calls `sink(index, m_ip, p_ip, f_ip)` with one particle's mass, momentum and internal force
+/// contributions to each node of its stencil (see the module docs for the formulas); `index` is
+/// the node's entry in an array of the given `layout`. `stress_volume = V_p σ_p` (the in-plane
+/// block in 2D); `affine` is `C_p` or `None`.
+///
+/// Evaluated row by row ([`Stencil::for_each_row`]): with `m v_p`, `m C_p` and `−V σ` formed
+/// once, the parts of `m v_p + m C_p (x_i − x_p)` and `−V σ ∇w` along the axes above 0 once per
+/// row, a node adds only its axis-0 terms.
 #[inline(always)]
-fn affine_velocity<T: Scalar, const D: usize>(
-    v: &Vector<T, D>,
-    affine: Option<&Tensor<T, D>>,
-    offset: &Vector<T, D>,
-) -> Vector<T, D> {
-    match affine {
-        Some(c) => v + c * offset,
-        None => *v,
-    }
-}
-
-/// Calls `sink(node, m_ip, p_ip, f_ip)` with one particle's mass, momentum and internal force
-/// contributions to each node of its stencil (see the module docs for the formulas).
-/// `stress_volume = V_p σ_p` (the in-plane block in 2D); `affine` is `C_p` or `None`.
-#[inline]
 pub fn p2g<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
     stress_volume: &Tensor<T, D>,
-    mut sink: impl FnMut([usize; D], T, Vector<T, D>, Vector<T, D>),
+    sink: impl FnMut(usize, T, Vector<T, D>, Vector<T, D>),
 ) {
-    stencil.for_each(|n| {
-        let mw = mass * n.weight;
-        sink(
-            n.index,
-            mw,
-            affine_velocity(v, affine, &n.offset) * mw,
-            -(stress_volume * n.gradient),
-        );
-    });
+    let (l, sv) = (layout, stress_volume);
+    match stencil.width() {
+        2 => p2g_rows::<2, T, D>(stencil, l, v, affine, mass, sv, sink),
+        3 => p2g_rows::<3, T, D>(stencil, l, v, affine, mass, sv, sink),
+        _ => p2g_rows::<4, T, D>(stencil, l, v, affine, mass, sv, sink),
+    }
 }
 
-/// Calls `sink(node, m_ip, p_ip)` for the momentum-only transfer of MUSL's second P2G.
-#[inline]
-pub fn p2g_momentum<T: Scalar, const D: usize>(
+/// [`p2g`] for stencils of width `B` (a constant, so the node loop of a row unrolls).
+#[inline(always)]
+fn p2g_rows<const B: usize, T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
-    mut sink: impl FnMut([usize; D], T, Vector<T, D>),
+    stress_volume: &Tensor<T, D>,
+    mut sink: impl FnMut(usize, T, Vector<T, D>, Vector<T, D>),
 ) {
-    stencil.for_each(|n| {
-        let mw = mass * n.weight;
-        sink(n.index, mw, affine_velocity(v, affine, &n.offset) * mw);
-    });
+    let mv = v * mass;
+    let mc = affine.map_or_else(Tensor::zeros, |c| c * mass);
+    let nsv = -stress_volume;
+    let (mc0, nsv0) = (mc.column(0).into_owned(), nsv.column(0).into_owned());
+    let [w0, dw0, o0] = stencil.axis0();
+    stencil.for_each_row(
+        layout,
+        #[inline(always)]
+        |row| {
+            let (mut p_row, mut f_row) = (mv, Vector::<T, D>::zeros());
+            for c in 1..D {
+                p_row += mc.column(c) * row.offset[c];
+                f_row += nsv.column(c) * row.gradient[c];
+            }
+            for i in 0..B {
+                let w = w0[i] * row.weight;
+                sink(
+                    row.index + i,
+                    mass * w,
+                    (p_row + mc0 * o0[i]) * w,
+                    nsv0 * (dw0[i] * row.weight) + f_row * w0[i],
+                );
+            }
+        },
+    );
+}
+
+/// Calls `sink(index, m_ip, p_ip)` for the momentum-only transfer of MUSL's second P2G
+/// (`index` as in [`p2g`], evaluated row by row in the same way).
+#[inline(always)]
+pub fn p2g_momentum<T: Scalar, const D: usize>(
+    stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
+    v: &Vector<T, D>,
+    affine: Option<&Tensor<T, D>>,
+    mass: T,
+    sink: impl FnMut(usize, T, Vector<T, D>),
+) {
+    match stencil.width() {
+        2 => p2g_momentum_rows::<2, T, D>(stencil, layout, v, affine, mass, sink),
+        3 => p2g_momentum_rows::<3, T, D>(stencil, layout, v, affine, mass, sink),
+        _ => p2g_momentum_rows::<4, T, D>(stencil, layout, v, affine, mass, sink),
+    }
+}
+
+/// [`p2g_momentum`] for stencils of width `B`.
+#[inline(always)]
+fn p2g_momentum_rows<const B: usize, T: Scalar, const D: usize>(
+    stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
+    v: &Vector<T, D>,
+    affine: Option<&Tensor<T, D>>,
+    mass: T,
+    mut sink: impl FnMut(usize, T, Vector<T, D>),
+) {
+    let mv = v * mass;
+    let mc = affine.map_or_else(Tensor::zeros, |c| c * mass);
+    let mc0 = mc.column(0).into_owned();
+    let [w0, _, o0] = stencil.axis0();
+    stencil.for_each_row(
+        layout,
+        #[inline(always)]
+        |row| {
+            let mut p_row = mv;
+            for c in 1..D {
+                p_row += mc.column(c) * row.offset[c];
+            }
+            for i in 0..B {
+                let w = w0[i] * row.weight;
+                sink(row.index + i, mass * w, (p_row + mc0 * o0[i]) * w);
+            }
+        },
+    );
 }
 
 /// What G2P gathers from the grid for one particle.
@@ -107,21 +168,49 @@ pub struct Gathered<T: Scalar, const D: usize> {
     pub v: Vector<T, D>,
     /// `Σ w_ip (v_i − v_iⁿ)` (FLIP increment; zero unless requested).
     pub dv: Vector<T, D>,
-    /// Velocity gradient `L_p = Σ v_i ⊗ ∇w_ip`.
+    /// Velocity gradient `L_p = Σ v_i ⊗ ∇w_ip` (zero unless requested, see [`g2p`]).
     pub grad_v: Tensor<T, D>,
     /// APIC affine matrix `C_p` (zero unless requested).
     pub affine: Tensor<T, D>,
 }
 
-/// Gathers the grid velocity field at a particle. `velocity(flat)` returns the updated nodal
-/// velocity of the node with flat index `flat` and `old(flat)` its velocity at the start of
-/// the step (FLIP only).
-#[inline]
+/// Gathers the grid velocity field at a particle. `velocity(index)` returns the updated nodal
+/// velocity of the node with entry `index` in `layout` and `old(index)` its velocity at the
+/// start of the step (FLIP only). The velocity gradient [`Gathered::grad_v`] is formed when
+/// `gradient` is set or when the affine matrix is the gradient (TPIC, and APIC with the hat
+/// and GIMP); otherwise it is left zero.
+///
+/// Evaluated row by row ([`Stencil::for_each_row`]): a row sums `Σ_i N_i v_i`,
+/// `Σ_i N_i o_i v_i` and `Σ_i N'_i v_i` over its nodes (axis-0 factors only) and multiplies
+/// the sums by the row's factors once.
+#[inline(always)]
 pub fn g2p<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
     grid: &Grid<D>,
     shape: Shape,
     transfer: Transfer,
+    gradient: bool,
+    velocity: impl Fn(usize) -> Vector<T, D>,
+    old: impl Fn(usize) -> Vector<T, D>,
+) -> Gathered<T, D> {
+    let (l, t, g) = (layout, transfer, gradient);
+    match stencil.width() {
+        2 => g2p_rows::<2, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+        3 => g2p_rows::<3, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+        _ => g2p_rows::<4, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+    }
+}
+
+/// [`g2p`] for stencils of width `B`.
+#[inline(always)]
+fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
+    stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
+    grid: &Grid<D>,
+    shape: Shape,
+    transfer: Transfer,
+    gradient: bool,
     velocity: impl Fn(usize) -> Vector<T, D>,
     old: impl Fn(usize) -> Vector<T, D>,
 ) -> Gathered<T, D> {
@@ -137,17 +226,58 @@ pub fn g2p<T: Scalar, const D: usize>(
     } else {
         None
     };
-    stencil.for_each(|n| {
-        let vi = velocity(n.flat);
-        out.v += vi * n.weight;
-        out.grad_v += vi * n.gradient.transpose();
-        if flip {
-            out.dv += (vi - old(n.flat)) * n.weight;
-        }
-        if apic_b.is_some() {
-            out.affine += vi * n.offset.transpose() * n.weight;
-        }
-    });
+    let want_grad = gradient || (transfer.is_affine() && apic_b.is_none());
+    let [w0, dw0, o0] = stencil.axis0();
+    stencil.for_each_row(
+        layout,
+        #[inline(always)]
+        |row| {
+            // Σ N v, Σ N o v, Σ N' v and Σ N (v − vⁿ) over the row.
+            let (mut s, mut so, mut sd, mut sf) = (
+                Vector::<T, D>::zeros(),
+                Vector::<T, D>::zeros(),
+                Vector::<T, D>::zeros(),
+                Vector::<T, D>::zeros(),
+            );
+            for i in 0..B {
+                let index = row.index + i;
+                let vi = velocity(index);
+                let nv = vi * w0[i];
+                s += nv;
+                if apic_b.is_some() {
+                    so += nv * o0[i];
+                }
+                if want_grad {
+                    sd += vi * dw0[i];
+                }
+                if flip {
+                    sf += (vi - old(index)) * w0[i];
+                }
+            }
+            // Column 0 of Σ w v (x_i − x_p)ᵀ and Σ v ∇wᵀ comes from the axis-0 sums, the
+            // other columns from the row's factors (explicit loops: nalgebra's views and outer
+            // products compile to more work here).
+            for r in 0..D {
+                let sw = s[r] * row.weight;
+                out.v[r] += sw;
+                if apic_b.is_some() {
+                    out.affine[(r, 0)] += so[r] * row.weight;
+                    for c in 1..D {
+                        out.affine[(r, c)] += sw * row.offset[c];
+                    }
+                }
+                if want_grad {
+                    out.grad_v[(r, 0)] += sd[r] * row.weight;
+                    for c in 1..D {
+                        out.grad_v[(r, c)] += s[r] * row.gradient[c];
+                    }
+                }
+                if flip {
+                    out.dv[r] += sf[r] * row.weight;
+                }
+            }
+        },
+    );
     if transfer.is_affine() {
         out.affine = match apic_b {
             Some(k) => out.affine * T::cst(k / (grid.h * grid.h)),

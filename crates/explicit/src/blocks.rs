@@ -1,4 +1,5 @@
-//! Deterministic, lock-free particle-to-grid accumulation.
+//! Deterministic, lock-free particle-to-grid accumulation, and the part of the grid a step
+//! touches.
 //!
 //! Particles are sorted (counting sort, stable) into blocks of `BLOCK^D` cells by the first
 //! node of their stencil. Each occupied block accumulates its particles, in sorted order, into
@@ -6,16 +7,34 @@
 //! parallel without sharing anything. A node then sums the (at most `2^D`) buffers that cover
 //! it in a fixed block order. Every floating-point sum therefore happens in an order that does
 //! not depend on the thread count, so P2G gives the same bits with 1 or N threads.
+//!
+//! The grid is visited by *rows* (all nodes with the same `(j, k)`; contiguous in the flat
+//! numbering, so rows can be handed to threads as disjoint slices). In each row only the nodes
+//! a step can touch are visited: the span of the buffers that cover the row, plus the layers
+//! next to the faces of bilateral walls, where [`loam_core::Boundary::fold_ghosts`] and
+//! [`loam_core::Boundary::reflect_ghosts`] read and write. Every other node of the grid arrays
+//! is kept at zero: a row first clears the span it had in the previous step.
 
-use loam_core::Scalar;
+use loam_core::stencil::Layout;
 use loam_core::tensor::Vector;
+use loam_core::{Boundary, Grid, Scalar, WallKind};
 use rayon::prelude::*;
 
 /// Block edge in cells. Must be at least `b − 1` so a node is covered by at most two blocks
 /// per axis (true for every shape: b ≤ 4).
 pub(crate) const BLOCK: usize = 4;
 
+/// Slot of an unoccupied block.
 const EMPTY: u32 = u32::MAX;
+
+/// Sort key of a particle whose stencil is not on the grid.
+pub(crate) const OFF_GRID: u32 = u32::MAX;
+
+/// Blocks handed to one rayon task at least (a block holds tens of particles).
+const MIN_BLOCKS_PER_TASK: usize = 4;
+
+/// Grid rows handed to one rayon task at least.
+pub(crate) const MIN_ROWS_PER_TASK: usize = 8;
 
 /// What a node accumulates: mass, momentum, force.
 #[derive(Clone, Copy, Debug)]
@@ -26,7 +45,8 @@ pub(crate) struct Accum<T: Scalar, const D: usize> {
 }
 
 impl<T: Scalar, const D: usize> Accum<T, D> {
-    fn zero() -> Self {
+    /// All zero.
+    pub fn zero() -> Self {
         Self {
             m: T::zero(),
             p: Vector::zeros(),
@@ -35,171 +55,458 @@ impl<T: Scalar, const D: usize> Accum<T, D> {
     }
 }
 
-/// The private buffer of one block, handed to the per-particle contribution closure.
-pub(crate) struct BlockSink<'a, T: Scalar, const D: usize> {
-    origin: [usize; D],
-    width: usize,
-    data: &'a mut [Accum<T, D>],
+/// A half-open range of node indices along axis 0 of one row.
+type Span = (usize, usize);
+
+/// The block rows (blocks with the same `(by, bz)`) that cover one node row: the flat block
+/// index of the row's block `bx = 0` and the buffer index of the node row's first entry.
+#[derive(Clone, Copy, Debug, Default)]
+struct Source {
+    block: usize,
+    local: usize,
 }
 
-impl<T: Scalar, const D: usize> BlockSink<'_, T, D> {
-    #[inline(always)]
-    fn local(&self, node: [usize; D]) -> usize {
-        let mut l = 0;
-        for a in (0..D).rev() {
-            l = l * self.width + (node[a] - self.origin[a]);
-        }
-        l
-    }
-
-    /// Adds mass, momentum and force to a node of this block's reach.
-    #[inline(always)]
-    pub fn add(&mut self, node: [usize; D], m: T, p: Vector<T, D>, f: Vector<T, D>) {
-        let e = &mut self.data[self.local(node)];
-        e.m += m;
-        e.p += p;
-        e.f += f;
-    }
-
-    /// Adds momentum only (MUSL's second transfer).
-    #[inline(always)]
-    pub fn add_momentum(&mut self, node: [usize; D], p: Vector<T, D>) {
-        let l = self.local(node);
-        self.data[l].p += p;
-    }
-}
-
-/// Sorted particle order, occupied blocks and their buffers.
+/// Sorted particle order, occupied blocks and their buffers, and the visited part of each row.
 pub(crate) struct Blocks<T: Scalar, const D: usize> {
+    /// Blocks per axis.
     dims: [usize; D],
+    /// Grid nodes per axis.
+    nodes: [usize; D],
+    /// Support width `b` of the stencils.
+    b: usize,
+    /// Buffer edge `BLOCK + b − 1` in nodes.
     width: usize,
+    /// Sorted position → particle.
     order: Vec<u32>,
+    /// Particle → sorted position.
+    rank: Vec<u32>,
+    /// Occupied blocks in block order: (block, first sorted position, end).
     occupied: Vec<(usize, usize, usize)>,
+    /// Block → index into `occupied` / `buffers`, or `EMPTY`.
     slot: Vec<u32>,
+    /// One buffer per occupied block (only the first `occupied.len()` are in use).
     buffers: Vec<Vec<Accum<T, D>>>,
+    /// Counting-sort histogram (block `k` holds positions `counts[k]..counts[k + 1]`).
     counts: Vec<u32>,
+    /// Counting-sort insertion cursors.
+    cursor: Vec<u32>,
+    /// Per block row, the occupied `bx` range (empty when none).
+    block_span: Vec<Span>,
+    /// Per node row, the span the buffers reach this step.
+    span: Vec<Span>,
+    /// Per node row, the span of the previous step (cleared before the gather).
+    prev_span: Vec<Span>,
+    /// Per axis, nodes always visited at the low and high ends (the mirror layers of bilateral
+    /// walls: ghosts and the nodes they fold into, `2·pad + 1`), 0 where no wall mirrors.
+    caps: [[usize; 2]; D],
 }
 
 impl<T: Scalar, const D: usize> Blocks<T, D> {
-    /// Blocks for a grid with `nodes` nodes per axis and stencils of width `b`.
-    pub fn new(nodes: [usize; D], b: usize) -> Self {
+    /// Blocks for `grid`, stencils of width `b` and the walls in `boundary`.
+    pub fn new(grid: &Grid<D>, b: usize, boundary: &Boundary<D>) -> Self {
+        let nodes = grid.nodes();
         let dims = std::array::from_fn(|a| nodes[a].div_ceil(BLOCK));
         let total: usize = dims.iter().product();
+        let rows: usize = nodes[1..].iter().product();
+        let block_rows: usize = dims[1..].iter().product();
+        // `fold_ghosts` / `reflect_ghosts` act beyond bilateral walls: on the `pad` ghost
+        // layers and the `pad` layers inside the face that mirror them.
+        let caps = std::array::from_fn(|a| {
+            std::array::from_fn(|side| {
+                let w = boundary.walls[a][side];
+                if w.kind != WallKind::Free && !w.separable {
+                    (2 * grid.pad + 1).min(nodes[a])
+                } else {
+                    0
+                }
+            })
+        });
         Self {
             dims,
+            nodes,
+            b,
             width: BLOCK + b - 1,
             order: Vec::new(),
+            rank: Vec::new(),
             occupied: Vec::new(),
             slot: vec![EMPTY; total],
             buffers: Vec::new(),
-            counts: vec![0; total + 1],
+            counts: Vec::new(),
+            cursor: Vec::new(),
+            block_span: vec![(0, 0); block_rows],
+            span: vec![(0, 0); rows],
+            prev_span: vec![(0, 0); rows],
+            caps,
         }
     }
 
-    fn block_of(&self, base: &[isize; D]) -> usize {
+    /// Sort key of a particle whose stencil starts at node `base`: its block, or [`OFF_GRID`]
+    /// when the stencil leaves the grid.
+    #[inline]
+    pub fn key(&self, base: [isize; D]) -> u32 {
         let mut f = 0;
         for a in (0..D).rev() {
+            if base[a] < 0 || base[a] as usize + self.b > self.nodes[a] {
+                return OFF_GRID;
+            }
             f = f * self.dims[a] + base[a] as usize / BLOCK;
         }
-        f
+        f as u32
     }
 
-    /// Sorts particles by the block of their stencil base (all bases must be on the grid).
-    pub fn sort(&mut self, bases: &[[isize; D]]) {
-        self.counts.iter_mut().for_each(|c| *c = 0);
-        let keys: Vec<usize> = bases.iter().map(|b| self.block_of(b)).collect();
-        for &k in &keys {
-            self.counts[k + 1] += 1;
+    /// Sorted position of particle `p` (valid after [`Blocks::sort`]).
+    #[inline]
+    pub fn rank(&self, p: usize) -> usize {
+        self.rank[p] as usize
+    }
+
+    /// Sorts particles by their keys (none may be [`OFF_GRID`]), then finds the span of every
+    /// grid row the buffers reach.
+    pub fn sort(&mut self, keys: &[u32]) {
+        let total = self.slot.len();
+        self.counts.clear();
+        self.counts.resize(total + 1, 0);
+        for &k in keys {
+            self.counts[k as usize + 1] += 1;
         }
         for i in 1..self.counts.len() {
             self.counts[i] += self.counts[i - 1];
         }
         self.occupied.clear();
-        self.slot.iter_mut().for_each(|s| *s = EMPTY);
-        for k in 0..self.counts.len() - 1 {
+        for k in 0..total {
             let (s, e) = (self.counts[k] as usize, self.counts[k + 1] as usize);
             if e > s {
                 self.slot[k] = self.occupied.len() as u32;
                 self.occupied.push((k, s, e));
+            } else {
+                self.slot[k] = EMPTY;
             }
         }
-        self.order.resize(bases.len(), 0);
-        let mut next = self.counts.clone();
+        self.order.resize(keys.len(), 0);
+        self.rank.resize(keys.len(), 0);
+        self.cursor.clone_from(&self.counts);
         for (p, &k) in keys.iter().enumerate() {
-            self.order[next[k] as usize] = p as u32;
-            next[k] += 1;
+            let s = self.cursor[k as usize];
+            self.order[s as usize] = p as u32;
+            self.rank[p] = s;
+            self.cursor[k as usize] += 1;
         }
         let len = self.width.pow(D as u32);
-        self.buffers.resize_with(self.occupied.len(), Vec::new);
-        for b in &mut self.buffers {
+        if self.buffers.len() < self.occupied.len() {
+            self.buffers.resize_with(self.occupied.len(), Vec::new);
+        }
+        for b in &mut self.buffers[..self.occupied.len()] {
             b.resize(len, Accum::zero());
+        }
+        self.find_spans();
+    }
+
+    /// The span of every node row reached by the buffers of the occupied blocks (the hull of
+    /// the buffers of the block rows that cover it).
+    fn find_spans(&mut self) {
+        std::mem::swap(&mut self.span, &mut self.prev_span);
+        self.block_span
+            .iter_mut()
+            .for_each(|s| *s = (usize::MAX, 0));
+        for &(k, _, _) in &self.occupied {
+            let (bx, row) = (k % self.dims[0], k / self.dims[0]);
+            let s = &mut self.block_span[row];
+            *s = (s.0.min(bx), s.1.max(bx + 1));
+        }
+        for r in 0..self.span.len() {
+            let (mut lo, mut hi) = (usize::MAX, 0);
+            for src in self.sources(r).iter().flatten() {
+                let (b0, b1) = self.block_span[src.block / self.dims[0]];
+                if b0 < b1 {
+                    lo = lo.min(b0 * BLOCK);
+                    hi = hi.max((b1 - 1) * BLOCK + self.width);
+                }
+            }
+            self.span[r] = if lo < hi {
+                (lo, hi.min(self.nodes[0]))
+            } else {
+                (0, 0)
+            };
         }
     }
 
-    /// Runs `contribute(particle, sink)` for every particle, block by block in parallel,
-    /// into zeroed block buffers.
-    pub fn accumulate<F>(&mut self, contribute: F)
-    where
-        F: Fn(usize, &mut BlockSink<'_, T, D>) + Sync,
-    {
+    /// Node multi-index of the first node of row `r` (its axis-0 index is 0).
+    #[inline]
+    pub fn row_node(&self, r: usize) -> [usize; D] {
+        let mut rest = r;
+        std::array::from_fn(|a| {
+            if a == 0 {
+                0
+            } else {
+                let i = rest % self.nodes[a];
+                rest /= self.nodes[a];
+                i
+            }
+        })
+    }
+
+    /// Nodes per row (the grid's node count along axis 0).
+    #[inline]
+    pub fn row_len(&self) -> usize {
+        self.nodes[0]
+    }
+
+    /// The block rows covering node row `r`, in the fixed summation order (by the shift along
+    /// y, then z); `None` where a shift does not cover the row.
+    #[inline]
+    fn sources(&self, r: usize) -> [Option<Source>; 4] {
+        let node = self.row_node(r);
+        let mut out = [None; 4];
+        let combos = 1usize << (D - 1);
+        'combo: for combo in 0..combos {
+            let (mut block, mut local) = (0, 0);
+            let (mut bstride, mut lstride) = (self.dims[0], self.width);
+            for a in 1..D {
+                let shift = (combo >> (a - 1)) & 1;
+                let k = node[a] / BLOCK;
+                if k < shift {
+                    continue 'combo;
+                }
+                let k = k - shift;
+                let off = node[a] - k * BLOCK;
+                if off >= self.width {
+                    continue 'combo;
+                }
+                block += k * bstride;
+                local += off * lstride;
+                bstride *= self.dims[a];
+                lstride *= self.width;
+            }
+            out[combo] = Some(Source { block, local });
+        }
+        out
+    }
+
+    /// Calls `f(entry)` for the buffer entries of node `i` of the row with block-row sources
+    /// `sources`, in the fixed order (shift along x fastest, as the blocks' flat order).
+    #[inline(always)]
+    fn each_entry(&self, sources: &[Option<Source>; 4], i: usize, mut f: impl FnMut(&Accum<T, D>)) {
+        let (kx, off) = (i / BLOCK, i % BLOCK);
+        // The block holding the node, and the one before it along x when its buffer reaches
+        // this far (`off + BLOCK < width`).
+        let lower = kx > 0 && off + BLOCK < self.width;
+        for src in sources.iter().flatten() {
+            let s = self.slot[src.block + kx];
+            if s != EMPTY {
+                f(&self.buffers[s as usize][src.local + off]);
+            }
+            if lower {
+                let s = self.slot[src.block + kx - 1];
+                if s != EMPTY {
+                    f(&self.buffers[s as usize][src.local + off + BLOCK]);
+                }
+            }
+        }
+    }
+
+    /// Calls `f(i)` for the nodes `i` of row `r` visited this step, in ascending order: the
+    /// whole row where it lies in a mirror layer across axes 1.., else the span the buffers
+    /// reach plus the mirror layers at both ends.
+    #[inline]
+    pub fn for_each_visited(&self, r: usize, mut f: impl FnMut(usize)) {
+        let n = self.nodes[0];
+        let node = self.row_node(r);
+        let in_layer =
+            (1..D).any(|a| node[a] < self.caps[a][0] || node[a] + self.caps[a][1] >= self.nodes[a]);
+        if in_layer {
+            (0..n).for_each(f);
+            return;
+        }
+        let mut spans = [(0, self.caps[0][0]), self.span[r], (n - self.caps[0][1], n)];
+        spans.sort_unstable_by_key(|s| s.0);
+        let mut next = 0;
+        for (lo, hi) in spans {
+            for i in lo.max(next)..hi {
+                f(i);
+            }
+            next = next.max(hi);
+        }
+    }
+
+    /// Zeroes what the previous step left in the rows and sums the block buffers into the
+    /// visited nodes: mass, momentum and force (the grid arrays are zero elsewhere).
+    pub fn gather(
+        &self,
+        mass: &mut [T],
+        momentum: &mut [Vector<T, D>],
+        force: &mut [Vector<T, D>],
+    ) {
+        let n = self.row_len();
+        mass.par_chunks_mut(n)
+            .zip(momentum.par_chunks_mut(n))
+            .zip(force.par_chunks_mut(n))
+            .enumerate()
+            .with_min_len(MIN_ROWS_PER_TASK)
+            .for_each(|(r, ((m, p), f))| {
+                let (lo, hi) = self.prev_span[r];
+                m[lo..hi].fill(T::zero());
+                p[lo..hi].fill(Vector::zeros());
+                f[lo..hi].fill(Vector::zeros());
+                let sources = self.sources(r);
+                self.for_each_visited(r, |i| {
+                    let mut acc = Accum::zero();
+                    self.each_entry(&sources, i, |e| {
+                        acc.m += e.m;
+                        acc.p += e.p;
+                        acc.f += e.f;
+                    });
+                    (m[i], p[i], f[i]) = (acc.m, acc.p, acc.f);
+                });
+            });
+    }
+
+    /// Sums the momentum of the block buffers into the visited nodes (MUSL's second transfer,
+    /// after [`Blocks::gather`] in the same step).
+    pub fn gather_momentum(&self, momentum: &mut [Vector<T, D>]) {
+        let n = self.row_len();
+        momentum
+            .par_chunks_mut(n)
+            .enumerate()
+            .with_min_len(MIN_ROWS_PER_TASK)
+            .for_each(|(r, p)| {
+                let sources = self.sources(r);
+                self.for_each_visited(r, |i| {
+                    let mut acc = Vector::zeros();
+                    self.each_entry(&sources, i, |e| acc += e.p);
+                    p[i] = acc;
+                });
+            });
+    }
+
+    /// Runs `contribute(particle, layout, buffer, out)` for every particle, block by block in
+    /// parallel and in sorted order within a block, after `reset` on every buffer entry.
+    /// `layout` maps grid nodes to `buffer` entries; `out` is the particle's entry of
+    /// `scratch` (indexed by sorted position, so each block owns a contiguous piece).
+    pub fn for_each_block<X: Send>(
+        &mut self,
+        scratch: &mut [X],
+        reset: impl Fn(&mut Accum<T, D>) + Sync,
+        contribute: impl Fn(usize, &Layout<D>, &mut [Accum<T, D>], &mut X) + Sync,
+    ) {
+        let mut pieces = Vec::with_capacity(self.occupied.len());
+        let mut rest = scratch;
+        for &(_, start, end) in &self.occupied {
+            let (piece, tail) = rest.split_at_mut(end - start);
+            pieces.push(piece);
+            rest = tail;
+        }
         let (dims, width, order) = (self.dims, self.width, &self.order);
-        self.buffers
+        let used = self.occupied.len();
+        self.buffers[..used]
             .par_iter_mut()
             .zip(self.occupied.par_iter())
-            .for_each(|(buf, &(block, start, end))| {
-                buf.iter_mut().for_each(|e| *e = Accum::zero());
+            .zip(pieces)
+            .with_min_len(MIN_BLOCKS_PER_TASK)
+            .for_each(|((buf, &(block, start, end)), piece)| {
+                buf.iter_mut().for_each(&reset);
                 let mut rest = block;
                 let origin = std::array::from_fn(|a| {
                     let k = rest % dims[a];
                     rest /= dims[a];
                     k * BLOCK
                 });
-                let mut sink = BlockSink {
-                    origin,
-                    width,
-                    data: buf,
-                };
-                for &p in &order[start..end] {
-                    contribute(p as usize, &mut sink);
+                let layout = Layout::cube(origin, width);
+                for (&p, out) in order[start..end].iter().zip(piece) {
+                    contribute(p as usize, &layout, buf, out);
                 }
             });
     }
+}
 
-    /// Sum, over the blocks covering `node` (in a fixed order), of their buffer entries.
-    #[inline]
-    pub fn gather(&self, node: [usize; D]) -> Accum<T, D> {
-        let mut acc = Accum::zero();
-        for combo in 0..(1usize << D) {
-            let mut flat = 0;
-            let mut local = 0;
-            let mut ok = true;
-            for a in (0..D).rev() {
-                let shift = (combo >> a) & 1;
-                let k = node[a] / BLOCK;
-                if k < shift {
-                    ok = false;
-                    break;
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use loam_core::{Wall, WallKind};
+
+    /// Deterministic pseudo-random numbers in [0, 1).
+    fn rng(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Particles at random stencil bases inside `[lo, hi)` (node indices per axis) deposit
+    /// mass 1 and momentum `(p, 0, ..)` on every node of a `b^D` stencil; the visited-row
+    /// gather must equal a dense sum over the whole grid, also after the particles have moved
+    /// elsewhere (what the previous step left is cleared).
+    fn check_gather<const D: usize>(b: usize) {
+        let grid = Grid::<D>::new([0.0; D], [13; D], 1.0, 2);
+        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+        boundary.walls[0][1] = Wall::new(WallKind::Free);
+        let mut blocks = Blocks::<f64, D>::new(&grid, b, &boundary);
+        let nodes = grid.nodes();
+        let n = grid.num_nodes();
+        let (mut mass, mut mom, mut force) = (
+            vec![0.0; n],
+            vec![Vector::<f64, D>::zeros(); n],
+            vec![Vector::<f64, D>::zeros(); n],
+        );
+        // The nodes of the stencil at `base`, by local index `l < b^D` (axis 0 fastest).
+        let node = |base: &[isize; D], l: usize| -> [usize; D] {
+            let mut rest = l;
+            std::array::from_fn(|a| {
+                let k = rest % b;
+                rest /= b;
+                base[a] as usize + k
+            })
+        };
+        let mut seed = 7 + D as u64;
+        for (lo, hi) in [(0usize, 9usize), (7, nodes[0] - b + 1), (3, 6)] {
+            let bases: Vec<[isize; D]> = (0..60)
+                .map(|_| {
+                    std::array::from_fn(|_| {
+                        (lo + (rng(&mut seed) * (hi - lo) as f64) as usize) as isize
+                    })
+                })
+                .collect();
+            let keys: Vec<u32> = bases.iter().map(|&base| blocks.key(base)).collect();
+            assert!(keys.iter().all(|&k| k != OFF_GRID));
+            blocks.sort(&keys);
+            let mut none = vec![(); bases.len()];
+            blocks.for_each_block(
+                &mut none,
+                |e| *e = Accum::zero(),
+                |p, layout, buf, _| {
+                    for l in 0..b.pow(D as u32) {
+                        let at = node(&bases[p], l);
+                        let i = layout.index(at);
+                        buf[i].m += 1.0;
+                        buf[i].p[0] += p as f64;
+                    }
+                },
+            );
+            blocks.gather(&mut mass, &mut mom, &mut force);
+            let mut dense = vec![(0.0, 0.0); n];
+            for (p, base) in bases.iter().enumerate() {
+                for l in 0..b.pow(D as u32) {
+                    let f = grid.flat(node(base, l));
+                    dense[f].0 += 1.0;
+                    dense[f].1 += p as f64;
                 }
-                let k = k - shift;
-                let off = node[a] - k * BLOCK;
-                if off >= self.width || k >= self.dims[a] {
-                    ok = false;
-                    break;
-                }
-                flat = flat * self.dims[a] + k;
-                local = local * self.width + off;
             }
-            if !ok {
-                continue;
-            }
-            let s = self.slot[flat];
-            if s != EMPTY {
-                let e = &self.buffers[s as usize][local];
-                acc.m += e.m;
-                acc.p += e.p;
-                acc.f += e.f;
+            for f in 0..n {
+                assert_eq!(mass[f], dense[f].0, "mass at node {:?}", grid.multi(f));
+                assert_eq!(
+                    mom[f][0],
+                    dense[f].1,
+                    "momentum at node {:?}",
+                    grid.multi(f)
+                );
             }
         }
-        acc
+    }
+
+    #[test]
+    fn visited_rows_gather_what_a_dense_sum_gives() {
+        for b in 2..=4 {
+            check_gather::<2>(b);
+            check_gather::<3>(b);
+        }
     }
 }

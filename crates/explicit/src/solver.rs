@@ -1,14 +1,16 @@
 //! The explicit USL / MUSL step.
 
-use crate::blocks::Blocks;
+use crate::blocks::{Accum, Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
 use crate::config::Config;
 use crate::error::{ConfigError, StepError};
 use loam_core::constitutive::Kinematics;
 use loam_core::energy::{Energy, energy};
-use loam_core::stencil::particle_half_width;
+use loam_core::stencil::{Layout, particle_half_width};
 use loam_core::tensor::{Tensor, Vector, det, from3, to3};
 use loam_core::transfer::{g2p, p2g, p2g_momentum};
-use loam_core::{Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep};
+use loam_core::{
+    Grid, Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep, Transfer, WallKind,
+};
 use rayon::prelude::*;
 
 /// What one completed step did.
@@ -28,11 +30,15 @@ pub struct StepInfo {
 pub struct Solver<T: Scalar, const D: usize> {
     config: Config<T, D>,
     blocks: Blocks<T, D>,
+    /// Block of every particle (the sort key), from [`Solver::locate`].
+    keys: Vec<u32>,
     mass: Vec<T>,
     velocity: Vec<Vector<T, D>>,
     velocity_old: Vec<Vector<T, D>>,
-    x_old: Vec<Vector<T, D>>,
-    bases: Vec<[isize; D]>,
+    /// Per particle, by sorted position: its stencil of the step (computed once, in P2G) and,
+    /// for MUSL, its new position, velocity and affine matrix until the stress update writes
+    /// them back.
+    kernels: Vec<Kernel<T, D>>,
     wave_speed: Vec<f64>,
     mass_floor: f64,
     steps: usize,
@@ -43,16 +49,55 @@ pub struct Solver<T: Scalar, const D: usize> {
 /// as empty, so `p/m` never divides by round-off.
 const MASS_EPS: f64 = 1e-14;
 
-/// The stencil of a particle at `x` with reference half-width `hw0` and deformation `f`.
-#[inline]
-fn stencil<T: Scalar, const D: usize>(
-    cfg: &Config<T, D>,
-    x: &Vector<T, D>,
-    hw0: &Vector<T, D>,
-    f: &Tensor<T, D>,
-) -> Stencil<T, D> {
-    let hw = particle_half_width(cfg.shape, cfg.grid.h, hw0, f);
-    Stencil::new(cfg.shape, &cfg.grid, x, &hw)
+/// Particles handed to one rayon task at least.
+const MIN_PARTICLES_PER_TASK: usize = 256;
+
+/// A particle's stencil of the step and (MUSL) its new position, velocity and affine matrix.
+#[derive(Clone, Copy, Debug)]
+struct Kernel<T: Scalar, const D: usize> {
+    stencil: Stencil<T, D>,
+    x: Vector<T, D>,
+    v: Vector<T, D>,
+    c: Tensor<T, D>,
+}
+
+/// What [`Solver::locate`] finds: the stability bound `(h/(c + |v|), particle, c, |v|)`, the
+/// largest particle mass and whether a stencil leaves the grid.
+#[derive(Clone, Copy, Debug)]
+struct Located {
+    limit: (f64, usize, f64, f64),
+    max_mass: f64,
+    off_grid: bool,
+}
+
+impl Located {
+    const NONE: Self = Self {
+        limit: (f64::INFINITY, usize::MAX, 0.0, 0.0),
+        max_mass: 0.0,
+        off_grid: false,
+    };
+
+    /// Both parts together (associative and commutative, so any split gives the same result;
+    /// bound ties go to the lowest id).
+    #[inline(always)]
+    fn join(a: Self, b: Self) -> Self {
+        Self {
+            limit: lower_limit(a.limit, b.limit),
+            max_mass: a.max_mass.max(b.max_mass),
+            off_grid: a.off_grid || b.off_grid,
+        }
+    }
+}
+
+/// The smaller of two stability bounds; ties go to the lower particle id. A total order (a NaN
+/// bound, from a NaN velocity, counts as the largest), so the reduction gives the same result
+/// however it is split.
+#[inline(always)]
+fn lower_limit(a: (f64, usize, f64, f64), b: (f64, usize, f64, f64)) -> (f64, usize, f64, f64) {
+    match b.0.total_cmp(&a.0).then(b.1.cmp(&a.1)) {
+        std::cmp::Ordering::Less => b,
+        _ => a,
+    }
 }
 
 impl<T: Scalar, const D: usize> Solver<T, D> {
@@ -70,12 +115,12 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let n = config.grid.num_nodes();
         let wave_speed = config.materials.iter().map(|m| m.wave_speed()).collect();
         Ok(Self {
-            blocks: Blocks::new(config.grid.nodes(), config.shape.support_width()),
+            blocks: Blocks::new(&config.grid, config.shape.support_width(), &config.boundary),
+            keys: Vec::new(),
             mass: vec![T::zero(); n],
             velocity: vec![Vector::zeros(); n],
             velocity_old: vec![Vector::zeros(); n],
-            x_old: Vec::new(),
-            bases: Vec::new(),
+            kernels: Vec::new(),
             wave_speed,
             mass_floor: 0.0,
             config,
@@ -109,34 +154,28 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         energy(particles, &self.config.materials, &self.config.gravity)
     }
 
+    /// The stability bound `h / (c_p + |v_p|)` of one particle, with its wave speed and speed.
+    #[inline]
+    fn particle_limit(&self, p: usize, v: &Vector<T, D>, material: u32) -> (f64, usize, f64, f64) {
+        let c = self.wave_speed[material as usize];
+        let s = v.map(|x| x.re()).norm();
+        (self.config.grid.h / (c + s), p, c, s)
+    }
+
     /// The stability bound `min_p h / (c_p + |v_p|)` and the particle that sets it, with its
     /// wave speed and speed. Ties go to the lowest id, so the result is deterministic.
     pub fn stability_limit(&self, particles: &Particles<T, D>) -> (f64, usize, f64, f64) {
-        let h = self.config.grid.h;
         particles
             .v
             .par_iter()
             .zip(particles.material.par_iter())
             .enumerate()
-            .map(|(p, (v, &m))| {
-                let c = self.wave_speed[m as usize];
-                let s = v.map(|x| x.re()).norm();
-                (h / (c + s), p, c, s)
-            })
-            .reduce(
-                || (f64::INFINITY, usize::MAX, 0.0, 0.0),
-                |a, b| {
-                    if b.0 < a.0 || (b.0 == a.0 && b.1 < a.1) {
-                        b
-                    } else {
-                        a
-                    }
-                },
-            )
+            .map(|(p, (v, &m))| self.particle_limit(p, v, m))
+            .reduce(|| Located::NONE.limit, lower_limit)
     }
 
-    fn choose_dt(&self, particles: &Particles<T, D>, cap: f64) -> Result<f64, StepError> {
-        let (limit, particle, wave_speed, speed) = self.stability_limit(particles);
+    fn choose_dt(&self, bound: (f64, usize, f64, f64), cap: f64) -> Result<f64, StepError> {
+        let (limit, particle, wave_speed, speed) = bound;
         let dt = match self.config.time_step {
             TimeStep::Fixed { dt } => {
                 if dt > limit {
@@ -158,23 +197,41 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     }
 
     /// Advances the particles by one step of at most `max_dt` (use `f64::INFINITY` for no cap).
+    ///
+    /// The step runs on a thread of the current rayon pool (one hand-over per step), so its
+    /// parallel phases do not each wake the pool from outside.
     pub fn step(
         &mut self,
         particles: &mut Particles<T, D>,
         max_dt: f64,
     ) -> Result<StepInfo, StepError> {
-        let dt = self.choose_dt(particles, max_dt)?;
-        self.locate(particles)?;
-        self.blocks.sort(&self.bases);
+        rayon::scope(|_| self.step_in_pool(particles, max_dt))
+    }
+
+    /// [`Solver::step`], on a pool thread.
+    fn step_in_pool(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        max_dt: f64,
+    ) -> Result<StepInfo, StepError> {
+        let located = self.locate(particles);
+        let dt = self.choose_dt(located.limit, max_dt)?;
+        if located.off_grid {
+            return Err(self.left_grid(particles));
+        }
+        self.blocks.sort(&self.keys);
+        self.mass_floor = MASS_EPS * located.max_mass;
         self.transfer_to_grid(particles, dt);
-        match self.config.scheme {
+        let flagged = match self.config.scheme {
             Scheme::Usl => self.update_particles_usl(particles, dt),
             Scheme::Musl => self.update_particles_musl(particles, dt),
-        }
+        };
         self.steps += 1;
         self.time += dt;
-        check_particles(particles, self.steps, self.time)?;
-        check_containment(&self.config, particles, self.steps, self.time)?;
+        if flagged {
+            check_particles(particles, self.steps, self.time)?;
+            check_containment(&self.config, particles, self.steps, self.time)?;
+        }
         Ok(StepInfo {
             step: self.steps,
             time: self.time,
@@ -199,26 +256,36 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         Ok(())
     }
 
-    /// Stencil bases of every particle; fails when a support leaves the grid.
-    fn locate(&mut self, p: &Particles<T, D>) -> Result<(), StepError> {
-        self.bases.resize(p.len(), [0; D]);
-        let bases: Vec<[isize; D]> = (0..p.len())
-            .into_par_iter()
-            .map(|i| stencil(&self.config, &p.x[i], &p.half_width0[i], &p.f[i]).base)
-            .collect();
-        self.bases = bases;
-        let (grid, b) = (&self.config.grid, self.config.shape.support_width());
-        let ids: Vec<usize> = self
-            .bases
-            .par_iter()
+    /// One pass over the particles: the block of every stencil (the sort key), the stability
+    /// bound, the largest mass, and whether a stencil leaves the grid.
+    fn locate(&mut self, p: &Particles<T, D>) -> Located {
+        let mut keys = std::mem::take(&mut self.keys);
+        keys.resize(p.len(), 0);
+        let (cfg, blocks) = (&self.config, &self.blocks);
+        let located = keys
+            .par_iter_mut()
+            .zip(p.x.par_iter())
+            .zip(p.v.par_iter())
+            .zip(p.material.par_iter().zip(p.mass.par_iter()))
             .enumerate()
-            .filter(|(_, base)| !grid.contains_stencil(**base, b))
-            .map(|(i, _)| i)
-            .collect();
-        if ids.is_empty() {
-            return Ok(());
-        }
-        Err(StepError::LeftGrid {
+            .with_min_len(MIN_PARTICLES_PER_TASK)
+            .map(|(i, (((key, x), v), (&material, mass)))| {
+                *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, x));
+                Located {
+                    limit: self.particle_limit(i, v, material),
+                    max_mass: mass.re(),
+                    off_grid: *key == OFF_GRID,
+                }
+            })
+            .reduce(|| Located::NONE, Located::join);
+        self.keys = keys;
+        located
+    }
+
+    /// The error for particles whose stencil left the grid (all of them, by id).
+    fn left_grid(&self, p: &Particles<T, D>) -> StepError {
+        let ids: Vec<usize> = (0..p.len()).filter(|&i| self.keys[i] == OFF_GRID).collect();
+        StepError::LeftGrid {
             step: self.steps + 1,
             time: self.time,
             positions: ids
@@ -227,7 +294,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 .map(|&i| p.x[i].iter().map(|v| v.re()).collect())
                 .collect(),
             ids,
-        })
+        }
     }
 
     /// P2G of mass, momentum and internal force, then the grid momentum update with gravity
@@ -235,17 +302,43 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     fn transfer_to_grid(&mut self, p: &Particles<T, D>, dt: f64) {
         let cfg = &self.config;
         let affine = cfg.transfer.is_affine();
-        let contribute = |i: usize, sink: &mut crate::blocks::BlockSink<'_, T, D>| {
-            let st = stencil(cfg, &p.x[i], &p.half_width0[i], &p.f[i]);
-            let volume = p.volume0[i] * det(&p.f[i]);
-            let sv = from3::<T, D>(&p.stress[i]) * volume;
-            let c = affine.then_some(&p.c[i]);
-            p2g(&st, &p.v[i], c, p.mass[i], &sv, |n, m, mom, f| {
-                sink.add(n, m, mom, f)
-            });
-        };
-        self.blocks.accumulate(contribute);
-        self.mass_floor = MASS_EPS * p.mass.iter().fold(0.0f64, |a, m| a.max(m.re()));
+        if self.kernels.len() != p.len() {
+            let (zero, grid) = (Vector::zeros(), &cfg.grid);
+            let placeholder = Kernel {
+                stencil: Stencil::new(cfg.shape, grid, &grid.node_position([0; D]), &zero),
+                x: zero,
+                v: zero,
+                c: Tensor::zeros(),
+            };
+            self.kernels.resize(p.len(), placeholder);
+        }
+        self.blocks.for_each_block(
+            &mut self.kernels,
+            |e| *e = Accum::zero(),
+            |i, layout, buf, kernel| {
+                let hw = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
+                kernel.stencil.set(cfg.shape, &cfg.grid, &p.x[i], &hw);
+                let st = &kernel.stencil;
+                let volume = p.volume0[i] * det(&p.f[i]);
+                let sv = from3::<T, D>(&p.stress[i]) * volume;
+                let c = affine.then_some(&p.c[i]);
+                p2g(
+                    st,
+                    layout,
+                    &p.v[i],
+                    c,
+                    p.mass[i],
+                    &sv,
+                    #[inline(always)]
+                    |n, m, mom, f| {
+                        let e = &mut buf[n];
+                        e.m += m;
+                        e.p += mom;
+                        e.f += f;
+                    },
+                );
+            },
+        );
         let floor = self.mass_floor;
         let (grid, boundary, contact, gravity) = (
             &self.config.grid,
@@ -253,20 +346,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             &self.config.contact,
             self.config.gravity,
         );
+        let has_contact = !contact.is_empty();
         // Contact acts at the end of the step, when the grid velocity is reached.
         let time = self.time + dt;
         // Gather the block buffers: momentum goes to `velocity_old`, force to `velocity`
         // until the velocities are formed below.
-        let blocks = &self.blocks;
-        self.mass
-            .par_iter_mut()
-            .zip(self.velocity_old.par_iter_mut())
-            .zip(self.velocity.par_iter_mut())
-            .enumerate()
-            .for_each(|(n, ((m, mom), force))| {
-                let acc = blocks.gather(grid.multi(n));
-                (*m, *mom, *force) = (acc.m, acc.p, acc.f);
-            });
+        self.blocks
+            .gather(&mut self.mass, &mut self.velocity_old, &mut self.velocity);
         boundary.fold_ghosts(
             grid,
             Some(&mut self.mass),
@@ -274,22 +360,32 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             Some(&mut self.velocity),
         );
         let dtt = T::cst(dt);
+        let (blocks, n) = (&self.blocks, self.blocks.row_len());
         self.mass
-            .par_iter()
-            .zip(self.velocity_old.par_iter_mut())
-            .zip(self.velocity.par_iter_mut())
+            .par_chunks(n)
+            .zip(self.velocity_old.par_chunks_mut(n))
+            .zip(self.velocity.par_chunks_mut(n))
             .enumerate()
-            .for_each(|(n, ((&m, v_old), v))| {
-                if m.re() > floor {
-                    *v_old /= m;
-                    *v = *v_old + (*v / m + gravity) * dtt;
-                    let node = grid.multi(n);
-                    contact.apply(grid, node, time, v, true);
-                    boundary.apply(grid, node, v);
-                } else {
-                    *v_old = Vector::zeros();
-                    *v = Vector::zeros();
-                }
+            .with_min_len(MIN_ROWS_PER_TASK)
+            .for_each(|(r, ((m, v_old), v))| {
+                let mut node = blocks.row_node(r);
+                blocks.for_each_visited(r, |i| {
+                    let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
+                    if m.re() > floor {
+                        *v_old /= m;
+                        *v = *v_old + (*v / m + gravity) * dtt;
+                        node[0] = i;
+                        if has_contact {
+                            contact.apply(grid, node, time, v, true);
+                        }
+                        if on_a_face(grid, node) {
+                            boundary.apply(grid, node, v);
+                        }
+                    } else {
+                        *v_old = Vector::zeros();
+                        *v = Vector::zeros();
+                    }
+                });
             });
         boundary.reflect_ghosts(grid, &mut self.velocity);
         if self.config.transfer.needs_old_grid_velocity() {
@@ -298,11 +394,15 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     }
 
     /// USL: G2P velocity, position, then `F ← (I + Δt L) F` and the stress update with the
-    /// velocity gradient of the updated grid velocity.
-    fn update_particles_usl(&self, p: &mut Particles<T, D>, dt: f64) {
+    /// velocity gradient of the updated grid velocity. Returns whether a particle needs a
+    /// closer look by the checks (see [`Checks`]).
+    fn update_particles_usl(&self, p: &mut Particles<T, D>, dt: f64) -> bool {
         let cfg = &self.config;
         let dtt = T::cst(dt);
+        let layout = Layout::grid(&cfg.grid);
         let (vel, vel_old) = (&self.velocity, &self.velocity_old);
+        let checks = Checks::new(cfg, self.time + dt);
+        let (blocks, kernels) = (&self.blocks, &self.kernels);
         let Particles {
             x,
             v,
@@ -310,21 +410,26 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             c,
             stress,
             material,
-            half_width0,
             state,
             ..
         } = p;
         (x, v, f, c, stress, state)
             .into_par_iter()
-            .zip(material.par_iter().zip(half_width0.par_iter()))
-            .for_each(|((x, v, f, c, stress, state), (&mat, hw0))| {
-                let st = stencil(cfg, x, hw0, f);
+            .zip(material.par_iter())
+            .enumerate()
+            .with_min_len(MIN_PARTICLES_PER_TASK)
+            .map(|(i, ((x, v, f, c, stress, state), &mat))| {
+                let st = &kernels[blocks.rank(i)].stencil;
                 let g = g2p(
-                    &st,
+                    st,
+                    &layout,
                     &cfg.grid,
                     cfg.shape,
                     cfg.transfer,
+                    true,
+                    #[inline(always)]
                     |n| vel[n],
+                    #[inline(always)]
                     |n| vel_old[n],
                 );
                 (*v, *c) = cfg.transfer.particle_velocity(v, &g);
@@ -337,55 +442,55 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     stress,
                     state,
                 );
-            });
+                checks.flag(x, v, f, stress)
+            })
+            .reduce(|| false, |a, b| a || b)
     }
 
     /// MUSL: G2P velocity and position; map the new particle momentum back to the grid (same
-    /// shape functions), apply the walls, and take `L` from that grid velocity.
-    fn update_particles_musl(&mut self, p: &mut Particles<T, D>, dt: f64) {
+    /// shape functions), apply the walls, and take `L` from that grid velocity. G2P and the
+    /// second P2G run in one pass over the blocks (the new state waits in `kernels`); the
+    /// stress update writes it back. Returns whether a particle needs a closer look by the checks.
+    fn update_particles_musl(&mut self, p: &mut Particles<T, D>, dt: f64) -> bool {
         let dtt = T::cst(dt);
-        self.x_old.clone_from(&p.x);
+        let layout = Layout::grid(&self.config.grid);
+        let affine = self.config.transfer.is_affine();
         {
-            let cfg = &self.config;
+            let (cfg, pr) = (&self.config, &*p);
             let (vel, vel_old) = (&self.velocity, &self.velocity_old);
-            let Particles {
-                x,
-                v,
-                f,
-                c,
-                half_width0,
-                ..
-            } = &mut *p;
-            (x, v, c)
-                .into_par_iter()
-                .zip(f.par_iter().zip(half_width0.par_iter()))
-                .for_each(|((x, v, c), (f, hw0))| {
-                    let st = stencil(cfg, x, hw0, f);
+            self.blocks.for_each_block(
+                &mut self.kernels,
+                |e| e.p = Vector::zeros(),
+                |i, block, buf, kernel| {
+                    let st = &kernel.stencil;
                     let g = g2p(
-                        &st,
+                        st,
+                        &layout,
                         &cfg.grid,
                         cfg.shape,
                         cfg.transfer,
+                        false,
+                        #[inline(always)]
                         |n| vel[n],
+                        #[inline(always)]
                         |n| vel_old[n],
                     );
-                    (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-                    *x += g.v * dtt;
-                });
-        }
-        // Second P2G: momentum of the updated particle velocities at the start-of-step positions.
-        let affine = self.config.transfer.is_affine();
-        {
-            let (cfg, x_old, pr) = (&self.config, &self.x_old, &*p);
-            let contribute = |i: usize, sink: &mut crate::blocks::BlockSink<'_, T, D>| {
-                let xo = &x_old[i];
-                let st = stencil(cfg, xo, &pr.half_width0[i], &pr.f[i]);
-                let c = affine.then_some(&pr.c[i]);
-                p2g_momentum(&st, &pr.v[i], c, pr.mass[i], |n, _, mom| {
-                    sink.add_momentum(n, mom)
-                });
-            };
-            self.blocks.accumulate(contribute);
+                    let (v, c) = cfg.transfer.particle_velocity(&pr.v[i], &g);
+                    // Second P2G: momentum of the updated particle velocities at the
+                    // start-of-step positions.
+                    let ca = affine.then_some(&c);
+                    p2g_momentum(
+                        st,
+                        block,
+                        &v,
+                        ca,
+                        pr.mass[i],
+                        #[inline(always)]
+                        |n, _, mom| buf[n].p += mom,
+                    );
+                    (kernel.x, kernel.v, kernel.c) = (pr.x[i] + g.v * dtt, v, c);
+                },
+            );
         }
         {
             let (grid, boundary, contact, blocks) = (
@@ -394,54 +499,148 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 &self.config.contact,
                 &self.blocks,
             );
+            let has_contact = !contact.is_empty();
             let time = self.time + dt;
-            self.velocity
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(n, v)| *v = blocks.gather(grid.multi(n)).p);
+            blocks.gather_momentum(&mut self.velocity);
             boundary.fold_ghosts(grid, None, &mut self.velocity, None);
-            let floor = self.mass_floor;
+            let (floor, n) = (self.mass_floor, blocks.row_len());
             self.velocity
-                .par_iter_mut()
-                .zip(self.mass.par_iter())
+                .par_chunks_mut(n)
+                .zip(self.mass.par_chunks(n))
                 .enumerate()
-                .for_each(|(n, (v, &m))| {
-                    if m.re() > floor {
-                        *v /= m;
-                        let node = grid.multi(n);
-                        contact.apply(grid, node, time, v, false);
-                        boundary.apply(grid, node, v);
-                    } else {
-                        *v = Vector::zeros();
-                    }
+                .with_min_len(MIN_ROWS_PER_TASK)
+                .for_each(|(r, (v, m))| {
+                    let mut node = blocks.row_node(r);
+                    blocks.for_each_visited(r, |i| {
+                        let v = &mut v[i];
+                        if m[i].re() > floor {
+                            *v /= m[i];
+                            node[0] = i;
+                            if has_contact {
+                                contact.apply(grid, node, time, v, false);
+                            }
+                            if on_a_face(grid, node) {
+                                boundary.apply(grid, node, v);
+                            }
+                        } else {
+                            *v = Vector::zeros();
+                        }
+                    });
                 });
             boundary.reflect_ghosts(grid, &mut self.velocity);
         }
-        let cfg = &self.config;
-        let vel = &self.velocity;
-        let x_old = &self.x_old;
+        let (cfg, vel, blocks, kernels) =
+            (&self.config, &self.velocity, &self.blocks, &self.kernels);
+        let checks = Checks::new(cfg, self.time + dt);
         let Particles {
+            x,
+            v,
             f,
+            c,
             stress,
             material,
-            half_width0,
             state,
             ..
         } = p;
-        (f, stress, state)
+        (x, v, f, c, stress, state)
             .into_par_iter()
-            .zip(
-                material
-                    .par_iter()
-                    .zip(half_width0.par_iter())
-                    .zip(x_old.par_iter()),
-            )
-            .for_each(|((f, stress, state), ((&mat, hw0), xo))| {
-                let st = stencil(cfg, xo, hw0, f);
-                let mut l = Tensor::<T, D>::zeros();
-                st.for_each(|n| l += vel[n.flat] * n.gradient.transpose());
+            .zip(material.par_iter())
+            .enumerate()
+            .with_min_len(MIN_PARTICLES_PER_TASK)
+            .map(|(i, ((x, v, f, c, stress, state), &mat))| {
+                let k = &kernels[blocks.rank(i)];
+                let l = g2p(
+                    &k.stencil,
+                    &layout,
+                    &cfg.grid,
+                    cfg.shape,
+                    Transfer::Pic,
+                    true,
+                    #[inline(always)]
+                    |n| vel[n],
+                    |_| Vector::zeros(),
+                )
+                .grad_v;
+                (*x, *v, *c) = (k.x, k.v, k.c);
                 update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
-            });
+                checks.flag(x, v, f, stress)
+            })
+            .reduce(|| false, |a, b| a || b)
+    }
+}
+
+/// Whether a node lies on (or beyond) a face of the domain, where walls act; elsewhere
+/// [`loam_core::Boundary::apply`] does nothing.
+#[inline(always)]
+fn on_a_face<const D: usize>(grid: &Grid<D>, node: [usize; D]) -> bool {
+    (0..D).any(|a| node[a] <= grid.pad || node[a] >= grid.pad + grid.cells[a])
+}
+
+/// The per-particle part of the end-of-step checks, run inside the last particle pass: a
+/// particle is flagged when [`check_particles`] or [`check_containment`] would report it, and
+/// those (which build the error with every offending id) run only when one is flagged.
+struct Checks<'a, T: Scalar, const D: usize> {
+    /// Per axis, the positions below / above which a particle has crossed a wall
+    /// (±∞ for free faces).
+    bounds: [(f64, f64); D],
+    contact: &'a loam_core::Contact<T, D>,
+    time: f64,
+}
+
+impl<'a, T: Scalar, const D: usize> Checks<'a, T, D> {
+    fn new(cfg: &'a Config<T, D>, time: f64) -> Self {
+        let (lo, hi) = (cfg.grid.lo, cfg.grid.hi());
+        let walled = |a: usize, side: usize| cfg.boundary.walls[a][side].kind != WallKind::Free;
+        Self {
+            bounds: std::array::from_fn(|a| {
+                (
+                    if walled(a, 0) {
+                        lo[a]
+                    } else {
+                        f64::NEG_INFINITY
+                    },
+                    if walled(a, 1) { hi[a] } else { f64::INFINITY },
+                )
+            }),
+            contact: &cfg.contact,
+            time,
+        }
+    }
+
+    /// Whether the particle has a non-finite field, is inverted, has crossed a wall or lies
+    /// in an obstacle.
+    #[inline(always)]
+    fn flag(
+        &self,
+        x: &Vector<T, D>,
+        v: &Vector<T, D>,
+        f: &Tensor<T, D>,
+        stress: &nalgebra::Matrix3<T>,
+    ) -> bool {
+        // Plain indexed loops: nalgebra's iterator chains do not compile down to a few
+        // instructions here.
+        let mut finite = true;
+        for a in 0..D {
+            finite &= x[a].is_finite_all() & v[a].is_finite_all();
+            for b in 0..D {
+                finite &= f[(a, b)].is_finite_all();
+            }
+        }
+        for a in 0..3 {
+            for b in 0..3 {
+                finite &= stress[(a, b)].is_finite_all();
+            }
+        }
+        if !finite || det(f).re() <= 0.0 {
+            return true;
+        }
+        let mut xr = [0.0; D];
+        let mut out = false;
+        for a in 0..D {
+            xr[a] = x[a].re();
+            out |= xr[a] < self.bounds[a].0 || xr[a] > self.bounds[a].1;
+        }
+        out || (!self.contact.is_empty() && self.contact.penetrated(&xr, self.time).is_some())
     }
 }
 

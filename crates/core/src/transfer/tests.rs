@@ -41,21 +41,21 @@ fn to_grid<const D: usize>(
     affine: bool,
 ) -> (Vec<f64>, Vec<Vector<f64, D>>) {
     let n = cl.grid.num_nodes();
-    let (mut m, mut p) = (vec![0.0; n], vec![Vector::<f64, D>::zeros(); n]);
+    let mut mp = vec![(0.0, Vector::<f64, D>::zeros()); n];
     let hw = Vector::<f64, D>::repeat(cl.grid.h / 4.0);
+    let layout = Layout::grid(&cl.grid);
     for k in 0..cl.x.len() {
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
         let c = affine.then_some(&cl.c[k]);
-        p2g_momentum(&st, &cl.v[k], c, cl.m[k], |node, mw, mv| {
-            let f = cl.grid.flat(node);
-            m[f] += mw;
-            p[f] += mv;
+        p2g_momentum(&st, &layout, &cl.v[k], c, cl.m[k], |f, mw, mv| {
+            mp[f].0 += mw;
+            mp[f].1 += mv;
         });
     }
-    let v = m
+    let m = mp.iter().map(|e| e.0).collect();
+    let v = mp
         .iter()
-        .zip(&p)
-        .map(|(&mi, pi)| if mi > 0.0 { pi / mi } else { *pi })
+        .map(|&(mi, pi)| if mi > 0.0 { pi / mi } else { pi })
         .collect();
     (m, v)
 }
@@ -70,9 +70,11 @@ fn gather<const D: usize>(
     let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
     g2p(
         &st,
+        &Layout::grid(&cl.grid),
         &cl.grid,
         shape,
         Transfer::Apic,
+        true,
         |n| vel[n],
         |_| Vector::zeros(),
     )
@@ -234,9 +236,11 @@ fn tpic_round_trip_is_exact_for_affine_fields() {
             let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
             let g = g2p(
                 &st,
+                &Layout::grid(&cl.grid),
                 &cl.grid,
                 shape,
                 Transfer::Tpic,
+                false,
                 |n| vel[n],
                 |_| Vector::zeros(),
             );
