@@ -2,8 +2,9 @@
 //!
 //! `cargo run --release -p loam-benches --example profile_step -- [SCENE] [STEPS] [f32|f64]`
 //! with `SCENE` one of `dambreak` (the friction dam-break, 6,000 particles; default),
-//! `dambreak4` (the same at scale 4, 96,000 particles), `block2d` (2D block collapse, 101k
-//! particles) or `block3d` (3D block collapse, 111k particles).
+//! `dambreak_usl` (the same with USL instead of MUSL), `dambreak4` (at scale 4, 96,000
+//! particles), `block2d` (2D block collapse, 101k particles) or `block3d` (3D block collapse,
+//! 111k particles).
 
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
@@ -34,9 +35,14 @@ fn scene<T: Scalar>(scene: &str, steps: usize) {
     match scene {
         "dambreak" => run(scene, steps, dambreak_friction_2d::<T>(1)),
         "dambreak4" => run(scene, steps, dambreak_friction_2d::<T>(4)),
+        "dambreak_usl" => {
+            let (mut config, particles) = dambreak_friction_2d::<T>(1);
+            config.scheme = loam_core::Scheme::Usl;
+            run(scene, steps, (config, particles))
+        }
         "block2d" => run(scene, steps, fluid_block_2d::<T>(100_000)),
         "block3d" => run(scene, steps, fluid_block_3d::<T>(100_000)),
-        _ => panic!("unknown scene {scene} (dambreak, dambreak4, block2d, block3d)"),
+        _ => panic!("unknown scene {scene} (dambreak, dambreak_usl, dambreak4, block2d, block3d)"),
     }
 }
 

@@ -645,7 +645,7 @@ impl<'a, T: Scalar, const D: usize> Checks<'a, T, D> {
 }
 
 /// `F ← (I + Δt L) F`, then the constitutive update on the 3×3 embedding.
-#[inline]
+#[inline(always)]
 fn update_stress<T: Scalar, const D: usize>(
     material: &loam_core::Material<T>,
     l: &Tensor<T, D>,
