@@ -97,14 +97,7 @@ pub fn collapse(l0: f64, h0: f64, h: f64) -> Collapse {
 /// How far the normalised runout `r` lies outside the band `[lube(a), lajeunesse(a)]`,
 /// relative to the nearer edge (0 inside).
 pub fn band_excess(r: f64, a: f64) -> f64 {
-    let (lo, hi) = (lube(a), lajeunesse(a));
-    if r > hi {
-        (r - hi) / hi
-    } else if r < lo {
-        (lo - r) / lo
-    } else {
-        0.0
-    }
+    crate::bui::band_excess(r, (lube(a), lajeunesse(a)))
 }
 
 /// Runs the case: the four columns, runout against the two laws.
