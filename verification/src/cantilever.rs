@@ -242,11 +242,11 @@ fn solve(setup: &Setup) -> Result<(Outcome, Vec<[f64; 2]>), VerifyError> {
     ))
 }
 
-/// Runs the case: the reference set-up (quadratic B-splines) with its tip history against
+/// Runs the case: the reference set-up (cpGIMP) with its tip history against
 /// both beam theories, and a refinement table for both root conditions.
 pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     const CASE: &str = "cantilever";
-    let reference = Setup::reference(Shape::QuadraticBspline);
+    let reference = Setup::reference(Shape::Cpgimp);
     let main = match size {
         // The reference root is defined by the grid columns of the 0.25 m grid; the coarse
         // reduced run holds the root by the symmetry wall instead.

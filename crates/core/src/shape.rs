@@ -42,7 +42,7 @@ pub enum Shape {
     Linear,
     /// Uniform GIMP: the hat convolved with a particle box of fixed half-length `l_p` (b = 3).
     Ugimp,
-    /// Contiguous-particle GIMP: as uGIMP with `l_p` stretched by the diagonal of `F` (b = 3).
+    /// Contiguous-particle GIMP: as uGIMP with `l_p` stretched by the fibre stretch `‖F e_a‖` (b = 3).
     Cpgimp,
     /// Quadratic B-spline (b = 3).
     QuadraticBspline,

@@ -301,7 +301,12 @@ pub struct StencilRow<T: Scalar, const D: usize> {
 }
 
 /// Particle half-length per axis for the GIMP family: uGIMP keeps the reference size, cpGIMP
-/// stretches it by the diagonal of `F`, clamped to `(0, h/2]` so the support stays `b = 3`.
+/// stretches it by the length of the deformed material axis, `l_a = l⁰_a ‖F e_a‖ =
+/// l⁰_a √(Σ_b F_ba²)` (Charlton et al. 2017), clamped to `(0, h/2]` so the support stays `b = 3`.
+///
+/// The column norm is `√C_aa`, the stretch of the fibre along axis `a`: a rigid rotation leaves
+/// the domain unchanged, where the diagonal `F_aa` would shrink it by `cos θ` (and invert it
+/// past 90°).
 #[inline]
 pub fn particle_half_width<T: Scalar, const D: usize>(
     shape: Shape,
@@ -311,7 +316,11 @@ pub fn particle_half_width<T: Scalar, const D: usize>(
 ) -> Vector<T, D> {
     match shape {
         Shape::Cpgimp => Vector::<T, D>::from_fn(|a, _| {
-            let l = hw0[a] * f[(a, a)];
+            let mut c2 = T::zero();
+            for b in 0..D {
+                c2 += f[(b, a)] * f[(b, a)];
+            }
+            let l = hw0[a] * c2.sqrt();
             if l.re() > 0.5 * h {
                 T::cst(0.5 * h)
             } else if l.re() < 1e-6 * h {
