@@ -12,6 +12,7 @@
 //! `α′ = PL²/(E′I) = 9.6`; both are reported.
 
 use crate::elastica::{tip_displacement, tip_displacement_reissner};
+use crate::fe_beam::{FeBeam, FeError, LoadDistribution, Support};
 use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
@@ -212,6 +213,23 @@ pub fn reference_tip(lambda: f64, beam: Beam) -> (f64, f64) {
     (u * LENGTH, v * LENGTH)
 }
 
+/// The converged continuum: the tip history (inward `u`, downward `v`, m) of the
+/// finite-element reference ([`crate::fe_beam`]) with a clamped root and the parabolic tip
+/// shear, `steps` load steps on an `nx × ny` mesh of Q9 elements. At 80 × 8 it is within
+/// 2·10⁻⁵ of its mesh limit, 8.2557 m.
+pub fn continuum_tip(nx: usize, ny: usize, steps: usize) -> Result<Vec<(f64, f64)>, FeError> {
+    let beam = FeBeam {
+        steps,
+        distribution: LoadDistribution::TipShear,
+        ..FeBeam::new(nx, ny, Support::Clamped)
+    };
+    Ok(beam
+        .tip_history()?
+        .into_iter()
+        .map(|[ux, uy]| (-ux, -uy))
+        .collect())
+}
+
 fn implicit_err(source: ImplicitError) -> VerifyError {
     VerifyError::Implicit {
         case: "cantilever".into(),
@@ -260,8 +278,18 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         Size::Full => reference,
     };
     let (outcome, tips) = solve(&main)?;
+    // The continuum reference on the same load steps: 80 × 8 Q9 elements at full size
+    // (2–3 s), 40 × 4 at reduced size (within 1e-4 of the mesh limit either way).
+    let (nx, ny) = match size {
+        Size::Full => (80, 8),
+        Size::Reduced => (40, 4),
+    };
+    let continuum = continuum_tip(nx, ny, main.steps).map_err(|e| VerifyError::Reference {
+        case: "cantilever".into(),
+        msg: e.to_string(),
+    })?;
     let mut rows = Vec::new();
-    for (k, tip) in tips.iter().enumerate() {
+    for (k, (tip, &(u_c, v_c))) in tips.iter().zip(&continuum).enumerate() {
         let lambda = (k + 1) as f64 / main.steps as f64;
         let (u_r, v_r) = reference_tip(lambda, Beam::Reissner);
         let (u_e, v_e) = reference_tip(lambda, Beam::Elastica);
@@ -269,6 +297,8 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             lambda * LOAD / 1e3,
             -tip[1],
             -tip[0],
+            v_c,
+            u_c,
             v_r,
             u_r,
             v_e,
@@ -282,6 +312,8 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             "load_kN",
             "v_mpm",
             "u_mpm",
+            "v_continuum_fe",
+            "u_continuum_fe",
             "v_reissner",
             "u_reissner",
             "v_elastica",
@@ -304,30 +336,34 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         "tip load (kN)",
         "tip displacement (m)",
         &[
-            col("v Reissner (plane strain)", 3, false),
-            col("u Reissner (plane strain)", 4, false),
-            col("v elastica (EI)", 5, false),
-            col("u elastica (EI)", 6, false),
+            col("v continuum (FE)", 3, false),
+            col("u continuum (FE)", 4, false),
+            col("v Reissner (plane strain)", 5, false),
+            col("u Reissner (plane strain)", 6, false),
+            col("v elastica (EI)", 7, false),
+            col("u elastica (EI)", 8, false),
             col("v loam", 1, true),
             col("u loam", 2, true),
         ],
     )?;
     let (_, v_reissner) = reference_tip(1.0, Beam::Reissner);
     let (_, v_elastica) = reference_tip(1.0, Beam::Elastica);
-    let err = |v: f64| (v - v_reissner).abs() / v_reissner;
+    let v_continuum = continuum.last().map_or(f64::NAN, |&(_, v)| v);
+    let rel = |v: f64, r: f64| (v - r) / r;
     let mut table = format!(
-        "Tip deflection at full load; Reissner (plane strain, shear and extension) v = {v_reissner:.4} m, elastica (EI) v = {v_elastica:.4} m.\n\n| root | h (m) | particles/cell | v (m) | u (m) | error vs Reissner | error vs elastica | Newton iterations | wall (s) |\n|---|---|---|---|---|---|---|---|---|\n"
+        "Tip deflection at full load; continuum (FE, clamped, {nx} × {ny} Q9) v = {v_continuum:.4} m, Reissner (plane strain, shear and extension) v = {v_reissner:.4} m, elastica (EI) v = {v_elastica:.4} m.\n\n| root | h (m) | particles/cell | v (m) | u (m) | error vs continuum | error vs Reissner | error vs elastica | Newton iterations | wall (s) |\n|---|---|---|---|---|---|---|---|---|---|\n"
     );
     let mut line = |root: Root, s: &Setup, o: &Outcome| {
         table.push_str(&format!(
-            "| {root:?} | {} | {}×{} | {:.4} | {:.4} | {:.2} % | {:.2} % | {} | {:.2} |\n",
+            "| {root:?} | {} | {}×{} | {:.4} | {:.4} | {:+.2} % | {:+.2} % | {:+.2} % | {} | {:.2} |\n",
             s.cell,
             s.ppc,
             s.ppc,
             o.v,
             o.u,
-            100.0 * err(o.v),
-            100.0 * (o.v - v_elastica).abs() / v_elastica,
+            100.0 * rel(o.v, v_continuum),
+            100.0 * rel(o.v, v_reissner),
+            100.0 * rel(o.v, v_elastica),
             o.iterations,
             o.wall
         ));
@@ -353,13 +389,30 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     write_text(&md, &table)?;
     Ok(CaseReport {
         metrics: vec![
-            // The benchmark's goal: tip deflection within 0.5 % of the beam solution at full
-            // load. At the reduced size (h = 0.5 m: two cells through the depth) the goal is
-            // out of reach; 5 % checks that the large-deflection path is right.
+            // The discretisation error: the tip against the converged plane-strain Hencky
+            // continuum of the same problem (fe_beam; mesh limit 8.2557 m, known to 1e-5).
+            // Full size: the benchmark's 0.5 % (measured −0.08 %). Reduced (h = 0.5 m, two
+            // cells through the depth, 10 load steps): measured −1.10 %, the coarse grid's
+            // stiffness; 1.5 % bounds it with margin, while a small-rotation (linear)
+            // response, PL³/3EI = 33 m, would be off by a factor of four.
             Metric::at_most(
                 CASE,
-                "tip_rel_error_vs_reissner",
-                err(outcome.v),
+                "tip_rel_error_vs_continuum",
+                rel(outcome.v, v_continuum).abs(),
+                match size {
+                    Size::Full => 0.005,
+                    Size::Reduced => 0.015,
+                },
+            ),
+            // The benchmark's stated goal: within 0.5 % of the elastica (EI). Not met: the
+            // converged continuum itself lies 1.85 % above the elastica (it has shear and
+            // axial flexibility, plane-strain moduli and finite-strain section behaviour), so
+            // a correct solver cannot meet it (docs/verification.md). At reduced size 5 %
+            // checks that the large-deflection path is right.
+            Metric::at_most(
+                CASE,
+                "tip_rel_error_vs_elastica",
+                rel(outcome.v, v_elastica).abs(),
                 match size {
                     Size::Full => 0.005,
                     Size::Reduced => 0.05,

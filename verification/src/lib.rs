@@ -12,6 +12,7 @@ pub mod column;
 pub mod dambreak;
 pub mod disk_collision;
 pub mod elastica;
+pub mod fe_beam;
 pub mod footing;
 pub mod granular;
 pub mod incline;
@@ -131,6 +132,14 @@ pub enum VerifyError {
     Output {
         /// File.
         path: PathBuf,
+        /// What went wrong.
+        msg: String,
+    },
+    /// A reference solution could not be computed.
+    #[error("{case}: reference solution failed: {msg}")]
+    Reference {
+        /// Case name.
+        case: String,
         /// What went wrong.
         msg: String,
     },
