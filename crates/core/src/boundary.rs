@@ -4,6 +4,7 @@ use crate::grid::Grid;
 use crate::scalar::Scalar;
 use crate::tensor::Vector;
 use serde::{Deserialize, Serialize};
+use std::ops::Range;
 
 /// What a wall does to the velocity `v` of a node on or beyond it (outward normal `n`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -101,15 +102,77 @@ impl Parity {
             }
         }
     }
+
+    /// `mirror[i] += image(ghost[i])` over a run (the parity chosen once per run).
+    #[inline]
+    fn fold_run<T: Scalar, const D: usize>(
+        self,
+        axis: usize,
+        ghost: &[Vector<T, D>],
+        mirror: &mut [Vector<T, D>],
+    ) {
+        match self {
+            Parity::AllOdd => mirror.iter_mut().zip(ghost).for_each(|(m, g)| *m -= g),
+            Parity::NormalOdd => mirror.iter_mut().zip(ghost).for_each(|(m, g)| {
+                *m += Parity::NormalOdd.image(axis, g);
+            }),
+        }
+    }
+
+    /// `ghost[i] = image(mirror[i])` over a run.
+    #[inline]
+    fn reflect_run<T: Scalar, const D: usize>(
+        self,
+        axis: usize,
+        ghost: &mut [Vector<T, D>],
+        mirror: &[Vector<T, D>],
+    ) {
+        match self {
+            Parity::AllOdd => ghost.iter_mut().zip(mirror).for_each(|(g, m)| *g = -m),
+            Parity::NormalOdd => ghost.iter_mut().zip(mirror).for_each(|(g, m)| {
+                *g = Parity::NormalOdd.image(axis, m);
+            }),
+        }
+    }
+}
+
+/// The runs `[ghost, ghost + len)` and `[mirror, mirror + len)` of `v`, which must not overlap.
+#[inline]
+fn two_runs<X>(v: &mut [X], ghost: usize, mirror: usize, len: usize) -> (&mut [X], &mut [X]) {
+    if ghost < mirror {
+        let (lo, hi) = v.split_at_mut(mirror);
+        (&mut lo[ghost..ghost + len], &mut hi[..len])
+    } else {
+        let (lo, hi) = v.split_at_mut(ghost);
+        (&mut hi[..len], &mut lo[mirror..mirror + len])
+    }
 }
 
 impl<const D: usize> Boundary<D> {
-    /// Calls `f(ghost, mirror, axis, parity)` for every ghost node beyond a bilateral wall
-    /// (`fixed`, `slip`, non-separable `no_slip`) and its mirror image across the face, axis
-    /// by axis (so corner ghosts compose the reflections).
-    fn for_each_ghost(&self, grid: &Grid<D>, mut f: impl FnMut(usize, usize, usize, Parity)) {
-        let nodes = grid.nodes();
+    /// Calls `f(ghost, mirror, len, axis, parity)` for every run of `len` consecutive ghost
+    /// nodes `ghost..ghost + len` beyond a bilateral wall (`fixed`, `slip`, non-separable
+    /// `no_slip`) that lies in the flat node range `nodes`, with the run of their mirror
+    /// images across the face, `mirror..mirror + len`; axis by axis (so corner ghosts compose
+    /// the reflections). A layer normal to `axis` is `outer` runs of `stride` nodes (`stride`
+    /// the product of the node counts below `axis`, `outer` of those above), visited in flat
+    /// order; the ghost's and the mirror's runs are the same run shifted along `axis`, so they
+    /// never overlap. Over a sub-range the calls are those of the whole grid that meet it, in
+    /// the same order.
+    fn for_each_ghost(
+        &self,
+        grid: &Grid<D>,
+        nodes: Range<usize>,
+        mut f: impl FnMut(usize, usize, usize, usize, Parity),
+    ) {
+        if nodes.is_empty() {
+            return;
+        }
+        let counts = grid.nodes();
         for axis in 0..D {
+            let stride: usize = counts[..axis].iter().product();
+            let plane = stride * counts[axis];
+            // The layers (runs of the same `o`) the range meets.
+            let outer = nodes.start / plane..=(nodes.end - 1) / plane;
             for side in 0..2 {
                 let wall = self.walls[axis][side];
                 let parity = match wall.kind {
@@ -123,27 +186,27 @@ impl<const D: usize> Boundary<D> {
                 } else {
                     grid.pad + grid.cells[axis]
                 };
-                let layer: usize = (0..D).filter(|&a| a != axis).map(|a| nodes[a]).product();
                 for k in 1..=grid.pad {
                     let (ghost, mirror) = if side == 0 {
                         (face - k, face + k)
                     } else {
                         (face + k, face - k)
                     };
-                    if ghost >= nodes[axis] || mirror >= nodes[axis] {
+                    if ghost >= counts[axis] || mirror >= counts[axis] {
                         continue;
                     }
-                    for r in 0..layer {
-                        let mut rest = r;
-                        let mut idx = [0usize; D];
-                        for a in (0..D).filter(|&a| a != axis) {
-                            idx[a] = rest % nodes[a];
-                            rest /= nodes[a];
+                    for o in outer.clone() {
+                        let run = o * plane + ghost * stride;
+                        let (lo, hi) = (run.max(nodes.start), (run + stride).min(nodes.end));
+                        if lo < hi {
+                            f(
+                                lo,
+                                lo - run + o * plane + mirror * stride,
+                                hi - lo,
+                                axis,
+                                parity,
+                            );
                         }
-                        idx[axis] = mirror;
-                        let m = grid.flat(idx);
-                        idx[axis] = ghost;
-                        f(grid.flat(idx), m, axis, parity);
                     }
                 }
             }
@@ -162,20 +225,38 @@ impl<const D: usize> Boundary<D> {
     pub fn fold_ghosts<T: Scalar>(
         &self,
         grid: &Grid<D>,
+        mass: Option<&mut [T]>,
+        momentum: &mut [Vector<T, D>],
+        force: Option<&mut [Vector<T, D>]>,
+    ) {
+        self.fold_ghosts_in(grid, 0..grid.num_nodes(), mass, momentum, force);
+    }
+
+    /// [`Boundary::fold_ghosts`] on the flat node range `nodes` only: the slices hold those
+    /// nodes (entry `n − nodes.start` for node `n`), and the range must hold the mirror of
+    /// every ghost in it (whole layers across each bilateral wall: see
+    /// [`Boundary::mirror_layers`]). Gives the bits the whole-grid fold gives on those nodes,
+    /// so disjoint closed ranges can be folded in parallel.
+    pub fn fold_ghosts_in<T: Scalar>(
+        &self,
+        grid: &Grid<D>,
+        nodes: Range<usize>,
         mut mass: Option<&mut [T]>,
         momentum: &mut [Vector<T, D>],
         mut force: Option<&mut [Vector<T, D>]>,
     ) {
-        self.for_each_ghost(grid, |g, m, axis, parity| {
+        let start = nodes.start;
+        self.for_each_ghost(grid, nodes, |g, m, len, axis, parity| {
+            let (g, m) = (g - start, m - start);
             if let Some(mass) = mass.as_deref_mut() {
-                let mg = mass[g];
-                mass[m] += mg;
+                let (ghost, mirror) = two_runs(mass, g, m, len);
+                mirror.iter_mut().zip(ghost).for_each(|(m, g)| *m += *g);
             }
-            let pg = parity.image(axis, &momentum[g]);
-            momentum[m] += pg;
+            let (ghost, mirror) = two_runs(momentum, g, m, len);
+            parity.fold_run(axis, ghost, mirror);
             if let Some(f) = force.as_deref_mut() {
-                let fg = parity.image(axis, &f[g]);
-                f[m] += fg;
+                let (ghost, mirror) = two_runs(f, g, m, len);
+                parity.fold_run(axis, ghost, mirror);
             }
         });
     }
@@ -184,9 +265,42 @@ impl<const D: usize> Boundary<D> {
     /// (see [`Boundary::fold_ghosts`]), so particles near a wall interpolate the
     /// symmetric field.
     pub fn reflect_ghosts<T: Scalar>(&self, grid: &Grid<D>, v: &mut [Vector<T, D>]) {
-        self.for_each_ghost(grid, |g, m, axis, parity| {
-            v[g] = parity.image(axis, &v[m]);
+        self.reflect_ghosts_in(grid, 0..grid.num_nodes(), v);
+    }
+
+    /// [`Boundary::reflect_ghosts`] on the flat node range `nodes` only, under the conditions
+    /// of [`Boundary::fold_ghosts_in`].
+    pub fn reflect_ghosts_in<T: Scalar>(
+        &self,
+        grid: &Grid<D>,
+        nodes: Range<usize>,
+        v: &mut [Vector<T, D>],
+    ) {
+        let start = nodes.start;
+        self.for_each_ghost(grid, nodes, |g, m, len, axis, parity| {
+            let (ghost, mirror) = two_runs(v, g - start, m - start, len);
+            parity.reflect_run(axis, ghost, mirror);
         });
+    }
+
+    /// Per axis, how many node layers at the (lower, upper) end the ghost folds and
+    /// reflections of a bilateral wall reach: the `pad` ghost layers, the face and the `pad`
+    /// mirror layers inside it, `2·pad + 1` (at most the node count); 0 where the wall is free
+    /// or separable. A range of whole grid rows is closed under the mirror maps (as
+    /// [`Boundary::fold_ghosts_in`] needs) when, along every axis above 0, it holds either all
+    /// of such an end's layers or none of them (for the same indices along the other axes).
+    pub fn mirror_layers(&self, grid: &Grid<D>) -> [[usize; 2]; D] {
+        let nodes = grid.nodes();
+        std::array::from_fn(|a| {
+            std::array::from_fn(|side| {
+                let w = self.walls[a][side];
+                if w.kind != WallKind::Free && !w.separable {
+                    (2 * grid.pad + 1).min(nodes[a])
+                } else {
+                    0
+                }
+            })
+        })
     }
 }
 
@@ -247,5 +361,105 @@ mod tests {
         let mut v = Vector::<f64, 2>::new(0.3, 0.2);
         b.apply(&g, [4, 2], &mut v);
         assert_eq!(v, Vector::<f64, 2>::new(0.3, 0.2));
+    }
+
+    /// The ghost/mirror pairs of `b` on `g`, in visiting order, enumerated naively by
+    /// multi-index: the layers normal to each bilateral wall, the other axes lowest fastest.
+    fn reference_pairs<const D: usize>(
+        b: &Boundary<D>,
+        g: &Grid<D>,
+    ) -> Vec<(usize, usize, usize, Parity)> {
+        let nodes = g.nodes();
+        let mut expected = Vec::new();
+        for axis in 0..D {
+            let others: Vec<usize> = (0..D).filter(|&a| a != axis).collect();
+            let layer: usize = others.iter().map(|&a| nodes[a]).product();
+            for side in 0..2 {
+                let wall = b.walls[axis][side];
+                if wall.kind == WallKind::Free || wall.separable {
+                    continue;
+                }
+                let parity = if wall.kind == WallKind::Slip {
+                    Parity::NormalOdd
+                } else {
+                    Parity::AllOdd
+                };
+                let face = g.pad + side * g.cells[axis];
+                for k in 1..=g.pad {
+                    let (gh, m) = if side == 0 {
+                        (face - k, face + k)
+                    } else {
+                        (face + k, face - k)
+                    };
+                    for r in 0..layer {
+                        let (mut idx, mut rest) = ([0; D], r);
+                        for &a in &others {
+                            idx[a] = rest % nodes[a];
+                            rest /= nodes[a];
+                        }
+                        idx[axis] = m;
+                        let mf = g.flat(idx);
+                        idx[axis] = gh;
+                        expected.push((g.flat(idx), mf, axis, parity));
+                    }
+                }
+            }
+        }
+        expected
+    }
+
+    /// The ghost/mirror runs, expanded node by node, are the naive pairs in the same order.
+    #[test]
+    fn ghosts_pair_with_their_mirror_images_in_flat_order() {
+        let g = Grid::<3>::new([0.0; 3], [4, 5, 6], 0.5, 2);
+        let mut b = Boundary::<3>::all(Wall::new(WallKind::Slip));
+        b.walls[0][1] = Wall::new(WallKind::Free);
+        b.walls[1][0] = Wall::new(WallKind::Fixed);
+        b.walls[2][1] = Wall {
+            kind: WallKind::NoSlip,
+            separable: true,
+        };
+        let mut seen = Vec::new();
+        b.for_each_ghost(&g, 0..g.num_nodes(), |gh, m, len, axis, parity| {
+            seen.extend((0..len).map(|i| (gh + i, m + i, axis, parity)));
+        });
+        // pad × (x_min layer + y_min and y_max layers + z_min layer).
+        assert_eq!(seen.len(), 2 * (10 * 11 + 2 * 9 * 11 + 9 * 10));
+        assert_eq!(seen, reference_pairs(&b, &g));
+    }
+
+    /// Folding and reflecting by runs give the bits of the node-by-node definitions.
+    #[test]
+    fn fold_and_reflect_match_the_node_by_node_definitions() {
+        let g = Grid::<2>::new([0.0; 2], [5, 4], 0.5, 2);
+        let mut b = Boundary::<2>::all(Wall::new(WallKind::Slip));
+        b.walls[0][1] = Wall::new(WallKind::Fixed);
+        b.walls[1][1] = Wall::new(WallKind::Free);
+        let n = g.num_nodes();
+        let val = |i: usize, c: usize| ((i * 7 + c * 3) % 11) as f64 * 0.37 - 1.1;
+        let mass: Vec<f64> = (0..n).map(|i| val(i, 5).abs()).collect();
+        let mom: Vec<Vector<f64, 2>> = (0..n)
+            .map(|i| Vector::<f64, 2>::new(val(i, 0), val(i, 1)))
+            .collect();
+        let force: Vec<Vector<f64, 2>> = (0..n)
+            .map(|i| Vector::<f64, 2>::new(val(i, 2), val(i, 3)))
+            .collect();
+        let (mut m1, mut p1, mut f1) = (mass.clone(), mom.clone(), force.clone());
+        b.fold_ghosts(&g, Some(&mut m1), &mut p1, Some(&mut f1));
+        let (mut m0, mut p0, mut f0) = (mass, mom, force);
+        for (gh, m, axis, parity) in reference_pairs(&b, &g) {
+            m0[m] += m0[gh];
+            let pg = parity.image(axis, &p0[gh]);
+            p0[m] += pg;
+            let fg = parity.image(axis, &f0[gh]);
+            f0[m] += fg;
+        }
+        assert_eq!((&m1, &p1, &f1), (&m0, &p0, &f0));
+        let mut v1 = p1.clone();
+        b.reflect_ghosts(&g, &mut v1);
+        for (gh, m, axis, parity) in reference_pairs(&b, &g) {
+            p0[gh] = parity.image(axis, &p0[m]);
+        }
+        assert_eq!(v1, p0);
     }
 }

@@ -27,21 +27,25 @@ impl<const D: usize> Grid<D> {
     }
 
     /// Upper corner of the physical domain, `lo + cells·h`.
+    #[inline]
     pub fn hi(&self) -> [f64; D] {
         std::array::from_fn(|a| self.lo[a] + self.cells[a] as f64 * self.h)
     }
 
     /// Position of node 0 (the first ghost node), `lo − pad·h`.
+    #[inline]
     pub fn origin(&self) -> [f64; D] {
         std::array::from_fn(|a| self.lo[a] - self.pad as f64 * self.h)
     }
 
     /// Number of nodes along each axis, `cells + 2·pad + 1`.
+    #[inline]
     pub fn nodes(&self) -> [usize; D] {
         std::array::from_fn(|a| self.cells[a] + 2 * self.pad + 1)
     }
 
     /// Total number of nodes.
+    #[inline]
     pub fn num_nodes(&self) -> usize {
         self.nodes().iter().product()
     }

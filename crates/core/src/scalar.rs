@@ -22,6 +22,10 @@ pub trait Scalar: RealField + Copy + Send + Sync + Debug + 'static {
     fn re(&self) -> f64;
     /// `true` when the real part and every derivative lane are finite.
     fn is_finite_all(&self) -> bool;
+    /// `true` when every derivative lane is zero (always for `f32` and `f64`): the value is the
+    /// plain number [`Scalar::re`], so a kernel may take a shortcut that is exact for that
+    /// number only (an integer power, a skipped zero term) without losing a derivative.
+    fn is_constant(&self) -> bool;
 }
 
 impl Scalar for f64 {
@@ -36,6 +40,10 @@ impl Scalar for f64 {
     #[inline(always)]
     fn is_finite_all(&self) -> bool {
         self.is_finite()
+    }
+    #[inline(always)]
+    fn is_constant(&self) -> bool {
+        true
     }
 }
 
@@ -52,6 +60,10 @@ impl Scalar for f32 {
     fn is_finite_all(&self) -> bool {
         self.is_finite()
     }
+    #[inline(always)]
+    fn is_constant(&self) -> bool {
+        true
+    }
 }
 
 impl Scalar for Dual64 {
@@ -66,6 +78,10 @@ impl Scalar for Dual64 {
     #[inline(always)]
     fn is_finite_all(&self) -> bool {
         self.re.is_finite() && self.eps.is_finite()
+    }
+    #[inline(always)]
+    fn is_constant(&self) -> bool {
+        self.eps == 0.0
     }
 }
 
@@ -86,6 +102,13 @@ impl<const N: usize> Scalar for DualSVec64<N> {
                 .0
                 .as_ref()
                 .is_none_or(|e| e.iter().all(|x| x.is_finite()))
+    }
+    #[inline(always)]
+    fn is_constant(&self) -> bool {
+        self.eps
+            .0
+            .as_ref()
+            .is_none_or(|e| e.iter().all(|&x| x == 0.0))
     }
 }
 
@@ -122,5 +145,15 @@ mod tests {
         assert!(!Dual64::new(1.0, f64::NAN).is_finite_all());
         assert!(Dual64::new(1.0, 2.0).is_finite_all());
         assert!(!f32::INFINITY.is_finite_all());
+    }
+
+    #[test]
+    fn constants_have_no_derivative_lane() {
+        assert!(7.0f64.is_constant() && 7.0f32.is_constant());
+        assert!(Dual64::cst(7.0).is_constant());
+        assert!(!Dual64::new(7.0, 1.0).is_constant());
+        assert!(!Dual64::new(0.0, 1.0).is_constant());
+        assert!(DualSVec64::<3>::cst(7.0).is_constant());
+        assert!(!DualSVec64::<3>::from_re(7.0).derivative(2).is_constant());
     }
 }

@@ -49,42 +49,61 @@ impl Transfer {
     }
 }
 
-/// Calls `sink(index, m_ip, p_ip, f_ip)` with one particle's mass, momentum and internal force
-/// contributions to each node of its stencil (see the module docs for the formulas); `index` is
-/// the node's entry in an array of the given `layout`. `stress_volume = V_p σ_p` (the in-plane
-/// block in 2D); `affine` is `C_p` or `None`.
+/// Adds one particle's mass, momentum and internal force contributions to the nodes of its
+/// stencil: `add(&mut nodes[index], m_ip, p_ip, f_ip)` for every stencil node, `index` its
+/// entry in an array of the given `layout` (see the module docs for the formulas).
+/// `stress_volume = V_p σ_p` (the in-plane block in 2D); `affine` is `C_p` or `None`.
 ///
 /// Evaluated row by row ([`Stencil::for_each_row`]): with `m v_p`, `m C_p` and `−V σ` formed
 /// once, the parts of `m v_p + m C_p (x_i − x_p)` and `−V σ ∇w` along the axes above 0 once per
-/// row, a node adds only its axis-0 terms.
+/// row, a node adds only its axis-0 terms. A row is one slice of `nodes`, so its `b` entries
+/// are reached with a single bounds check.
 #[inline(always)]
-pub fn p2g<T: Scalar, const D: usize>(
+pub fn p2g<T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
     stress_volume: &Tensor<T, D>,
-    sink: impl FnMut(usize, T, Vector<T, D>, Vector<T, D>),
+    nodes: &mut [X],
+    add: impl FnMut(&mut X, T, Vector<T, D>, Vector<T, D>),
 ) {
     let (l, sv) = (layout, stress_volume);
     match stencil.width() {
-        2 => p2g_rows::<2, T, D>(stencil, l, v, affine, mass, sv, sink),
-        3 => p2g_rows::<3, T, D>(stencil, l, v, affine, mass, sv, sink),
-        _ => p2g_rows::<4, T, D>(stencil, l, v, affine, mass, sv, sink),
+        2 => p2g_rows::<2, T, D, X>(stencil, l, v, affine, mass, sv, nodes, add),
+        3 => p2g_rows::<3, T, D, X>(stencil, l, v, affine, mass, sv, nodes, add),
+        _ => p2g_rows::<4, T, D, X>(stencil, l, v, affine, mass, sv, nodes, add),
     }
+}
+
+/// The `B` entries of `nodes` from `index` (one bounds check for a row of a stencil).
+#[inline(always)]
+fn row_mut<const B: usize, X>(nodes: &mut [X], index: usize) -> &mut [X; B] {
+    (&mut nodes[index..index + B])
+        .try_into()
+        .expect("a stencil row has b nodes")
+}
+
+/// The `B` entries of `nodes` from `index`, read only.
+#[inline(always)]
+fn row_ref<const B: usize, X>(nodes: &[X], index: usize) -> &[X; B] {
+    nodes[index..index + B]
+        .try_into()
+        .expect("a stencil row has b nodes")
 }
 
 /// [`p2g`] for stencils of width `B` (a constant, so the node loop of a row unrolls).
 #[inline(always)]
-fn p2g_rows<const B: usize, T: Scalar, const D: usize>(
+fn p2g_rows<const B: usize, T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
     stress_volume: &Tensor<T, D>,
-    mut sink: impl FnMut(usize, T, Vector<T, D>, Vector<T, D>),
+    nodes: &mut [X],
+    mut add: impl FnMut(&mut X, T, Vector<T, D>, Vector<T, D>),
 ) {
     let mv = v * mass;
     let mc = affine.map_or_else(Tensor::zeros, |c| c * mass);
@@ -102,8 +121,8 @@ fn p2g_rows<const B: usize, T: Scalar, const D: usize>(
             }
             for i in 0..B {
                 let w = w0[i] * row.weight;
-                sink(
-                    row.index + i,
+                add(
+                    &mut nodes[row.index + i],
                     mass * w,
                     (p_row + mc0 * o0[i]) * w,
                     nsv0 * (dw0[i] * row.weight) + f_row * w0[i],
@@ -113,33 +132,36 @@ fn p2g_rows<const B: usize, T: Scalar, const D: usize>(
     );
 }
 
-/// Calls `sink(index, m_ip, p_ip)` for the momentum-only transfer of MUSL's second P2G
-/// (`index` as in [`p2g`], evaluated row by row in the same way).
+/// The momentum-only transfer of MUSL's second P2G: `add(&mut nodes[index], m_ip, p_ip)` for
+/// every stencil node (`index` as in [`p2g`], evaluated row by row in the same way).
 #[inline(always)]
-pub fn p2g_momentum<T: Scalar, const D: usize>(
+pub fn p2g_momentum<T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
-    sink: impl FnMut(usize, T, Vector<T, D>),
+    nodes: &mut [X],
+    add: impl FnMut(&mut X, T, Vector<T, D>),
 ) {
+    let (l, n) = (layout, nodes);
     match stencil.width() {
-        2 => p2g_momentum_rows::<2, T, D>(stencil, layout, v, affine, mass, sink),
-        3 => p2g_momentum_rows::<3, T, D>(stencil, layout, v, affine, mass, sink),
-        _ => p2g_momentum_rows::<4, T, D>(stencil, layout, v, affine, mass, sink),
+        2 => p2g_momentum_rows::<2, T, D, X>(stencil, l, v, affine, mass, n, add),
+        3 => p2g_momentum_rows::<3, T, D, X>(stencil, l, v, affine, mass, n, add),
+        _ => p2g_momentum_rows::<4, T, D, X>(stencil, l, v, affine, mass, n, add),
     }
 }
 
 /// [`p2g_momentum`] for stencils of width `B`.
 #[inline(always)]
-fn p2g_momentum_rows<const B: usize, T: Scalar, const D: usize>(
+fn p2g_momentum_rows<const B: usize, T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
     affine: Option<&Tensor<T, D>>,
     mass: T,
-    mut sink: impl FnMut(usize, T, Vector<T, D>),
+    nodes: &mut [X],
+    mut add: impl FnMut(&mut X, T, Vector<T, D>),
 ) {
     let mv = v * mass;
     let mc = affine.map_or_else(Tensor::zeros, |c| c * mass);
@@ -153,9 +175,10 @@ fn p2g_momentum_rows<const B: usize, T: Scalar, const D: usize>(
             for c in 1..D {
                 p_row += mc.column(c) * row.offset[c];
             }
+            let dst = row_mut::<B, X>(nodes, row.index);
             for i in 0..B {
                 let w = w0[i] * row.weight;
-                sink(row.index + i, mass * w, (p_row + mc0 * o0[i]) * w);
+                add(&mut dst[i], mass * w, (p_row + mc0 * o0[i]) * w);
             }
         },
     );
@@ -174,15 +197,15 @@ pub struct Gathered<T: Scalar, const D: usize> {
     pub affine: Tensor<T, D>,
 }
 
-/// Gathers the grid velocity field at a particle. `velocity(index)` returns the updated nodal
-/// velocity of the node with entry `index` in `layout` and `old(index)` its velocity at the
-/// start of the step (FLIP only). The velocity gradient [`Gathered::grad_v`] is formed when
-/// `gradient` is set or when the affine matrix is the gradient (TPIC, and APIC with the hat
-/// and GIMP); otherwise it is left zero.
+/// Gathers the grid velocity field at a particle. `velocity[index]` is the updated nodal
+/// velocity of the node with entry `index` in `layout` and `old[index]` its velocity at the
+/// start of the step (read by FLIP only; pass an empty slice otherwise). The velocity gradient
+/// [`Gathered::grad_v`] is formed when `gradient` is set or when the affine matrix is the
+/// gradient (TPIC, and APIC with the hat and GIMP); otherwise it is left zero.
 ///
 /// Evaluated row by row ([`Stencil::for_each_row`]): a row sums `Σ_i N_i v_i`,
 /// `Σ_i N_i o_i v_i` and `Σ_i N'_i v_i` over its nodes (axis-0 factors only) and multiplies
-/// the sums by the row's factors once.
+/// the sums by the row's factors once. A row is one slice of `velocity` (one bounds check).
 #[inline(always)]
 pub fn g2p<T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
@@ -191,8 +214,8 @@ pub fn g2p<T: Scalar, const D: usize>(
     shape: Shape,
     transfer: Transfer,
     gradient: bool,
-    velocity: impl Fn(usize) -> Vector<T, D>,
-    old: impl Fn(usize) -> Vector<T, D>,
+    velocity: &[Vector<T, D>],
+    old: &[Vector<T, D>],
 ) -> Gathered<T, D> {
     let (l, t, g) = (layout, transfer, gradient);
     match stencil.width() {
@@ -211,8 +234,8 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
     shape: Shape,
     transfer: Transfer,
     gradient: bool,
-    velocity: impl Fn(usize) -> Vector<T, D>,
-    old: impl Fn(usize) -> Vector<T, D>,
+    velocity: &[Vector<T, D>],
+    old: &[Vector<T, D>],
 ) -> Gathered<T, D> {
     let mut out = Gathered {
         v: Vector::zeros(),
@@ -239,9 +262,10 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
                 Vector::<T, D>::zeros(),
                 Vector::<T, D>::zeros(),
             );
+            let v_row = row_ref::<B, _>(velocity, row.index);
+            let old_row = flip.then(|| row_ref::<B, _>(old, row.index));
             for i in 0..B {
-                let index = row.index + i;
-                let vi = velocity(index);
+                let vi = v_row[i];
                 let nv = vi * w0[i];
                 s += nv;
                 if apic_b.is_some() {
@@ -250,8 +274,8 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
                 if want_grad {
                     sd += vi * dw0[i];
                 }
-                if flip {
-                    sf += (vi - old(index)) * w0[i];
+                if let Some(old_row) = old_row {
+                    sf += (vi - old_row[i]) * w0[i];
                 }
             }
             // Column 0 of Σ w v (x_i − x_p)ᵀ and Σ v ∇wᵀ comes from the axis-0 sums, the

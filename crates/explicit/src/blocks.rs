@@ -17,7 +17,7 @@
 
 use loam_core::stencil::Layout;
 use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Scalar, WallKind};
+use loam_core::{Boundary, Grid, Scalar};
 use rayon::prelude::*;
 
 /// Block edge in cells. Must be at least `b − 1` so a node is covered by at most two blocks
@@ -99,6 +99,9 @@ pub(crate) struct Blocks<T: Scalar, const D: usize> {
     /// Per axis, nodes always visited at the low and high ends (the mirror layers of bilateral
     /// walls: ghosts and the nodes they fold into, `2·pad + 1`), 0 where no wall mirrors.
     caps: [[usize; 2]; D],
+    /// The grid rows in groups closed under the ghost/mirror maps of the walls (half-open
+    /// row ranges, in order, covering every row once): see [`Blocks::groups`].
+    groups: Vec<Span>,
 }
 
 impl<T: Scalar, const D: usize> Blocks<T, D> {
@@ -111,16 +114,9 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
         let block_rows: usize = dims[1..].iter().product();
         // `fold_ghosts` / `reflect_ghosts` act beyond bilateral walls: on the `pad` ghost
         // layers and the `pad` layers inside the face that mirror them.
-        let caps = std::array::from_fn(|a| {
-            std::array::from_fn(|side| {
-                let w = boundary.walls[a][side];
-                if w.kind != WallKind::Free && !w.separable {
-                    (2 * grid.pad + 1).min(nodes[a])
-                } else {
-                    0
-                }
-            })
-        });
+        let caps = boundary.mirror_layers(grid);
+        let mut groups = Vec::new();
+        row_groups(&nodes, &caps, D - 1, 0, &mut groups);
         Self {
             dims,
             nodes,
@@ -137,7 +133,31 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
             span: vec![(0, 0); rows],
             prev_span: vec![(0, 0); rows],
             caps,
+            groups,
         }
+    }
+
+    /// The grid rows in groups, as half-open row ranges in order: a group holds, along every
+    /// axis above 0, either all the mirror layers at one end of a bilateral wall or none of
+    /// them (for fixed indices along the higher axes), so it is closed under the ghost/mirror
+    /// maps and [`loam_core::Boundary::fold_ghosts_in`] and
+    /// [`loam_core::Boundary::reflect_ghosts_in`] can act on it alone. Every other row is a
+    /// group of its own.
+    #[inline]
+    pub fn groups(&self) -> &[Span] {
+        &self.groups
+    }
+
+    /// `grid` (one entry per node) cut into the node ranges of the [groups](Blocks::groups).
+    pub fn split_groups<'a, X>(&self, mut grid: &'a mut [X]) -> Vec<&'a mut [X]> {
+        let n = self.row_len();
+        let mut out = Vec::with_capacity(self.groups.len());
+        for &(r0, r1) in &self.groups {
+            let (group, rest) = grid.split_at_mut((r1 - r0) * n);
+            out.push(group);
+            grid = rest;
+        }
+        out
     }
 
     /// Sort key of a particle whose stencil starts at node `base`: its block, or [`OFF_GRID`]
@@ -166,8 +186,10 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
         let total = self.slot.len();
         self.counts.clear();
         self.counts.resize(total + 1, 0);
-        for &k in keys {
-            self.counts[k as usize + 1] += 1;
+        // By runs of equal keys (consecutive particles mostly share a block): a counter is
+        // loaded and stored once per run, not once per particle through memory.
+        for run in keys.chunk_by(|a, b| a == b) {
+            self.counts[run[0] as usize + 1] += run.len() as u32;
         }
         for i in 1..self.counts.len() {
             self.counts[i] += self.counts[i - 1];
@@ -185,11 +207,20 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
         self.order.resize(keys.len(), 0);
         self.rank.resize(keys.len(), 0);
         self.cursor.clone_from(&self.counts);
-        for (p, &k) in keys.iter().enumerate() {
-            let s = self.cursor[k as usize];
-            self.order[s as usize] = p as u32;
-            self.rank[p] = s;
-            self.cursor[k as usize] += 1;
+        let (order, rank) = (&mut self.order, &mut self.rank);
+        let mut p = 0;
+        for run in keys.chunk_by(|a, b| a == b) {
+            let cursor = &mut self.cursor[run[0] as usize];
+            let s = *cursor as usize;
+            for (i, (o, r)) in order[s..s + run.len()]
+                .iter_mut()
+                .zip(&mut rank[p..p + run.len()])
+                .enumerate()
+            {
+                (*o, *r) = ((p + i) as u32, (s + i) as u32);
+            }
+            *cursor += run.len() as u32;
+            p += run.len();
         }
         let len = self.width.pow(D as u32);
         if self.buffers.len() < self.occupied.len() {
@@ -328,54 +359,41 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
         }
     }
 
-    /// Zeroes what the previous step left in the rows and sums the block buffers into the
-    /// visited nodes: mass, momentum and force (the grid arrays are zero elsewhere).
-    pub fn gather(
+    /// Zeroes what the previous step left in row `r` and sums the block buffers into its
+    /// visited nodes: mass, momentum and force (the grid arrays are zero elsewhere). The
+    /// slices are the row's entries.
+    pub fn gather_row(
         &self,
-        mass: &mut [T],
-        momentum: &mut [Vector<T, D>],
-        force: &mut [Vector<T, D>],
+        r: usize,
+        m: &mut [T],
+        p: &mut [Vector<T, D>],
+        f: &mut [Vector<T, D>],
     ) {
-        let n = self.row_len();
-        mass.par_chunks_mut(n)
-            .zip(momentum.par_chunks_mut(n))
-            .zip(force.par_chunks_mut(n))
-            .enumerate()
-            .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(r, ((m, p), f))| {
-                let (lo, hi) = self.prev_span[r];
-                m[lo..hi].fill(T::zero());
-                p[lo..hi].fill(Vector::zeros());
-                f[lo..hi].fill(Vector::zeros());
-                let sources = self.sources(r);
-                self.for_each_visited(r, |i| {
-                    let mut acc = Accum::zero();
-                    self.each_entry(&sources, i, |e| {
-                        acc.m += e.m;
-                        acc.p += e.p;
-                        acc.f += e.f;
-                    });
-                    (m[i], p[i], f[i]) = (acc.m, acc.p, acc.f);
-                });
+        let (lo, hi) = self.prev_span[r];
+        m[lo..hi].fill(T::zero());
+        p[lo..hi].fill(Vector::zeros());
+        f[lo..hi].fill(Vector::zeros());
+        let sources = self.sources(r);
+        self.for_each_visited(r, |i| {
+            let mut acc = Accum::zero();
+            self.each_entry(&sources, i, |e| {
+                acc.m += e.m;
+                acc.p += e.p;
+                acc.f += e.f;
             });
+            (m[i], p[i], f[i]) = (acc.m, acc.p, acc.f);
+        });
     }
 
-    /// Sums the momentum of the block buffers into the visited nodes (MUSL's second transfer,
-    /// after [`Blocks::gather`] in the same step).
-    pub fn gather_momentum(&self, momentum: &mut [Vector<T, D>]) {
-        let n = self.row_len();
-        momentum
-            .par_chunks_mut(n)
-            .enumerate()
-            .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(r, p)| {
-                let sources = self.sources(r);
-                self.for_each_visited(r, |i| {
-                    let mut acc = Vector::zeros();
-                    self.each_entry(&sources, i, |e| acc += e.p);
-                    p[i] = acc;
-                });
-            });
+    /// Sums the momentum of the block buffers into the visited nodes of row `r` (MUSL's
+    /// second transfer, after [`Blocks::gather_row`] in the same step).
+    pub fn gather_momentum_row(&self, r: usize, p: &mut [Vector<T, D>]) {
+        let sources = self.sources(r);
+        self.for_each_visited(r, |i| {
+            let mut acc = Vector::zeros();
+            self.each_entry(&sources, i, |e| acc += e.p);
+            p[i] = acc;
+        });
     }
 
     /// Runs `contribute(particle, layout, buffer, out)` for every particle, block by block in
@@ -415,6 +433,40 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
                     contribute(p as usize, &layout, buf, out);
                 }
             });
+    }
+}
+
+/// Appends to `out` the row groups (see [`Blocks::groups`]) of the rows whose indices along
+/// the axes above `axis` are fixed and whose first row is `first`: along `axis`, the mirror
+/// layers at each end make one group (all of them, when the two ends meet), and every index
+/// between them recurses to the axis below (a single row at axis 1).
+fn row_groups<const D: usize>(
+    nodes: &[usize; D],
+    caps: &[[usize; 2]; D],
+    axis: usize,
+    first: usize,
+    out: &mut Vec<Span>,
+) {
+    if axis == 0 {
+        out.push((first, first + 1));
+        return;
+    }
+    // Rows per unit step along `axis`.
+    let stride: usize = nodes[1..axis].iter().product();
+    let n = nodes[axis];
+    let [lo, hi] = caps[axis];
+    if lo + hi >= n {
+        out.push((first, first + n * stride));
+        return;
+    }
+    if lo > 0 {
+        out.push((first, first + lo * stride));
+    }
+    for i in lo..n - hi {
+        row_groups(nodes, caps, axis - 1, first + i * stride, out);
+    }
+    if hi > 0 {
+        out.push((first + (n - hi) * stride, first + n * stride));
     }
 }
 
@@ -481,7 +533,15 @@ mod tests {
                     }
                 },
             );
-            blocks.gather(&mut mass, &mut mom, &mut force);
+            let row = grid.nodes()[0];
+            for (r, ((m, p), f)) in mass
+                .chunks_mut(row)
+                .zip(mom.chunks_mut(row))
+                .zip(force.chunks_mut(row))
+                .enumerate()
+            {
+                blocks.gather_row(r, m, p, f);
+            }
             let mut dense = vec![(0.0, 0.0); n];
             for (p, base) in bases.iter().enumerate() {
                 for l in 0..b.pow(D as u32) {
@@ -500,6 +560,62 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Folding and reflecting group by group gives the bits of the whole-grid fold and
+    /// reflection, and the groups cover every row once, in order.
+    fn check_groups<const D: usize>(cells: [usize; D], walls: [[Wall; 2]; D]) {
+        let grid = Grid::<D>::new([0.0; D], cells, 1.0, 2);
+        let boundary = Boundary { walls };
+        let blocks = Blocks::<f64, D>::new(&grid, 3, &boundary);
+        let n = grid.num_nodes();
+        let row = grid.nodes()[0];
+        let mut next = 0;
+        for &(r0, r1) in blocks.groups() {
+            assert!(r0 == next && r1 > r0, "groups {:?}", blocks.groups());
+            next = r1;
+        }
+        assert_eq!(next * row, n);
+        let mut seed = 11 + D as u64;
+        let mut random = |_| Vector::<f64, D>::from_fn(|_, _| rng(&mut seed) - 0.5);
+        let p0: Vec<Vector<f64, D>> = (0..n).map(&mut random).collect();
+        let f0: Vec<Vector<f64, D>> = (0..n).map(&mut random).collect();
+        let m0: Vec<f64> = (0..n).map(|i| (i % 7) as f64 + 0.25).collect();
+        let (mut m1, mut p1, mut f1) = (m0.clone(), p0.clone(), f0.clone());
+        boundary.fold_ghosts(&grid, Some(&mut m1), &mut p1, Some(&mut f1));
+        boundary.reflect_ghosts(&grid, &mut p1);
+        let (mut m2, mut p2, mut f2) = (m0, p0, f0);
+        for (((m, p), f), &(r0, r1)) in blocks
+            .split_groups(&mut m2)
+            .into_iter()
+            .zip(blocks.split_groups(&mut p2))
+            .zip(blocks.split_groups(&mut f2))
+            .zip(blocks.groups())
+        {
+            let nodes = r0 * row..r1 * row;
+            boundary.fold_ghosts_in(&grid, nodes.clone(), Some(m), p, Some(f));
+            boundary.reflect_ghosts_in(&grid, nodes, p);
+        }
+        assert_eq!((m1, p1, f1), (m2, p2, f2));
+    }
+
+    #[test]
+    fn group_by_group_folds_give_the_whole_grid_bits() {
+        let (slip, fixed, free) = (
+            Wall::new(WallKind::Slip),
+            Wall::new(WallKind::Fixed),
+            Wall::new(WallKind::Free),
+        );
+        let separable = Wall {
+            kind: WallKind::Slip,
+            separable: true,
+        };
+        check_groups::<2>([9, 7], [[slip, fixed], [separable, slip]]);
+        check_groups::<2>([9, 7], [[free, slip], [slip, free]]);
+        // Mirror layers that meet (2·(2·pad + 1) ≥ nodes): one group along that axis.
+        check_groups::<2>([3, 3], [[slip, slip], [fixed, slip]]);
+        check_groups::<3>([6, 7, 8], [[slip, fixed], [slip, separable], [fixed, slip]]);
+        check_groups::<3>([5, 6, 4], [[free, slip], [slip, slip], [free, free]]);
     }
 
     #[test]

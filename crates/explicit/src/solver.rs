@@ -61,28 +61,29 @@ struct Kernel<T: Scalar, const D: usize> {
     c: Tensor<T, D>,
 }
 
-/// What [`Solver::locate`] finds: the stability bound `(h/(c + |v|), particle, c, |v|)`, the
-/// largest particle mass and whether a stencil leaves the grid.
+/// What [`Solver::locate`] finds: the largest `c_p + |v_p|` (wave speed plus speed; the
+/// stability bound is `h` over it), the largest particle mass and whether a stencil leaves
+/// the grid.
 #[derive(Clone, Copy, Debug)]
 struct Located {
-    limit: (f64, usize, f64, f64),
+    max_rate: f64,
     max_mass: f64,
     off_grid: bool,
 }
 
 impl Located {
     const NONE: Self = Self {
-        limit: (f64::INFINITY, usize::MAX, 0.0, 0.0),
+        max_rate: 0.0,
         max_mass: 0.0,
         off_grid: false,
     };
 
     /// Both parts together (associative and commutative, so any split gives the same result;
-    /// bound ties go to the lowest id).
+    /// `f64::max` passes over a NaN).
     #[inline(always)]
     fn join(a: Self, b: Self) -> Self {
         Self {
-            limit: lower_limit(a.limit, b.limit),
+            max_rate: a.max_rate.max(b.max_rate),
             max_mass: a.max_mass.max(b.max_mass),
             off_grid: a.off_grid || b.off_grid,
         }
@@ -171,14 +172,23 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(particles.material.par_iter())
             .enumerate()
             .map(|(p, (v, &m))| self.particle_limit(p, v, m))
-            .reduce(|| Located::NONE.limit, lower_limit)
+            .reduce(|| (f64::INFINITY, usize::MAX, 0.0, 0.0), lower_limit)
     }
 
-    fn choose_dt(&self, bound: (f64, usize, f64, f64), cap: f64) -> Result<f64, StepError> {
-        let (limit, particle, wave_speed, speed) = bound;
+    /// The step size under the stability bound `limit` and the cap. The bound is
+    /// `h / max_p (c_p + |v_p|)`, which is `min_p h / (c_p + |v_p|)` exactly (a division by a
+    /// positive number does not increase as the divisor grows, also after rounding); the
+    /// particle that sets it is looked up only for the error.
+    fn choose_dt(
+        &self,
+        limit: f64,
+        cap: f64,
+        particles: &Particles<T, D>,
+    ) -> Result<f64, StepError> {
         let dt = match self.config.time_step {
             TimeStep::Fixed { dt } => {
                 if dt > limit {
+                    let (limit, particle, wave_speed, speed) = self.stability_limit(particles);
                     return Err(StepError::TimeStepTooLarge {
                         step: self.steps + 1,
                         time: self.time,
@@ -215,7 +225,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         max_dt: f64,
     ) -> Result<StepInfo, StepError> {
         let located = self.locate(particles);
-        let dt = self.choose_dt(located.limit, max_dt)?;
+        let limit = self.config.grid.h / located.max_rate;
+        let dt = self.choose_dt(limit, max_dt, particles)?;
         if located.off_grid {
             return Err(self.left_grid(particles));
         }
@@ -267,16 +278,18 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(p.x.par_iter())
             .zip(p.v.par_iter())
             .zip(p.material.par_iter().zip(p.mass.par_iter()))
-            .enumerate()
             .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(|(i, (((key, x), v), (&material, mass)))| {
-                *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, x));
-                Located {
-                    limit: self.particle_limit(i, v, material),
-                    max_mass: mass.re(),
-                    off_grid: *key == OFF_GRID,
-                }
-            })
+            .map(
+                #[inline(always)]
+                |(((key, x), v), (&material, mass))| {
+                    *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, x));
+                    Located {
+                        max_rate: self.wave_speed[material as usize] + v.map(|x| x.re()).norm(),
+                        max_mass: mass.re(),
+                        off_grid: *key == OFF_GRID,
+                    }
+                },
+            )
             .reduce(|| Located::NONE, Located::join);
         self.keys = keys;
         located
@@ -315,6 +328,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         self.blocks.for_each_block(
             &mut self.kernels,
             |e| *e = Accum::zero(),
+            #[inline(always)]
             |i, layout, buf, kernel| {
                 let hw = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
                 kernel.stencil.set(cfg.shape, &cfg.grid, &p.x[i], &hw);
@@ -329,9 +343,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     c,
                     p.mass[i],
                     &sv,
+                    buf,
                     #[inline(always)]
-                    |n, m, mom, f| {
-                        let e = &mut buf[n];
+                    |e, m, mom, f| {
                         e.m += m;
                         e.p += mom;
                         e.f += f;
@@ -349,48 +363,54 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let has_contact = !contact.is_empty();
         // Contact acts at the end of the step, when the grid velocity is reached.
         let time = self.time + dt;
-        // Gather the block buffers: momentum goes to `velocity_old`, force to `velocity`
-        // until the velocities are formed below.
-        self.blocks
-            .gather(&mut self.mass, &mut self.velocity_old, &mut self.velocity);
-        boundary.fold_ghosts(
-            grid,
-            Some(&mut self.mass),
-            &mut self.velocity_old,
-            Some(&mut self.velocity),
-        );
         let dtt = T::cst(dt);
+        let flip = self.config.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
-        self.mass
-            .par_chunks(n)
-            .zip(self.velocity_old.par_chunks_mut(n))
-            .zip(self.velocity.par_chunks_mut(n))
-            .enumerate()
+        // One pass over the row groups (closed under the wall mirrors): gather the block
+        // buffers (momentum into `velocity_old`, force into `velocity` until the velocities
+        // are formed), fold the ghosts, update the velocities, reflect them into the ghosts.
+        blocks
+            .split_groups(&mut self.mass)
+            .into_par_iter()
+            .zip(blocks.split_groups(&mut self.velocity_old))
+            .zip(blocks.split_groups(&mut self.velocity))
+            .zip(blocks.groups().par_iter())
             .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(r, ((m, v_old), v))| {
-                let mut node = blocks.row_node(r);
-                blocks.for_each_visited(r, |i| {
-                    let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
-                    if m.re() > floor {
-                        *v_old /= m;
-                        *v = *v_old + (*v / m + gravity) * dtt;
-                        node[0] = i;
-                        if has_contact {
-                            contact.apply(grid, node, time, v, true);
+            .for_each(|(((m, v_old), v), &(r0, r1))| {
+                let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
+                for r in r0..r1 {
+                    let at = rows(r);
+                    blocks.gather_row(r, &mut m[at.clone()], &mut v_old[at.clone()], &mut v[at]);
+                }
+                let nodes = r0 * n..r1 * n;
+                boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
+                for r in r0..r1 {
+                    let at = rows(r);
+                    let (m, v_old, v) = (&m[at.clone()], &mut v_old[at.clone()], &mut v[at]);
+                    let mut node = blocks.row_node(r);
+                    blocks.for_each_visited(r, |i| {
+                        let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
+                        if m.re() > floor {
+                            *v_old /= m;
+                            *v = *v_old + (*v / m + gravity) * dtt;
+                            node[0] = i;
+                            if has_contact {
+                                contact.apply(grid, node, time, v, true);
+                            }
+                            if on_a_face(grid, node) {
+                                boundary.apply(grid, node, v);
+                            }
+                        } else {
+                            *v_old = Vector::zeros();
+                            *v = Vector::zeros();
                         }
-                        if on_a_face(grid, node) {
-                            boundary.apply(grid, node, v);
-                        }
-                    } else {
-                        *v_old = Vector::zeros();
-                        *v = Vector::zeros();
-                    }
-                });
+                    });
+                }
+                boundary.reflect_ghosts_in(grid, nodes.clone(), v);
+                if flip {
+                    boundary.reflect_ghosts_in(grid, nodes, v_old);
+                }
             });
-        boundary.reflect_ghosts(grid, &mut self.velocity);
-        if self.config.transfer.needs_old_grid_velocity() {
-            boundary.reflect_ghosts(grid, &mut self.velocity_old);
-        }
     }
 
     /// USL: G2P velocity, position, then `F ← (I + Δt L) F` and the stress update with the
@@ -418,32 +438,33 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(material.par_iter())
             .enumerate()
             .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(|(i, ((x, v, f, c, stress, state), &mat))| {
-                let st = &kernels[blocks.rank(i)].stencil;
-                let g = g2p(
-                    st,
-                    &layout,
-                    &cfg.grid,
-                    cfg.shape,
-                    cfg.transfer,
-                    true,
-                    #[inline(always)]
-                    |n| vel[n],
-                    #[inline(always)]
-                    |n| vel_old[n],
-                );
-                (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-                *x += g.v * dtt;
-                update_stress(
-                    &cfg.materials[mat as usize],
-                    &g.grad_v,
-                    dtt,
-                    f,
-                    stress,
-                    state,
-                );
-                checks.flag(x, v, f, stress)
-            })
+            .map(
+                #[inline(always)]
+                |(i, ((x, v, f, c, stress, state), &mat))| {
+                    let st = &kernels[blocks.rank(i)].stencil;
+                    let g = g2p(
+                        st,
+                        &layout,
+                        &cfg.grid,
+                        cfg.shape,
+                        cfg.transfer,
+                        true,
+                        vel,
+                        vel_old,
+                    );
+                    (*v, *c) = cfg.transfer.particle_velocity(v, &g);
+                    *x += g.v * dtt;
+                    update_stress(
+                        &cfg.materials[mat as usize],
+                        &g.grad_v,
+                        dtt,
+                        f,
+                        stress,
+                        state,
+                    );
+                    checks.flag(x, v, f, stress)
+                },
+            )
             .reduce(|| false, |a, b| a || b)
     }
 
@@ -461,6 +482,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             self.blocks.for_each_block(
                 &mut self.kernels,
                 |e| e.p = Vector::zeros(),
+                #[inline(always)]
                 |i, block, buf, kernel| {
                     let st = &kernel.stencil;
                     let g = g2p(
@@ -470,10 +492,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                         cfg.shape,
                         cfg.transfer,
                         false,
-                        #[inline(always)]
-                        |n| vel[n],
-                        #[inline(always)]
-                        |n| vel_old[n],
+                        vel,
+                        vel_old,
                     );
                     let (v, c) = cfg.transfer.particle_velocity(&pr.v[i], &g);
                     // Second P2G: momentum of the updated particle velocities at the
@@ -485,8 +505,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                         &v,
                         ca,
                         pr.mass[i],
+                        buf,
                         #[inline(always)]
-                        |n, _, mom| buf[n].p += mom,
+                        |e, _, mom| e.p += mom,
                     );
                     (kernel.x, kernel.v, kernel.c) = (pr.x[i] + g.v * dtt, v, c);
                 },
@@ -501,33 +522,42 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             );
             let has_contact = !contact.is_empty();
             let time = self.time + dt;
-            blocks.gather_momentum(&mut self.velocity);
-            boundary.fold_ghosts(grid, None, &mut self.velocity, None);
             let (floor, n) = (self.mass_floor, blocks.row_len());
-            self.velocity
-                .par_chunks_mut(n)
-                .zip(self.mass.par_chunks(n))
-                .enumerate()
+            let mass = &self.mass;
+            // As in the first transfer: gather, fold, update and reflect, group by group.
+            blocks
+                .split_groups(&mut self.velocity)
+                .into_par_iter()
+                .zip(blocks.groups().par_iter())
                 .with_min_len(MIN_ROWS_PER_TASK)
-                .for_each(|(r, (v, m))| {
-                    let mut node = blocks.row_node(r);
-                    blocks.for_each_visited(r, |i| {
-                        let v = &mut v[i];
-                        if m[i].re() > floor {
-                            *v /= m[i];
-                            node[0] = i;
-                            if has_contact {
-                                contact.apply(grid, node, time, v, false);
+                .for_each(|(v, &(r0, r1))| {
+                    let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
+                    for r in r0..r1 {
+                        blocks.gather_momentum_row(r, &mut v[rows(r)]);
+                    }
+                    let nodes = r0 * n..r1 * n;
+                    boundary.fold_ghosts_in(grid, nodes.clone(), None, v, None);
+                    for r in r0..r1 {
+                        let (v, m) = (&mut v[rows(r)], &mass[r * n..(r + 1) * n]);
+                        let mut node = blocks.row_node(r);
+                        blocks.for_each_visited(r, |i| {
+                            let v = &mut v[i];
+                            if m[i].re() > floor {
+                                *v /= m[i];
+                                node[0] = i;
+                                if has_contact {
+                                    contact.apply(grid, node, time, v, false);
+                                }
+                                if on_a_face(grid, node) {
+                                    boundary.apply(grid, node, v);
+                                }
+                            } else {
+                                *v = Vector::zeros();
                             }
-                            if on_a_face(grid, node) {
-                                boundary.apply(grid, node, v);
-                            }
-                        } else {
-                            *v = Vector::zeros();
-                        }
-                    });
+                        });
+                    }
+                    boundary.reflect_ghosts_in(grid, nodes, v);
                 });
-            boundary.reflect_ghosts(grid, &mut self.velocity);
         }
         let (cfg, vel, blocks, kernels) =
             (&self.config, &self.velocity, &self.blocks, &self.kernels);
@@ -547,24 +577,26 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(material.par_iter())
             .enumerate()
             .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(|(i, ((x, v, f, c, stress, state), &mat))| {
-                let k = &kernels[blocks.rank(i)];
-                let l = g2p(
-                    &k.stencil,
-                    &layout,
-                    &cfg.grid,
-                    cfg.shape,
-                    Transfer::Pic,
-                    true,
-                    #[inline(always)]
-                    |n| vel[n],
-                    |_| Vector::zeros(),
-                )
-                .grad_v;
-                (*x, *v, *c) = (k.x, k.v, k.c);
-                update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
-                checks.flag(x, v, f, stress)
-            })
+            .map(
+                #[inline(always)]
+                |(i, ((x, v, f, c, stress, state), &mat))| {
+                    let k = &kernels[blocks.rank(i)];
+                    let l = g2p(
+                        &k.stencil,
+                        &layout,
+                        &cfg.grid,
+                        cfg.shape,
+                        Transfer::Pic,
+                        true,
+                        vel,
+                        &[],
+                    )
+                    .grad_v;
+                    (*x, *v, *c) = (k.x, k.v, k.c);
+                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
+                    checks.flag(x, v, f, stress)
+                },
+            )
             .reduce(|| false, |a, b| a || b)
     }
 }
@@ -617,21 +649,23 @@ impl<'a, T: Scalar, const D: usize> Checks<'a, T, D> {
         f: &Tensor<T, D>,
         stress: &nalgebra::Matrix3<T>,
     ) -> bool {
-        // Plain indexed loops: nalgebra's iterator chains do not compile down to a few
-        // instructions here.
-        let mut finite = true;
+        // One finiteness test of a sum instead of one per entry: a NaN or an infinity in any
+        // entry makes the sum non-finite; a finite sum that overflows only flags the particle
+        // for the exact checks. Two partial sums and plain indexed loops keep it short.
+        let (mut s0, mut s1) = (T::zero(), T::zero());
         for a in 0..D {
-            finite &= x[a].is_finite_all() & v[a].is_finite_all();
+            s0 += x[a];
+            s1 += v[a];
             for b in 0..D {
-                finite &= f[(a, b)].is_finite_all();
+                s0 += f[(a, b)];
             }
         }
         for a in 0..3 {
             for b in 0..3 {
-                finite &= stress[(a, b)].is_finite_all();
+                s1 += stress[(a, b)];
             }
         }
-        if !finite || det(f).re() <= 0.0 {
+        if !(s0 + s1).is_finite_all() || det(f).re() <= 0.0 {
             return true;
         }
         let mut xr = [0.0; D];

@@ -220,3 +220,81 @@ fn material_dispatch_matches_the_direct_calls() {
 fn elastic_constructor_refuses_a_fluid() {
     let _ = Material::elastic(ModelKind::Fluid, 1.0e6, 0.3, 1000.0);
 }
+
+#[test]
+fn integer_exponents_agree_with_the_general_power() {
+    // γ = 1 and 7 take the integer power, γ = 7 + 1e-12 the general `exp(−γ ln J)`: the
+    // pressures agree to round-off, and so do the J-derivatives.
+    for (gamma, near) in [(1.0, 1.0 + 1e-12), (7.0, 7.0 + 1e-12)] {
+        let (m, g) = (water(gamma), water(near));
+        for j in [0.97, 0.999, 1.0, 1.004, 1.05] {
+            let (p, q) = (m.pressure(j), g.pressure(j));
+            assert!(
+                (p - q).abs() <= 1e-9 * K * (j - 1.0f64).abs() + 1e-6,
+                "{p} vs {q}"
+            );
+            let dp = m.lift::<Dual64>().pressure(Dual64::new(j, 1.0)).eps;
+            let dq = g.lift::<Dual64>().pressure(Dual64::new(j, 1.0)).eps;
+            assert!(
+                (dp - dq).abs() < 1e-9 * K,
+                "γ = {gamma}, J = {j}: {dp} vs {dq}"
+            );
+        }
+    }
+    // A γ with a derivative part keeps ∂p/∂γ, although its real part is whole:
+    // ∂p/∂γ = −p/γ − (K/γ) ln J · J^{−γ}.
+    let j = 0.98f64;
+    let m = water(7.0);
+    let md = Fluid {
+        bulk_modulus: Dual64::from_re(K),
+        gamma: Dual64::new(7.0, 1.0),
+        viscosity: Dual64::from_re(ETA),
+    };
+    let exact = -m.pressure(j) / 7.0 - K / 7.0 * j.ln() * j.powf(-7.0);
+    let dual = md.pressure(Dual64::from_re(j));
+    assert!((dual.re - m.pressure(j)).abs() < 1e-9 * K);
+    assert!(
+        (dual.eps - exact).abs() < 1e-9 * exact.abs(),
+        "{} vs {exact}",
+        dual.eps
+    );
+}
+
+#[test]
+fn an_inviscid_fluid_has_only_pressure_but_keeps_the_viscosity_derivative() {
+    let f = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.99, 1.0, 1.0));
+    let l = Matrix3::new(0.1, 0.3, 0.0, -0.2, 0.05, 0.0, 0.0, 0.0, 0.0);
+    let zero = Matrix3::zeros();
+    let inviscid = Fluid {
+        viscosity: 0.0,
+        ..water(7.0)
+    };
+    let s = inviscid.update(&kin(&f, &l, &zero), &mut MaterialState::default());
+    assert_eq!(s, Matrix3::identity() * -inviscid.pressure(0.99));
+    // η = 0 with a derivative lane: ∂σ/∂η = 2 dev sym L.
+    let md = Fluid {
+        bulk_modulus: Dual64::from_re(K),
+        gamma: Dual64::from_re(7.0),
+        viscosity: Dual64::new(0.0, 1.0),
+    };
+    let (fd, ld, zd) = (
+        f.map(Dual64::from_re),
+        l.map(Dual64::from_re),
+        Matrix3::zeros(),
+    );
+    let kd = Kinematics {
+        f: &fd,
+        delta_f: &fd,
+        velocity_gradient: &ld,
+        dt: Dual64::from_re(1e-4),
+        stress: &zd,
+    };
+    let sd = md.update(&kd, &mut MaterialState::default());
+    let expected = water(7.0).viscous_stress(&l) / ETA;
+    for r in 0..3 {
+        for c in 0..3 {
+            assert!((sd[(r, c)].re - s[(r, c)]).abs() < 1e-12 * K);
+            assert!((sd[(r, c)].eps - expected[(r, c)]).abs() < 1e-12);
+        }
+    }
+}

@@ -47,9 +47,9 @@ fn to_grid<const D: usize>(
     for k in 0..cl.x.len() {
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
         let c = affine.then_some(&cl.c[k]);
-        p2g_momentum(&st, &layout, &cl.v[k], c, cl.m[k], |f, mw, mv| {
-            mp[f].0 += mw;
-            mp[f].1 += mv;
+        p2g_momentum(&st, &layout, &cl.v[k], c, cl.m[k], &mut mp, |e, mw, mv| {
+            e.0 += mw;
+            e.1 += mv;
         });
     }
     let m = mp.iter().map(|e| e.0).collect();
@@ -75,8 +75,8 @@ fn gather<const D: usize>(
         shape,
         Transfer::Apic,
         true,
-        |n| vel[n],
-        |_| Vector::zeros(),
+        vel,
+        &[],
     )
 }
 
@@ -241,8 +241,8 @@ fn tpic_round_trip_is_exact_for_affine_fields() {
                 shape,
                 Transfer::Tpic,
                 false,
-                |n| vel[n],
-                |_| Vector::zeros(),
+                &vel,
+                &[],
             );
             let (v, c) = Transfer::Tpic.particle_velocity(&cl.v[k], &g);
             assert!((v - cl.v[k]).norm() < 1e-12, "{shape:?}: velocity");
