@@ -39,19 +39,20 @@ pub struct Setup {
 }
 
 impl Setup {
-    /// cpGIMP, 2×2 particles per cell, 40 load steps.
+    /// Cubic B-splines, 4×4 particles per cell, 40 load steps.
     ///
-    /// cpGIMP because the bottom particles are compressed to ~30 % of their height: their
-    /// domains shrink with F, so the quadrature follows the material. With point-integrated
-    /// quadratic B-splines the stress picks up ±1 % particle-to-particle noise from the cell
-    /// crossings over the 40 steps (error 5.2e-3 at 32 cells, not converging), cpGIMP reaches
-    /// 1.0e-3 (see docs/verification.md).
+    /// The base is compressed to J ≈ 0.3, so over the 40 steps every particle crosses cells.
+    /// The smoother the shape functions and the denser the quadrature, the smaller the stress
+    /// noise those crossings leave (errors at 64 cells, see docs/verification.md): quadratic
+    /// B-splines 5.4e-3 (2×2) / 1.6e-3 (4×4), cpGIMP 4.2e-4 (2×2; its domains follow the
+    /// compression, but two particles in the compressed base cell see one linear field and
+    /// carry one stress), cubic B-splines 8.7e-4 (2×2) / 1.8e-4 (4×4).
     pub fn new(cells: usize) -> Self {
         Self {
             cells,
-            ppc: 2,
+            ppc: 4,
             steps: 40,
-            shape: Shape::Cpgimp,
+            shape: Shape::CubicBspline,
         }
     }
 
@@ -106,6 +107,20 @@ impl Setup {
             .collect();
         Ok((samples, iterations))
     }
+}
+
+/// The least-squares slope of `log e` against `log h` over `(h, e)` pairs: the observed order
+/// of convergence over a whole refinement study, `p` in `e ≈ C hᵖ`.
+pub fn fitted_order(errors: &[(f64, f64)]) -> f64 {
+    let n = errors.len() as f64;
+    let (mx, my) = errors.iter().fold((0.0, 0.0), |(sx, sy), &(h, e)| {
+        (sx + h.ln() / n, sy + e.ln() / n)
+    });
+    let (sxy, sxx) = errors.iter().fold((0.0, 0.0), |(sxy, sxx), &(h, e)| {
+        let dx = h.ln() - mx;
+        (sxy + dx * (e.ln() - my), sxx + dx * dx)
+    });
+    sxy / sxx
 }
 
 /// The exact vertical stress at reference height `y0`.
@@ -173,15 +188,13 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     );
     let mut prev: Option<f64> = None;
     let mut main = None;
-    let mut last_rate = f64::NAN;
+    let mut errors = Vec::new();
     for &n in levels {
         let s = Setup::new(n);
         let (stress, its) = s.run(hencky.clone()).map_err(err)?;
         let e = error_norm(stress.iter().map(|&(y0, syy, _)| (syy, exact_stress(y0))));
         let rate = prev.map(|p| (p / e).log2());
-        if let Some(r) = rate {
-            last_rate = r;
-        }
+        errors.push((HEIGHT / n as f64, e));
         table.push_str(&format!(
             "| {n} | {:.4} | {e:.3e} | {} | {its} |\n",
             HEIGHT / n as f64,
@@ -193,6 +206,11 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         }
     }
     let (main_err, stress) = main.expect("the main level is in the refinement list");
+    let order = fitted_order(&errors);
+    table.push_str(&format!(
+        "\nLeast-squares order over the {} refinements: {order:.2}\n",
+        errors.len() - 1
+    ));
     // The same column, perfectly plastic J2 (κ = 5 kPa): σ_yy is still fixed by equilibrium,
     // σ_xx follows the closed form of `j2_lateral_stress`.
     let j2 = Material::j2(YOUNG, 0.0, j2_yield_stress(), 0.0, DENSITY);
@@ -206,6 +224,8 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     table.push_str(&format!(
         "\nJ2 (κ = 5 kPa, perfectly plastic) at {main_cells} cells: σ_yy error {j2_yy:.3e}, σ_xx error {j2_xx:.3e}\n"
     ));
+    // One particle per row of the plot.
+    let per_row = Setup::new(main_cells).ppc;
     let csv = out.join("column_compaction.csv");
     let rows: Vec<Vec<f64>> = stress
         .iter()
@@ -230,7 +250,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let png = out.join("column_compaction.png");
     write_plot(
         &png,
-        &format!("Column under self-weight, {main_cells} cells (Hencky, cpGIMP)"),
+        &format!("Column under self-weight, {main_cells} cells (Hencky, cubic B-splines)"),
         "reference height Y0 (m)",
         "sigma_yy (Pa)",
         &[
@@ -241,7 +261,11 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             },
             Series {
                 name: "loam".into(),
-                points: stress.iter().step_by(2).map(|&(y, s, _)| (y, s)).collect(),
+                points: stress
+                    .iter()
+                    .step_by(per_row)
+                    .map(|&(y, s, _)| (y, s))
+                    .collect(),
                 markers: true,
             },
             Series {
@@ -258,7 +282,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
                 name: "J2 sigma_xx loam".into(),
                 points: plastic
                     .iter()
-                    .step_by(2)
+                    .step_by(per_row)
                     .map(|&(y, _, sxx)| (y, sxx))
                     .collect(),
                 markers: true,
@@ -269,28 +293,33 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     write_text(&md, &table)?;
     Ok(CaseReport {
         metrics: vec![
-            // Goal: 4e-4 at 64 cells. The reduced run (32 cells) measures 1.05e-3; with the
-            // observed order ≈ 1.3–1.8 the goal scales to ≈ 1.0–1.4e-3 there, so 1.5e-3.
+            // Goal: 4e-4 at 64 cells (measured 1.83e-4). The reduced run (32 cells) measures
+            // 4.05e-4; the goal scaled by the observed order 32 → 64 (1.14) is 8.8e-4, and the
+            // bound 6e-4 leaves ~50 % margin over the measurement.
             Metric::at_most(
                 CASE,
                 "stress_error_norm",
                 main_err,
                 match size {
                     Size::Full => 4e-4,
-                    Size::Reduced => 1.5e-3,
+                    Size::Reduced => 6e-4,
                 },
             ),
-            Metric::at_least(CASE, "observed_order", last_rate, 1.0),
-            // J2 (no goal in the benchmark definition): measured σ_yy 3.3e-3 / 1.35e-3 and
-            // σ_xx 9.4e-4 / 3.9e-4 at 32 / 64 cells (order ≈ 1.3); the bounds leave ~25 % margin
-            // so that a regression in the return mapping or the tangent shows up.
+            // The slope of log e against log h over all levels (4 refinements in the full run,
+            // 2 in the reduced one): measured 1.34 / 1.76. At least first order; the local
+            // order falls at fine grids, where the cell-crossing noise of the 40 load steps
+            // takes over (docs/verification.md).
+            Metric::at_least(CASE, "observed_order", order, 1.0),
+            // J2 (no goal in the benchmark definition): measured σ_yy 1.01e-3 / 3.72e-4 and
+            // σ_xx 2.82e-4 / 9.88e-5 at 32 / 64 cells; the bounds leave ~25 % margin so that a
+            // regression in the return mapping or the tangent shows up.
             Metric::at_most(
                 CASE,
                 "j2_sigma_yy_error_norm",
                 j2_yy,
                 match size {
-                    Size::Full => 1.7e-3,
-                    Size::Reduced => 4.1e-3,
+                    Size::Full => 4.7e-4,
+                    Size::Reduced => 1.26e-3,
                 },
             ),
             Metric::at_most(
@@ -298,11 +327,39 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
                 "j2_sigma_xx_error_norm",
                 j2_xx,
                 match size {
-                    Size::Full => 5e-4,
-                    Size::Reduced => 1.2e-3,
+                    Size::Full => 1.25e-4,
+                    Size::Reduced => 3.5e-4,
                 },
             ),
         ],
         files: vec![csv, png, md],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fitted_order_recovers_a_power_law() {
+        // e = 3 h^1.5 exactly: the fit returns 1.5 to round-off; a perturbed point moves it.
+        let exact: Vec<(f64, f64)> = [1.0, 0.5, 0.25, 0.125]
+            .iter()
+            .map(|&h: &f64| (h, 3.0 * h.powf(1.5)))
+            .collect();
+        assert!((fitted_order(&exact) - 1.5).abs() < 1e-12);
+        let mut bent = exact.clone();
+        bent[3].1 *= 2.0;
+        assert!(fitted_order(&bent) < 1.4);
+    }
+
+    #[test]
+    fn j2_lateral_stress_is_zero_while_elastic_and_bounded_by_yield() {
+        // Near the top the column is elastic (σ_xx = 0 for ν = 0); deep down it has yielded and
+        // |σ_yy − σ_xx| = σ_y / J ≥ σ_y (Cauchy vs Kirchhoff).
+        assert_eq!(j2_lateral_stress(exact_stress(HEIGHT - 0.1)), 0.0);
+        let s = exact_stress(0.0);
+        let sxx = j2_lateral_stress(s);
+        assert!(sxx < 0.0 && sxx - s >= j2_yield_stress());
+    }
 }

@@ -1190,7 +1190,7 @@ fn implicit_examples_build_the_benchmarks() {
         .unwrap()
         .build::<2>()
         .unwrap();
-    assert_eq!(built.particles.len(), 256);
+    assert_eq!(built.particles.len(), 1024);
     assert_eq!(built.grid.cells, [1, 66]);
     assert!((built.particles.total_mass() - 80.0 * 0.78125 * 50.0).abs() < 1e-9);
     assert_eq!(built.gravity, nalgebra::vector![0.0, -10.0]);
