@@ -1,7 +1,8 @@
 //! Wall-clock cost of one explicit MPM step (P2G, grid update, G2P, stress update).
 //!
-//! Every bench builds a scene (a fluid-like block collapse, or the friction dam-break of
-//! `loam_benches::dambreak_friction_2d`), takes a few steps so the solver's scratch is
+//! Every bench builds a scene (a fluid-like block collapse, the friction dam-break of
+//! `loam_benches::dambreak_friction_2d` at 6k, 96k and 1M particles, or the 3D
+//! Drucker–Prager column of `loam_benches::granular_column_3d`), takes a few steps so the solver's scratch is
 //! allocated and the material is moving, and then times one `Solver::step` per iteration. Each timed step starts from a fresh copy of that warmed
 //! particle state (`iter_batched_ref`, the copy is not timed), so every iteration does the
 //! same work and a long measurement cannot drift the scene into a different regime.
@@ -14,7 +15,7 @@ use criterion::measurement::WallTime;
 use criterion::{
     BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
 };
-use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d};
+use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d, granular_column_3d};
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
 
@@ -70,5 +71,35 @@ fn explicit_dambreak(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, explicit_step, explicit_dambreak);
+/// The `explicit_large` group: the friction dam-break at 96k (scale 4) and 1M (scale 13)
+/// particles and the 3D Drucker–Prager column collapse at 93k particles (resolution 3), f64
+/// and f32.
+fn explicit_large(c: &mut Criterion) {
+    let mut group = c.benchmark_group("explicit_large");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(5));
+    bench_step(&mut group, "dambreak_96k", dambreak_friction_2d::<f64>(4));
+    bench_step(
+        &mut group,
+        "dambreak_96k_f32",
+        dambreak_friction_2d::<f32>(4),
+    );
+    bench_step(&mut group, "dambreak_1m", dambreak_friction_2d::<f64>(13));
+    bench_step(
+        &mut group,
+        "dambreak_1m_f32",
+        dambreak_friction_2d::<f32>(13),
+    );
+    bench_step(&mut group, "dp_column_3d_93k", granular_column_3d::<f64>(3));
+    bench_step(
+        &mut group,
+        "dp_column_3d_93k_f32",
+        granular_column_3d::<f32>(3),
+    );
+    group.finish();
+}
+
+criterion_group!(benches, explicit_step, explicit_dambreak, explicit_large);
 criterion_main!(benches);

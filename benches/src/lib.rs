@@ -10,16 +10,17 @@
 //! B-splines, APIC, MUSL and an adaptive time step at CFL 0.4.
 //!
 //! The second explicit scene, [`dambreak_friction_2d`], is the 6,000-particle water dam-break of
-//! the friction study (a weakly compressible fluid at a fixed time step), where the fixed costs
-//! of a step dominate.
+//! the friction study (a weakly compressible fluid at a fixed time step, five Coulomb floor
+//! segments), where the fixed costs of a step dominate; it scales to 100k and 1M particles.
+//! The third, [`granular_column_3d`], is a Drucker–Prager column collapse in 3D.
 //!
 //! The implicit benches use two quasi-static scenes ([`cantilever_2d`] and [`hencky_block_3d`]),
 //! returned as `ImplicitConfig` + `Particles`.
 
 use loam_core::tensor::Vector;
 use loam_core::{
-    Boundary, Grid, Material, ModelKind, Particles, Scalar, Scheme, Shape, TimeStep, Transfer,
-    Wall, WallKind,
+    Boundary, Contact, FrictionSegment, Grid, Material, ModelKind, Particles, Scalar, Scheme,
+    Shape, TimeStep, Transfer, Wall, WallKind,
 };
 use loam_explicit::Config;
 use loam_implicit::{ImplicitConfig, NewtonSettings};
@@ -111,10 +112,14 @@ const DAMBREAK_WATER: [f64; 2] = [0.5, 0.3];
 const DAMBREAK_CELL: f64 = 0.01;
 /// Fixed time step of the friction dam-break at scale 1 (s).
 pub const DAMBREAK_DT: f64 = 3e-5;
+/// Coulomb coefficients of the five equal floor segments of the friction dam-break, from
+/// x = 0 to x = 2 m.
+pub const DAMBREAK_FRICTION: [f64; 5] = [0.0, 0.5, 0.1, 0.2, 0.0];
 
-/// The 2D "friction dam-break" (forward only, no friction yet): a water block of
-/// 0.5 m × 0.3 m in the lower left corner of a 2.0 m × 0.4 m tank with slip walls on every
-/// face, collapsing under gravity (9.8 m/s² along −y).
+/// The 2D "friction dam-break" of `examples/dambreak_friction.toml` (forward only): a water
+/// block of 0.5 m × 0.3 m in the lower left corner of a 2.0 m × 0.4 m tank, collapsing under
+/// gravity (9.8 m/s² along −y). Slip walls; the floor is a separable slip wall split into five
+/// Coulomb segments of 0.4 m with μ = [`DAMBREAK_FRICTION`].
 ///
 /// Water is the weakly compressible [`Material::fluid`] with ρ₀ = 1000 kg/m³, sound speed
 /// 35 m/s (K = ρ₀c² = 1.225 MPa), γ = 7 and no viscosity. Quadratic B-splines, APIC, MUSL,
@@ -130,13 +135,29 @@ pub fn dambreak_friction_2d<T: Scalar>(scale: usize) -> (Config<T, 2>, Particles
     ];
     let shape = Shape::QuadraticBspline;
     let sound_speed = 35.0;
+    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+    boundary.walls[1][0] = Wall {
+        kind: WallKind::Slip,
+        separable: true,
+    };
+    let mut contact = Contact::new(shape);
+    let segment = DAMBREAK_LENGTH / DAMBREAK_FRICTION.len() as f64;
+    for (k, &mu) in DAMBREAK_FRICTION.iter().enumerate() {
+        contact.segments.push(FrictionSegment {
+            axis: 1,
+            side: 0,
+            from: [k as f64 * segment, 0.0],
+            to: [(k + 1) as f64 * segment, 0.0],
+            mu: T::cst(mu),
+        });
+    }
     let config = Config {
         grid: Grid::new([0.0; 2], cells, h, shape.ghost_cells()),
         shape,
         transfer: Transfer::Apic,
         scheme: Scheme::Musl,
-        boundary: Boundary::all(Wall::new(WallKind::Slip)),
-        contact: Default::default(),
+        boundary,
+        contact,
         gravity: Vector::<T, 2>::new(T::zero(), T::cst(-9.8)),
         materials: vec![Material::fluid(
             T::cst(DENSITY * sound_speed * sound_speed),
@@ -157,6 +178,75 @@ pub fn dambreak_friction_2d<T: Scalar>(scale: usize) -> (Config<T, 2>, Particles
             let x =
                 Vector::<T, 2>::new(T::cst((i as f64 + 0.5) * dp), T::cst((j as f64 + 0.5) * dp));
             particles.push(x, Vector::zeros(), T::cst(DENSITY), half_width, 0);
+        }
+    }
+    (config, particles)
+}
+
+/// Cell size of the 3D granular column at `resolution = 1` (m).
+const COLUMN_CELL: f64 = 0.01;
+
+/// The 3D granular column collapse of `examples/granular_collapse_3d.toml` at `resolution`
+/// times its cell count per axis (cell size `0.01 m / resolution`).
+///
+/// A quarter of a square column, 0.06 m × 0.12 m × 0.06 m (x, y up, z), in the corner of a
+/// 0.4 m × 0.15 m × 0.4 m box whose planes x = 0 and z = 0 are symmetry (slip) walls;
+/// cohesionless non-associated Drucker–Prager sand (ρ = 2650 kg/m³, E = 0.84 MPa, ν = 0.3,
+/// φ = 30°, ψ = 0) on a Coulomb floor with μ = 1, stress-free at t = 0. Quadratic B-splines,
+/// APIC, MUSL, 2 × 2 × 2 particles per cell, adaptive time step at CFL 0.4. `resolution = 1`
+/// gives 3,456 particles, 3 gives 93,312.
+pub fn granular_column_3d<T: Scalar>(resolution: usize) -> (Config<T, 3>, Particles<T, 3>) {
+    assert!(
+        resolution >= 1,
+        "granular_column_3d: resolution must be at least 1"
+    );
+    let h = COLUMN_CELL / resolution as f64;
+    let cells = |length: f64| (length / h).round() as usize;
+    let shape = Shape::QuadraticBspline;
+    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+    boundary.walls[1] = [
+        Wall {
+            kind: WallKind::Slip,
+            separable: true,
+        },
+        Wall::new(WallKind::Free),
+    ];
+    let mut contact = Contact::new(shape);
+    contact
+        .segments
+        .push(FrictionSegment::whole_face(1, 0, T::one()));
+    let config = Config {
+        grid: Grid::new([0.0; 3], [cells(0.4), cells(0.15), cells(0.4)], h, 2),
+        shape,
+        transfer: Transfer::Apic,
+        scheme: Scheme::Musl,
+        boundary,
+        contact,
+        gravity: Vector::<T, 3>::new(T::zero(), T::cst(-9.81), T::zero()),
+        materials: vec![Material::drucker_prager(
+            T::cst(0.84e6),
+            T::cst(0.3),
+            T::cst(30f64.to_radians()),
+            T::zero(),
+            T::zero(),
+            None,
+            2650.0,
+        )],
+        time_step: TimeStep::Adaptive {
+            cfl: 0.4,
+            max_dt: 1e-3,
+        },
+    };
+    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
+    let n = [0.06, 0.12, 0.06].map(|l: f64| (l / dp).round() as usize);
+    let half_width = Vector::<T, 3>::repeat(T::cst(0.5 * dp));
+    let mut particles = Particles::default();
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let x = Vector::<T, 3>::from_fn(|a, _| T::cst(([i, j, k][a] as f64 + 0.5) * dp));
+                particles.push(x, Vector::zeros(), T::cst(2650.0), half_width, 0);
+            }
         }
     }
     (config, particles)

@@ -360,7 +360,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             &self.config.contact,
             self.config.gravity,
         );
-        let has_contact = !contact.is_empty();
+        // Friction segments act on face nodes only (see `on_a_face`), obstacles anywhere.
+        let (has_segments, has_obstacles) =
+            (!contact.segments.is_empty(), !contact.obstacles.is_empty());
         // Contact acts at the end of the step, when the grid velocity is reached.
         let time = self.time + dt;
         let dtt = T::cst(dt);
@@ -394,10 +396,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             *v_old /= m;
                             *v = *v_old + (*v / m + gravity) * dtt;
                             node[0] = i;
-                            if has_contact {
+                            let face = on_a_face(grid, node);
+                            if face && has_segments || has_obstacles {
                                 contact.apply(grid, node, time, v, true);
                             }
-                            if on_a_face(grid, node) {
+                            if face {
                                 boundary.apply(grid, node, v);
                             }
                         } else {
@@ -520,7 +523,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 &self.config.contact,
                 &self.blocks,
             );
-            let has_contact = !contact.is_empty();
+            let (has_segments, has_obstacles) =
+                (!contact.segments.is_empty(), !contact.obstacles.is_empty());
             let time = self.time + dt;
             let (floor, n) = (self.mass_floor, blocks.row_len());
             let mass = &self.mass;
@@ -545,10 +549,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             if m[i].re() > floor {
                                 *v /= m[i];
                                 node[0] = i;
-                                if has_contact {
+                                let face = on_a_face(grid, node);
+                                if face && has_segments || has_obstacles {
                                     contact.apply(grid, node, time, v, false);
                                 }
-                                if on_a_face(grid, node) {
+                                if face {
                                     boundary.apply(grid, node, v);
                                 }
                             } else {
@@ -601,8 +606,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     }
 }
 
-/// Whether a node lies on (or beyond) a face of the domain, where walls act; elsewhere
-/// [`loam_core::Boundary::apply`] does nothing.
+/// Whether a node lies on (or beyond) a face of the domain, where walls and friction segments
+/// act; elsewhere [`loam_core::Boundary::apply`] and the segments of
+/// [`loam_core::Contact::apply`] do nothing.
 #[inline(always)]
 fn on_a_face<const D: usize>(grid: &Grid<D>, node: [usize; D]) -> bool {
     (0..D).any(|a| node[a] <= grid.pad || node[a] >= grid.pad + grid.cells[a])
