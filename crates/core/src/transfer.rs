@@ -119,10 +119,11 @@ fn p2g_rows<const B: usize, T: Scalar, const D: usize, X>(
                 p_row += mc.column(c) * row.offset[c];
                 f_row += nsv.column(c) * row.gradient[c];
             }
+            let dst = row_mut::<B, X>(nodes, row.index);
             for i in 0..B {
                 let w = w0[i] * row.weight;
                 add(
-                    &mut nodes[row.index + i],
+                    &mut dst[i],
                     mass * w,
                     (p_row + mc0 * o0[i]) * w,
                     nsv0 * (dw0[i] * row.weight) + f_row * w0[i],
