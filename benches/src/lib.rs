@@ -192,7 +192,7 @@ const COLUMN_CELL: f64 = 0.01;
 /// A quarter of a square column, 0.06 m × 0.12 m × 0.06 m (x, y up, z), in the corner of a
 /// 0.4 m × 0.15 m × 0.4 m box whose planes x = 0 and z = 0 are symmetry (slip) walls;
 /// cohesionless non-associated Drucker–Prager sand (ρ = 2650 kg/m³, E = 0.84 MPa, ν = 0.3,
-/// φ = 30°, ψ = 0) on a Coulomb floor with μ = 1, stress-free at t = 0. Quadratic B-splines,
+/// φ = 30°, ψ = 0) on a Coulomb floor with μ = tan φ, stress-free at t = 0. Quadratic B-splines,
 /// APIC, MUSL, 2 × 2 × 2 particles per cell, adaptive time step at CFL 0.4. `resolution = 1`
 /// gives 3,456 particles, 3 gives 93,312.
 pub fn granular_column_3d<T: Scalar>(resolution: usize) -> (Config<T, 3>, Particles<T, 3>) {
@@ -212,9 +212,11 @@ pub fn granular_column_3d<T: Scalar>(resolution: usize) -> (Config<T, 3>, Partic
         Wall::new(WallKind::Free),
     ];
     let mut contact = Contact::new(shape);
-    contact
-        .segments
-        .push(FrictionSegment::whole_face(1, 0, T::one()));
+    contact.segments.push(FrictionSegment::whole_face(
+        1,
+        0,
+        T::cst(30f64.to_radians().tan()),
+    ));
     let config = Config {
         grid: Grid::new([0.0; 3], [cells(0.4), cells(0.15), cells(0.4)], h, 2),
         shape,

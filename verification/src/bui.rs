@@ -133,7 +133,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let wall_tol = 0.03;
     // Runout against the Lube–Lajeunesse band [0.32, 0.38] m, as the relative distance
     // outside it. Full size: the goal is to lie inside the band (tolerance 0). Measured:
-    // 0.387 m at h = 10 mm (1.9 % beyond the band's upper edge) and 0.446 m at 5 mm (+17 %;
+    // 0.388 m at h = 10 mm (2.0 % beyond the band's upper edge) and 0.448 m at 5 mm (+18 %;
     // docs/verification.md): the runout grows with refinement as the front thins into a
     // longer tongue, so the full-size goal is not met. The reduced tolerance, 5 %, admits the
     // coarse-grid value with room for where the front particles settle, and fails a front
@@ -159,18 +159,14 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             // At rest: K/ΔE_p measured 2e-9 (h = 10 mm) and 1.5e-8 (5 mm) at t = 1 s; 1e-4
             // fails a pile still moving.
             Metric::at_most(CASE, "kinetic_over_released_energy", o.rest_ratio(), 1e-4),
-            // The toe over the last 0.3 s: measured below 0.01 mm at both sizes; a quarter
-            // cell fails a front still creeping.
+            // The toe over the last 0.3 s: measured 0.011 mm (h = 10 mm) and 0.10 mm (5 mm);
+            // a quarter cell fails a front still creeping.
             Metric::at_most(
                 CASE,
                 "late_toe_motion_cells",
                 o.late_toe_motion(0.3) / h,
                 0.25,
             ),
-            // Particle centres below the floor (module docs of `granular`): measured 0.13
-            // (h = 10 mm) and 0.16 (5 mm) particle spacings; half a spacing would be a
-            // particle tunnelling through the floor.
-            Metric::at_most(CASE, "floor_crossing_spacings", o.floor_crossing(), 0.5),
             Metric::at_least(
                 CASE,
                 "right_wall_clearance_cells",
@@ -282,10 +278,6 @@ fn summary(o: &Outcome, (lo, hi): (f64, f64)) -> String {
     line(
         "elastic compression ρgH₀/M",
         format!("{:.2e}", c.material.elastic_strain(c.h0)),
-    );
-    line(
-        "deepest centre below the floor",
-        format!("{:.2e} m", (-o.min_y).max(0.0)),
     );
     line("g", format!("{G} m/s²"));
     md

@@ -230,6 +230,55 @@ fn slip_floor_supports_a_block_under_gravity() {
     );
 }
 
+/// Separable slip walls on every face.
+fn unilateral_walls() -> Boundary<2> {
+    Boundary::all(Wall {
+        kind: WallKind::Slip,
+        separable: true,
+    })
+}
+
+/// A centre a tenth of a cell below a unilateral floor, moving down, is put back onto the face
+/// with its downward velocity removed, and the run goes on (USL and MUSL).
+#[test]
+fn a_shallow_crossing_of_a_unilateral_wall_is_projected_onto_the_face() {
+    for scheme in [Scheme::Usl, Scheme::Musl] {
+        let (config, mut p) = block(Transfer::Apic, scheme, [0.0, -9.81], unilateral_walls());
+        p.x[5] = Vector::<f64, 2>::new(1.0, -0.01);
+        p.v[5] = Vector::<f64, 2>::new(0.3, -0.5);
+        let mut solver = Solver::new(config, &p).unwrap();
+        solver
+            .step(&mut p, f64::INFINITY)
+            .expect("projected, not stopped");
+        assert_eq!(p.x[5][1], 0.0, "{scheme:?}: y = {}", p.x[5][1]);
+        assert!(p.v[5][1] >= 0.0, "{scheme:?}: v_y = {}", p.v[5][1]);
+        // The tangential motion is untouched by the projection: it still moves along +x.
+        assert!(p.x[5][0] > 1.0, "{scheme:?}: x = {}", p.x[5][0]);
+    }
+}
+
+/// A centre more than half a cell beyond a unilateral wall has escaped: the run stops and
+/// names it.
+#[test]
+fn a_deep_crossing_of_a_unilateral_wall_stops_the_run_with_its_id() {
+    let (config, mut p) = block(
+        Transfer::Apic,
+        Scheme::Musl,
+        [0.0, -9.81],
+        unilateral_walls(),
+    );
+    // 0.6 cells below the floor, inside the ghost layer (the stencil is still on the grid).
+    p.x[5] = Vector::<f64, 2>::new(1.0, -0.06);
+    let mut solver = Solver::new(config, &p).unwrap();
+    match solver.step(&mut p, f64::INFINITY) {
+        Err(StepError::Escaped { what, ids, .. }) => {
+            assert_eq!(ids, vec![5]);
+            assert!(what.contains("y_min"), "{what}");
+        }
+        other => panic!("expected Escaped, got {other:?}"),
+    }
+}
+
 #[test]
 fn a_particle_beyond_a_wall_stops_the_run_with_its_id() {
     let (config, mut p) = block(
