@@ -354,17 +354,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             },
         );
         let floor = self.mass_floor;
-        let (grid, boundary, contact, gravity) = (
+        let (grid, boundary, gravity) = (
             &self.config.grid,
             &self.config.boundary,
-            &self.config.contact,
             self.config.gravity,
         );
-        // Friction segments act on face nodes only (see `on_a_face`), obstacles anywhere.
-        let (has_segments, has_obstacles) =
-            (!contact.segments.is_empty(), !contact.obstacles.is_empty());
         // Contact acts at the end of the step, when the grid velocity is reached.
-        let time = self.time + dt;
+        let conditions = NodeConditions::new(&self.config, self.time + dt);
         let dtt = T::cst(dt);
         let flip = self.config.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
@@ -396,13 +392,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             *v_old /= m;
                             *v = *v_old + (*v / m + gravity) * dtt;
                             node[0] = i;
-                            let face = on_a_face(grid, node);
-                            if face && has_segments || has_obstacles {
-                                contact.apply(grid, node, time, v, true);
-                            }
-                            if face {
-                                boundary.apply(grid, node, v);
-                            }
+                            conditions.apply(node, v, true);
                         } else {
                             *v_old = Vector::zeros();
                             *v = Vector::zeros();
@@ -518,15 +508,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             );
         }
         {
-            let (grid, boundary, contact, blocks) = (
-                &self.config.grid,
-                &self.config.boundary,
-                &self.config.contact,
-                &self.blocks,
-            );
-            let (has_segments, has_obstacles) =
-                (!contact.segments.is_empty(), !contact.obstacles.is_empty());
-            let time = self.time + dt;
+            let (grid, boundary, blocks) = (&self.config.grid, &self.config.boundary, &self.blocks);
+            let conditions = NodeConditions::new(&self.config, self.time + dt);
             let (floor, n) = (self.mass_floor, blocks.row_len());
             let mass = &self.mass;
             // As in the first transfer: gather, fold, update and reflect, group by group.
@@ -550,13 +533,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             if m[i].re() > floor {
                                 *v /= m[i];
                                 node[0] = i;
-                                let face = on_a_face(grid, node);
-                                if face && has_segments || has_obstacles {
-                                    contact.apply(grid, node, time, v, false);
-                                }
-                                if face {
-                                    boundary.apply(grid, node, v);
-                                }
+                                conditions.apply(node, v, false);
                             } else {
                                 *v = Vector::zeros();
                             }
@@ -605,6 +582,46 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 },
             )
             .reduce(|| false, |a, b| a || b)
+    }
+}
+
+/// The conditions on a nodal velocity after the momentum update: contact (friction segments
+/// and obstacles, [`loam_core::Contact::apply`]) at the end-of-step time, then the plain walls
+/// ([`loam_core::Boundary::apply`]).
+struct NodeConditions<'a, T: Scalar, const D: usize> {
+    grid: &'a Grid<D>,
+    boundary: &'a loam_core::Boundary<D>,
+    contact: &'a loam_core::Contact<T, D>,
+    /// Whether there are friction segments (they act on face nodes only) and obstacles
+    /// (anywhere).
+    segments: bool,
+    obstacles: bool,
+    time: f64,
+}
+
+impl<'a, T: Scalar, const D: usize> NodeConditions<'a, T, D> {
+    fn new(cfg: &'a Config<T, D>, time: f64) -> Self {
+        Self {
+            grid: &cfg.grid,
+            boundary: &cfg.boundary,
+            contact: &cfg.contact,
+            segments: !cfg.contact.segments.is_empty(),
+            obstacles: !cfg.contact.obstacles.is_empty(),
+            time,
+        }
+    }
+
+    /// Applies contact (with friction when `friction` is set, normal part only otherwise) and
+    /// the walls to the velocity `v` of `node`.
+    #[inline(always)]
+    fn apply(&self, node: [usize; D], v: &mut Vector<T, D>, friction: bool) {
+        let face = on_a_face(self.grid, node);
+        if face && self.segments || self.obstacles {
+            self.contact.apply(self.grid, node, self.time, v, friction);
+        }
+        if face {
+            self.boundary.apply(self.grid, node, v);
+        }
     }
 }
 

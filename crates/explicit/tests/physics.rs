@@ -257,45 +257,37 @@ fn a_shallow_crossing_of_a_unilateral_wall_is_projected_onto_the_face() {
     }
 }
 
-/// A centre more than half a cell beyond a unilateral wall has escaped: the run stops and
-/// names it.
-#[test]
-fn a_deep_crossing_of_a_unilateral_wall_stops_the_run_with_its_id() {
-    let (config, mut p) = block(
-        Transfer::Apic,
-        Scheme::Musl,
-        [0.0, -9.81],
-        unilateral_walls(),
-    );
-    // 0.6 cells below the floor, inside the ghost layer (the stencil is still on the grid).
-    p.x[5] = Vector::<f64, 2>::new(1.0, -0.06);
+/// Steps the block of [`block`] once with particle 5 moved to `x5`, and checks that the run
+/// stops because that particle (and only it) crossed `wall`.
+fn assert_escapes(scheme: Scheme, boundary: Boundary<2>, x5: [f64; 2], wall: &str) {
+    let (config, mut p) = block(Transfer::Apic, scheme, [0.0, -9.81], boundary);
+    p.x[5] = Vector::<f64, 2>::from(x5);
     let mut solver = Solver::new(config, &p).unwrap();
     match solver.step(&mut p, f64::INFINITY) {
         Err(StepError::Escaped { what, ids, .. }) => {
             assert_eq!(ids, vec![5]);
-            assert!(what.contains("y_min"), "{what}");
+            assert!(what.contains(wall), "{what}");
         }
         other => panic!("expected Escaped, got {other:?}"),
     }
 }
 
+/// A centre more than half a cell beyond a unilateral wall has escaped: the run stops and
+/// names it. (0.6 cells below the floor, inside the ghost layer: the stencil is still on the
+/// grid.)
+#[test]
+fn a_deep_crossing_of_a_unilateral_wall_stops_the_run_with_its_id() {
+    assert_escapes(Scheme::Musl, unilateral_walls(), [1.0, -0.06], "y_min");
+}
+
+/// Particle 5 sits just outside a bilateral x wall (inside the ghost layer, so the grid still
+/// covers its stencil): the containment check must name it.
 #[test]
 fn a_particle_beyond_a_wall_stops_the_run_with_its_id() {
-    let (config, mut p) = block(
-        Transfer::Apic,
+    assert_escapes(
         Scheme::Usl,
-        [0.0, -9.81],
         Boundary::all(Wall::new(WallKind::Slip)),
+        [-0.01, 1.0],
+        "x_min",
     );
-    // Particle 5 sits just outside the lower x wall (inside the ghost layer, so the grid
-    // still covers its stencil): the containment check must name it.
-    p.x[5] = Vector::<f64, 2>::new(-0.01, 1.0);
-    let mut solver = Solver::new(config, &p).unwrap();
-    match solver.step(&mut p, f64::INFINITY) {
-        Err(StepError::Escaped { what, ids, .. }) => {
-            assert_eq!(ids, vec![5]);
-            assert!(what.contains("x_min"), "{what}");
-        }
-        other => panic!("expected Escaped, got {other:?}"),
-    }
 }

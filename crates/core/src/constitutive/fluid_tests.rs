@@ -14,16 +14,17 @@ fn water(gamma: f64) -> Fluid<f64> {
     }
 }
 
-fn kin<'a>(
-    f: &'a Matrix3<f64>,
-    l: &'a Matrix3<f64>,
-    zero: &'a Matrix3<f64>,
-) -> Kinematics<'a, f64> {
+/// One step of Δt = 1e-4 s from `F` (also the increment) with velocity gradient `L`.
+fn kin<'a, T: Scalar>(
+    f: &'a Matrix3<T>,
+    l: &'a Matrix3<T>,
+    zero: &'a Matrix3<T>,
+) -> Kinematics<'a, T> {
     Kinematics {
         f,
         delta_f: f,
         velocity_gradient: l,
-        dt: 1e-4,
+        dt: T::cst(1e-4),
         stress: zero,
     }
 }
@@ -199,13 +200,7 @@ fn material_dispatch_matches_the_direct_calls() {
         Matrix3::from_fn(|r, c| Dual64::new(f[(r, c)], if (r, c) == (0, 0) { 1.0 } else { 0.0 }));
     let ld = l.map(Dual64::from_re);
     let zd = Matrix3::zeros();
-    let kd = Kinematics {
-        f: &fd,
-        delta_f: &fd,
-        velocity_gradient: &ld,
-        dt: Dual64::from_re(1e-4),
-        stress: &zd,
-    };
+    let kd = kin(&fd, &ld, &zd);
     let sd = lifted.update(&kd, &mut MaterialState::default());
     assert!((sd[(0, 1)].re - direct[(0, 1)]).abs() < 1e-12);
     let dj = f[(1, 1)] * f[(2, 2)] - f[(1, 2)] * f[(2, 1)];
@@ -282,13 +277,7 @@ fn an_inviscid_fluid_has_only_pressure_but_keeps_the_viscosity_derivative() {
         l.map(Dual64::from_re),
         Matrix3::zeros(),
     );
-    let kd = Kinematics {
-        f: &fd,
-        delta_f: &fd,
-        velocity_gradient: &ld,
-        dt: Dual64::from_re(1e-4),
-        stress: &zd,
-    };
+    let kd = kin(&fd, &ld, &zd);
     let sd = md.update(&kd, &mut MaterialState::default());
     let expected = water(7.0).viscous_stress(&l) / ETA;
     for r in 0..3 {
