@@ -1,8 +1,9 @@
-//! `loam`: run, check and verify MPM scenes.
+//! `loam`: run, check, verify and bench MPM scenes.
 //!
 //! Exit codes: 0 success; 1 a run or a verification failed; 2 the input (scene file,
 //! arguments) is invalid.
 
+mod bench;
 mod check;
 mod run;
 mod verify;
@@ -57,6 +58,23 @@ enum Command {
         #[arg(long)]
         reduced: bool,
     },
+    /// Time the bench scenes on this machine (particle-steps per second).
+    Bench {
+        /// Benches to run (default: all).
+        benches: Vec<String>,
+        /// List the benches and exit.
+        #[arg(long)]
+        list: bool,
+        /// Timed steps of every explicit bench (default: per bench, a few seconds each).
+        #[arg(long)]
+        steps: Option<usize>,
+        /// Run the explicit benches in single precision.
+        #[arg(long)]
+        f32: bool,
+        /// Write the results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
 }
 
 /// The outcome of a command: which exit code, after the command printed its own messages.
@@ -89,6 +107,13 @@ fn main() -> ExitCode {
             out,
             reduced,
         } => verify::verify(&cases, list, json.as_deref(), &out, reduced),
+        Command::Bench {
+            benches,
+            list,
+            steps,
+            f32,
+            json,
+        } => bench::bench(&benches, list, steps, f32, json.as_deref()),
     };
     match outcome {
         Outcome::Ok => ExitCode::SUCCESS,

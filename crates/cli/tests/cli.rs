@@ -182,3 +182,52 @@ fn verify_lists_cases_and_writes_json() {
     assert_eq!(first["case"], "axial-bar");
     assert!(dir.path().join("axial-bar/axial_bar.png").exists());
 }
+
+#[test]
+fn bench_lists_its_scenes_and_refuses_an_unknown_one() {
+    let out = loam(&["bench", "--list"]);
+    assert!(out.status.success());
+    let list = String::from_utf8_lossy(&out.stdout);
+    for name in ["dambreak", "dambreak-1m", "column-3d", "cantilever"] {
+        assert!(list.contains(name), "{name} missing from {list}");
+    }
+    let out = loam(&["bench", "dambreak-2m"]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("unknown bench `dambreak-2m`") && stderr.contains("dambreak-1m"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn bench_times_the_dam_break_and_writes_json() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = dir.path().join("bench.json");
+    let out = loam(&[
+        "bench",
+        "dambreak",
+        "--steps",
+        "3",
+        "--json",
+        json.to_str().expect("path"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
+            .expect("valid json");
+    let row = &rows[0];
+    assert_eq!(row["bench"], "dambreak");
+    // The friction dam-break: a 0.5 m × 0.3 m block at 2 × 2 particles per 0.01 m cell.
+    assert_eq!(row["particles"], 6000);
+    assert_eq!(row["steps"], 3);
+    let (wall, rate) = (
+        row["wall_s"].as_f64().expect("wall"),
+        row["particle_steps_per_s"].as_f64().expect("rate"),
+    );
+    assert!(wall > 0.0 && (rate * wall - 18_000.0).abs() < 1e-6 * 18_000.0);
+}

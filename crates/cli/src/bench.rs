@@ -1,0 +1,256 @@
+//! `loam bench`: times the bench scenes of `loam_benches` on this machine.
+//!
+//! The scenes are the ones the criterion benches use (`cargo bench -p loam-benches`), so the
+//! figures are comparable with `docs/performance.md`. An explicit scene takes
+//! [`WARM_UP_STEPS`] untimed steps (scratch allocated, material moving), then the timed steps;
+//! the figure is particle-steps per second, `particles · steps / wall time`. The implicit
+//! cantilever runs its 50 load steps end to end and reports the wall time and the Newton
+//! iterations.
+
+use crate::Outcome;
+use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d, granular_column_3d};
+use loam_core::{Particles, Scalar, Shape};
+use loam_explicit::{Config, Solver};
+use loam_implicit::StepReport;
+use loam_verification::cantilever::Setup;
+use std::path::Path;
+use std::time::Instant;
+
+/// Untimed steps before an explicit bench starts its clock.
+const WARM_UP_STEPS: usize = 5;
+
+/// One bench: a name, what it is, and its default number of timed steps (explicit scenes).
+struct Bench {
+    name: &'static str,
+    description: &'static str,
+    steps: usize,
+}
+
+/// The benches, in the order `loam bench` runs them. The default step counts keep each one
+/// to a few seconds on two cores, except `dambreak`, which runs the whole 0.4 s scene.
+const BENCHES: [Bench; 7] = [
+    Bench {
+        name: "dambreak",
+        description: "friction dam-break, 6,000 particles, the whole 0.4 s (13,333 steps of 3e-5 s)",
+        steps: 13_333,
+    },
+    Bench {
+        name: "dambreak-96k",
+        description: "friction dam-break at 4× the resolution, 96,000 particles",
+        steps: 200,
+    },
+    Bench {
+        name: "dambreak-1m",
+        description: "friction dam-break at 13× the resolution, 1,014,000 particles",
+        steps: 20,
+    },
+    Bench {
+        name: "block-2d",
+        description: "2D Neo-Hookean block collapse, 101,124 particles",
+        steps: 100,
+    },
+    Bench {
+        name: "block-3d",
+        description: "3D Neo-Hookean block collapse, 110,592 particles",
+        steps: 50,
+    },
+    Bench {
+        name: "column-3d",
+        description: "3D Drucker–Prager column collapse on a Coulomb floor, 93,312 particles",
+        steps: 50,
+    },
+    Bench {
+        name: "cantilever",
+        description: "implicit reference cantilever, 5,760 particles, 50 load steps (f64 only)",
+        steps: 0,
+    },
+];
+
+/// What one bench measured.
+struct Measured {
+    name: &'static str,
+    precision: &'static str,
+    particles: usize,
+    /// Timed steps (load steps for the cantilever).
+    steps: usize,
+    wall: f64,
+    /// Newton iterations (implicit only).
+    iterations: Option<usize>,
+}
+
+impl Measured {
+    /// Particle-steps per second (load steps for the implicit bench).
+    fn rate(&self) -> f64 {
+        self.particles as f64 * self.steps as f64 / self.wall
+    }
+}
+
+/// Runs the named benches (all when empty) and prints a table; `steps` overrides the
+/// default step counts of the explicit scenes, `f32` runs them in single precision.
+pub fn bench(
+    names: &[String],
+    list: bool,
+    steps: Option<usize>,
+    f32: bool,
+    json: Option<&Path>,
+) -> Outcome {
+    if list {
+        for b in &BENCHES {
+            println!("{:<14} {}", b.name, b.description);
+        }
+        return Outcome::Ok;
+    }
+    let mut selected = Vec::new();
+    for name in names {
+        match BENCHES.iter().find(|b| b.name == name) {
+            Some(b) => selected.push(b),
+            None => {
+                let known: Vec<&str> = BENCHES.iter().map(|b| b.name).collect();
+                eprintln!(
+                    "error: unknown bench `{name}`; expected one of {}",
+                    known.join(", ")
+                );
+                return Outcome::BadInput;
+            }
+        }
+    }
+    if selected.is_empty() {
+        selected = BENCHES.iter().collect();
+    }
+    if steps == Some(0) {
+        eprintln!("error: --steps must be at least 1");
+        return Outcome::BadInput;
+    }
+    println!("{} ({} threads)", cpu_model(), rayon::current_num_threads());
+    println!(
+        "{:<14} {:>9} {:>10} {:>7} {:>10} {:>14}  note",
+        "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s"
+    );
+    let mut results = Vec::new();
+    for b in selected {
+        let n = steps.unwrap_or(b.steps);
+        let m = match (b.name, f32) {
+            ("cantilever", _) => match cantilever() {
+                Ok(m) => m,
+                Err(e) => {
+                    eprintln!("error: cantilever: {e}");
+                    return Outcome::Failed;
+                }
+            },
+            (_, false) => explicit::<f64>(b.name, n),
+            (_, true) => explicit::<f32>(b.name, n),
+        };
+        let note = m
+            .iterations
+            .map_or(String::new(), |k| format!("{k} Newton iterations"));
+        let row = format!(
+            "{:<14} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {note}",
+            m.name,
+            m.precision,
+            m.particles,
+            m.steps,
+            m.wall,
+            m.rate()
+        );
+        println!("{}", row.trim_end());
+        results.push(m);
+    }
+    if let Some(path) = json
+        && let Err(e) = write_json(path, &results)
+    {
+        eprintln!("error: cannot write {}: {e}", path.display());
+        return Outcome::Failed;
+    }
+    Outcome::Ok
+}
+
+/// Times `steps` explicit steps of the scene `name` in precision `T`.
+fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {
+    match name {
+        "dambreak" => time_steps(name, steps, dambreak_friction_2d::<T>(1)),
+        "dambreak-96k" => time_steps(name, steps, dambreak_friction_2d::<T>(4)),
+        "dambreak-1m" => time_steps(name, steps, dambreak_friction_2d::<T>(13)),
+        "block-2d" => time_steps(name, steps, fluid_block_2d::<T>(100_000)),
+        "block-3d" => time_steps(name, steps, fluid_block_3d::<T>(100_000)),
+        "column-3d" => time_steps(name, steps, granular_column_3d::<T>(3)),
+        _ => unreachable!("`{name}` is in BENCHES"),
+    }
+}
+
+/// Warms the solver up, then times `steps` steps.
+fn time_steps<T: Scalar, const D: usize>(
+    name: &'static str,
+    steps: usize,
+    (config, mut particles): (Config<T, D>, Particles<T, D>),
+) -> Measured {
+    let mut solver = Solver::new(config, &particles).expect("bench scenes are valid");
+    let mut advance = |k: usize| {
+        for _ in 0..k {
+            solver
+                .step(&mut particles, f64::INFINITY)
+                .expect("bench scenes are stable");
+        }
+    };
+    advance(WARM_UP_STEPS);
+    let start = Instant::now();
+    advance(steps);
+    Measured {
+        name,
+        precision: if size_of::<T>() == 4 { "f32" } else { "f64" },
+        particles: particles.len(),
+        steps,
+        wall: start.elapsed().as_secs_f64(),
+        iterations: None,
+    }
+}
+
+/// The reference cantilever end to end (cpGIMP, as `examples/cantilever.toml`).
+fn cantilever() -> Result<Measured, loam_implicit::ImplicitError> {
+    let setup = Setup::reference(Shape::Cpgimp);
+    let particles = setup.build().1.len();
+    let start = Instant::now();
+    let (_, reports) = setup.run()?;
+    Ok(Measured {
+        name: "cantilever",
+        precision: "f64",
+        particles,
+        steps: setup.steps,
+        wall: start.elapsed().as_secs_f64(),
+        iterations: Some(reports.iter().map(StepReport::iterations).sum()),
+    })
+}
+
+/// The CPU's model name (Linux `/proc/cpuinfo`), or a placeholder elsewhere.
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".to_string())
+}
+
+/// Writes the results as a JSON array.
+fn write_json(path: &Path, results: &[Measured]) -> std::io::Result<()> {
+    let rows: Vec<serde_json::Value> = results
+        .iter()
+        .map(|m| {
+            serde_json::json!({
+                "bench": m.name,
+                "precision": m.precision,
+                "particles": m.particles,
+                "steps": m.steps,
+                "wall_s": m.wall,
+                "particle_steps_per_s": m.rate(),
+                "newton_iterations": m.iterations,
+                "threads": rayon::current_num_threads(),
+                "cpu": cpu_model(),
+            })
+        })
+        .collect();
+    let text = serde_json::to_string_pretty(&rows).map_err(std::io::Error::other)?;
+    std::fs::write(path, text)
+}
