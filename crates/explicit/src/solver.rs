@@ -435,16 +435,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 #[inline(always)]
                 |(i, ((x, v, f, c, stress, state), &mat))| {
                     let st = &kernels[blocks.rank(i)].stencil;
-                    let g = g2p(
-                        st,
-                        &layout,
-                        &cfg.grid,
-                        cfg.shape,
-                        cfg.transfer,
-                        true,
-                        vel,
-                        vel_old,
-                    );
+                    let g = gather(cfg, st, &layout, true, vel, vel_old);
                     (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                     *x += g.v * dtt;
                     checks.project(x, v);
@@ -479,16 +470,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 #[inline(always)]
                 |i, block, buf, kernel| {
                     let st = &kernel.stencil;
-                    let g = g2p(
-                        st,
-                        &layout,
-                        &cfg.grid,
-                        cfg.shape,
-                        cfg.transfer,
-                        false,
-                        vel,
-                        vel_old,
-                    );
+                    let g = gather(cfg, st, &layout, false, vel, vel_old);
                     let (v, c) = cfg.transfer.particle_velocity(&pr.v[i], &g);
                     // Second P2G: momentum of the updated particle velocities at the
                     // start-of-step positions.
@@ -583,6 +565,30 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             )
             .reduce(|| false, |a, b| a || b)
     }
+}
+
+/// G2P of the updated grid velocity `vel` (and `old`, for FLIP) at the particle with stencil
+/// `st`, with the configuration's transfer; the velocity gradient when `gradient` is set (see
+/// [`g2p`]).
+#[inline(always)]
+fn gather<T: Scalar, const D: usize>(
+    cfg: &Config<T, D>,
+    st: &Stencil<T, D>,
+    layout: &Layout<D>,
+    gradient: bool,
+    vel: &[Vector<T, D>],
+    old: &[Vector<T, D>],
+) -> loam_core::transfer::Gathered<T, D> {
+    g2p(
+        st,
+        layout,
+        &cfg.grid,
+        cfg.shape,
+        cfg.transfer,
+        gradient,
+        vel,
+        old,
+    )
 }
 
 /// The conditions on a nodal velocity after the momentum update: contact (friction segments
