@@ -58,18 +58,58 @@ impl<const D: usize> Boundary<D> {
         }
     }
 
-    /// Applies every wall whose face the node lies on (corners get all of theirs).
+    /// Applies every wall whose face the node lies on (corners get all of theirs). Returns
+    /// the separable walls that acted (the node moved into them), bit `2·axis + side`: the
+    /// active set that [`Boundary::enforce`] applies again.
     #[inline]
-    pub fn apply<T: Scalar>(&self, grid: &Grid<D>, node: [usize; D], v: &mut Vector<T, D>) {
+    pub fn apply<T: Scalar>(&self, grid: &Grid<D>, node: [usize; D], v: &mut Vector<T, D>) -> u8 {
+        self.act(grid, node, v, None)
+    }
+
+    /// Applies the walls of the node again to another velocity of it (MUSL's second
+    /// projection): bilateral walls as in [`Boundary::apply`], separable walls exactly where
+    /// `active` (from [`Boundary::apply`]) says they acted, whatever `v` does now.
+    #[inline]
+    pub fn enforce<T: Scalar>(
+        &self,
+        grid: &Grid<D>,
+        node: [usize; D],
+        v: &mut Vector<T, D>,
+        active: u8,
+    ) {
+        self.act(grid, node, v, Some(active));
+    }
+
+    /// [`Boundary::apply`] (`given = None`: a separable wall acts when the node moves into it)
+    /// and [`Boundary::enforce`] (`given`: the separable walls that act).
+    #[inline(always)]
+    fn act<T: Scalar>(
+        &self,
+        grid: &Grid<D>,
+        node: [usize; D],
+        v: &mut Vector<T, D>,
+        given: Option<u8>,
+    ) -> u8 {
+        let mut acted = 0;
         for axis in 0..D {
             for side in 0..2 {
                 let wall = self.walls[axis][side];
                 if wall.kind == WallKind::Free || !grid.on_face(node, axis, side) {
                     continue;
                 }
-                // Outward normal is −e_axis on the lower face, +e_axis on the upper one.
-                let vn = if side == 0 { -v[axis] } else { v[axis] };
-                let active = !wall.separable || vn.re() > 0.0;
+                let bit = 1 << (2 * axis + side);
+                let active = if !wall.separable {
+                    true
+                } else if let Some(given) = given {
+                    given & bit != 0
+                } else {
+                    // Outward normal is −e_axis on the lower face, +e_axis on the upper one.
+                    let vn = if side == 0 { -v[axis] } else { v[axis] };
+                    vn.re() > 0.0
+                };
+                if wall.separable && active {
+                    acted |= bit;
+                }
                 match wall.kind {
                     WallKind::Fixed => *v = Vector::zeros(),
                     WallKind::Slip if active => v[axis] = T::zero(),
@@ -78,6 +118,7 @@ impl<const D: usize> Boundary<D> {
                 }
             }
         }
+        acted
     }
 }
 
@@ -409,6 +450,35 @@ mod tests {
     }
 
     /// The ghost/mirror runs, expanded node by node, are the naive pairs in the same order.
+    /// `apply` reports the separable walls that acted; `enforce` applies exactly those again
+    /// (whatever the new velocity does) and the bilateral walls as always.
+    #[test]
+    fn enforce_repeats_the_separable_walls_that_acted() {
+        let g = Grid::<2>::new([0.0, 0.0], [4, 4], 1.0, 2);
+        let mut b = Boundary::<2>::all(Wall::new(WallKind::Slip));
+        b.walls[1][0] = Wall {
+            kind: WallKind::Slip,
+            separable: true,
+        };
+        // Corner of the bilateral x_min wall and the separable floor (bit 2·1 + 0 = 4).
+        let corner = [2, 2];
+        let mut v = Vector::<f64, 2>::new(0.3, -0.2);
+        assert_eq!(b.apply(&g, corner, &mut v), 0b100);
+        assert_eq!(v, Vector::<f64, 2>::new(0.0, 0.0));
+        // The second velocity leaves the floor: held anyway, because the floor acted.
+        let mut w = Vector::<f64, 2>::new(0.3, 0.4);
+        b.enforce(&g, corner, &mut w, 0b100);
+        assert_eq!(w, Vector::<f64, 2>::new(0.0, 0.0));
+        // The floor did not act: a velocity into it is left alone by `enforce`, the
+        // bilateral wall still acts.
+        let mut u = Vector::<f64, 2>::new(0.3, -0.4);
+        b.enforce(&g, corner, &mut u, 0);
+        assert_eq!(u, Vector::<f64, 2>::new(0.0, -0.4));
+        // A leaving node is not reported.
+        let mut z = Vector::<f64, 2>::new(0.3, 0.4);
+        assert_eq!(b.apply(&g, corner, &mut z), 0);
+    }
+
     #[test]
     fn ghosts_pair_with_their_mirror_images_in_flat_order() {
         let g = Grid::<3>::new([0.0; 3], [4, 5, 6], 0.5, 2);

@@ -59,6 +59,16 @@ impl<T: Scalar, const D: usize> Config<T, D> {
         if self.materials.is_empty() {
             return bad("materials", "at least one material is needed".into());
         }
+        let obstacles = self.contact.obstacles.len();
+        if obstacles > loam_core::Contact::<T, D>::MAX_OBSTACLES {
+            return bad(
+                "contact.obstacles",
+                format!(
+                    "at most {} obstacles (one bit each in a node's contact state), got {obstacles}",
+                    loam_core::Contact::<T, D>::MAX_OBSTACLES
+                ),
+            );
+        }
         if let Transfer::Flip { alpha } = self.transfer
             && !(0.0..=1.0).contains(&alpha)
         {

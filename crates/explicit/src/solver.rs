@@ -35,6 +35,9 @@ pub struct Solver<T: Scalar, const D: usize> {
     mass: Vec<T>,
     velocity: Vec<Vector<T, D>>,
     velocity_old: Vec<Vector<T, D>>,
+    /// Per node, the unilateral constraints that acted in the grid update (see
+    /// [`NodeConditions::apply`]), which MUSL's second projection enforces again.
+    active: Vec<Active>,
     /// Per particle, by sorted position: its stencil of the step (computed once, in P2G) and,
     /// for MUSL, its new position, velocity and affine matrix until the stress update writes
     /// them back.
@@ -121,6 +124,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             mass: vec![T::zero(); n],
             velocity: vec![Vector::zeros(); n],
             velocity_old: vec![Vector::zeros(); n],
+            active: vec![Active::default(); n],
             kernels: Vec::new(),
             wave_speed,
             mass_floor: 0.0,
@@ -372,9 +376,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .into_par_iter()
             .zip(blocks.split_groups(&mut self.velocity_old))
             .zip(blocks.split_groups(&mut self.velocity))
+            .zip(blocks.split_groups(&mut self.active))
             .zip(blocks.groups().par_iter())
             .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(((m, v_old), v), &(r0, r1))| {
+            .for_each(|((((m, v_old), v), active), &(r0, r1))| {
                 let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
                 for r in r0..r1 {
                     let at = rows(r);
@@ -384,7 +389,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
                 for r in r0..r1 {
                     let at = rows(r);
-                    let (m, v_old, v) = (&m[at.clone()], &mut v_old[at.clone()], &mut v[at]);
+                    let (m, v_old, v) =
+                        (&m[at.clone()], &mut v_old[at.clone()], &mut v[at.clone()]);
+                    let active = &mut active[at];
                     let mut node = blocks.row_node(r);
                     blocks.for_each_visited(r, |i| {
                         let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
@@ -392,7 +399,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             *v_old /= m;
                             *v = *v_old + (*v / m + gravity) * dtt;
                             node[0] = i;
-                            conditions.apply(node, v, true);
+                            active[i] = conditions.apply(node, v);
                         } else {
                             *v_old = Vector::zeros();
                             *v = Vector::zeros();
@@ -493,7 +500,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             let (grid, boundary, blocks) = (&self.config.grid, &self.config.boundary, &self.blocks);
             let conditions = NodeConditions::new(&self.config, self.time + dt);
             let (floor, n) = (self.mass_floor, blocks.row_len());
-            let mass = &self.mass;
+            let (mass, active) = (&self.mass, &self.active);
             // As in the first transfer: gather, fold, update and reflect, group by group.
             blocks
                 .split_groups(&mut self.velocity)
@@ -508,14 +515,15 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     let nodes = r0 * n..r1 * n;
                     boundary.fold_ghosts_in(grid, nodes.clone(), None, v, None);
                     for r in r0..r1 {
-                        let (v, m) = (&mut v[rows(r)], &mass[r * n..(r + 1) * n]);
+                        let at = r * n..(r + 1) * n;
+                        let (v, m, active) = (&mut v[rows(r)], &mass[at.clone()], &active[at]);
                         let mut node = blocks.row_node(r);
                         blocks.for_each_visited(r, |i| {
                             let v = &mut v[i];
                             if m[i].re() > floor {
                                 *v /= m[i];
                                 node[0] = i;
-                                conditions.apply(node, v, false);
+                                conditions.enforce(node, v, active[i]);
                             } else {
                                 *v = Vector::zeros();
                             }
@@ -591,6 +599,14 @@ fn gather<T: Scalar, const D: usize>(
     )
 }
 
+/// The unilateral constraints that acted on a node in the grid update: contact
+/// ([`loam_core::Contact::apply`]) and separable walls ([`loam_core::Boundary::apply`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct Active {
+    contact: u64,
+    walls: u8,
+}
+
 /// The conditions on a nodal velocity after the momentum update: contact (friction segments
 /// and obstacles, [`loam_core::Contact::apply`]) at the end-of-step time, then the plain walls
 /// ([`loam_core::Boundary::apply`]).
@@ -617,16 +633,29 @@ impl<'a, T: Scalar, const D: usize> NodeConditions<'a, T, D> {
         }
     }
 
-    /// Applies contact (with friction when `friction` is set, normal part only otherwise) and
-    /// the walls to the velocity `v` of `node`.
+    /// Applies contact and the walls to the trial velocity `v` of `node`; returns the
+    /// unilateral constraints that acted.
     #[inline(always)]
-    fn apply(&self, node: [usize; D], v: &mut Vector<T, D>, friction: bool) {
+    fn apply(&self, node: [usize; D], v: &mut Vector<T, D>) -> Active {
         let face = on_a_face(self.grid, node);
+        let mut active = Active::default();
         if face && self.segments || self.obstacles {
-            self.contact.apply(self.grid, node, self.time, v, friction);
+            active.contact = self.contact.apply(self.grid, node, self.time, v);
         }
         if face {
-            self.boundary.apply(self.grid, node, v);
+            active.walls = self.boundary.apply(self.grid, node, v);
+        }
+        active
+    }
+
+    /// MUSL's second projection: non-penetration on the velocity `v` of `node` for the
+    /// constraints that acted in [`NodeConditions::apply`], and the bilateral walls.
+    #[inline(always)]
+    fn enforce(&self, node: [usize; D], v: &mut Vector<T, D>, active: Active) {
+        self.contact
+            .enforce(self.grid, node, self.time, v, active.contact);
+        if on_a_face(self.grid, node) {
+            self.boundary.enforce(self.grid, node, v, active.walls);
         }
     }
 }

@@ -19,9 +19,9 @@
 //!
 //! so the node sticks (`v_t = 0`) when `|v_t| ≤ μ Δv_n` and slides with the friction impulse
 //! `m μ Δv_n` otherwise (the normal impulse is `m Δv_n`). A separating node (`Δv_n ≤ 0`) is
-//! left alone. `μ = 0` removes the normal part only: exactly a slip wall. With
-//! `friction = false` (MUSL's second projection) only the normal part is removed. See
-//! [`coulomb`].
+//! left alone. `μ = 0` removes the normal part only: exactly a slip wall. See [`coulomb`].
+//! MUSL's second projection removes only the normal part, on the constraints that acted in the
+//! first one ([`Contact::enforce`]).
 //!
 //! # Friction segments on walls
 //!
@@ -121,25 +121,17 @@ impl<T: Scalar, const D: usize> FrictionSegment<T, D> {
 
 /// The nodal Coulomb contact law: `v` is the velocity relative to the rigid surface, `n` the
 /// unit normal pointing into the rigid body. If `Δv_n = v·n > 0` (approaching), removes the
-/// normal part and reduces the tangential part `v_t` by `min(μ Δv_n, |v_t|)` along `v_t`
-/// (only the normal part with `friction = false`); returns whether the node was in contact.
+/// normal part and reduces the tangential part `v_t` by `min(μ Δv_n, |v_t|)` along `v_t`;
+/// returns whether the node was in contact.
 /// A separating node is untouched. Branches are taken on real parts; `μ` may be a dual
 /// number (the slide branch is differentiable in `μ`, the stick branch has `v_t ≡ 0`).
 #[inline]
-pub fn coulomb<T: Scalar, const D: usize>(
-    v: &mut Vector<T, D>,
-    n: &Vector<T, D>,
-    mu: T,
-    friction: bool,
-) -> bool {
+pub fn coulomb<T: Scalar, const D: usize>(v: &mut Vector<T, D>, n: &Vector<T, D>, mu: T) -> bool {
     let vn = v.dot(n);
     if vn.re() <= 0.0 {
         return false;
     }
     *v -= n * vn;
-    if !friction {
-        return true;
-    }
     let vt = v.norm();
     let slip = mu * vn;
     if slip.re() >= vt.re() {
@@ -188,50 +180,97 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         self.segments.is_empty() && self.obstacles.is_empty()
     }
 
+    /// The largest number of obstacles: one bit each in the active set of [`Contact::apply`],
+    /// after the `2·3` bits of the faces.
+    pub const MAX_OBSTACLES: usize = 64 - 6;
+
     /// Applies contact to the trial velocity `v` of `node` at simulated time `time` (the end
     /// of the step): first the friction segments (on each face the first segment containing
     /// the node), then every obstacle whose contact layer holds the node, each by [`coulomb`]
-    /// on the velocity relative to the surface. With `friction = false` only
-    /// non-penetration is enforced (MUSL's second projection).
+    /// on the velocity relative to the surface. Returns the active set, the constraints that
+    /// acted (the node approached): bit `2·axis + side` for a face, bit `2·D + k` for
+    /// obstacle `k` (at most [`Contact::MAX_OBSTACLES`]), for [`Contact::enforce`].
     #[inline]
-    pub fn apply(
+    pub fn apply(&self, grid: &Grid<D>, node: [usize; D], time: f64, v: &mut Vector<T, D>) -> u64 {
+        self.act(grid, node, time, v, None)
+    }
+
+    /// Non-penetration on another velocity of the node (MUSL's second projection), exactly on
+    /// the constraints of `active` (from [`Contact::apply`]): their normal part of the velocity
+    /// relative to the surface is removed whatever its sign, and the others are left alone.
+    /// Re-testing the approach on the second velocity field instead holds nodes that have
+    /// already separated, which pumps energy into a rebounding body (`docs/architecture.md`).
+    #[inline]
+    pub fn enforce(
         &self,
         grid: &Grid<D>,
         node: [usize; D],
         time: f64,
         v: &mut Vector<T, D>,
-        friction: bool,
+        active: u64,
     ) {
-        if self.is_empty() {
-            return;
+        if active != 0 {
+            self.act(grid, node, time, v, Some(active));
         }
+    }
+
+    /// [`Contact::apply`] (`given = None`) and [`Contact::enforce`] (`given`: the active set).
+    #[inline(always)]
+    fn act(
+        &self,
+        grid: &Grid<D>,
+        node: [usize; D],
+        time: f64,
+        v: &mut Vector<T, D>,
+        given: Option<u64>,
+    ) -> u64 {
+        if self.is_empty() {
+            return 0;
+        }
+        // The law on the velocity `w` relative to a surface with inward normal `n`: Coulomb
+        // for `apply`, removal of the normal part on the given constraints for `enforce`.
+        let law = |w: &mut Vector<T, D>, n: &Vector<T, D>, mu: T, bit: u64| match given {
+            None => coulomb(w, n, mu),
+            Some(active) if active & bit != 0 => {
+                *w -= n * w.dot(n);
+                true
+            }
+            Some(_) => false,
+        };
+        let mut acted = 0;
         let mut faces_done = [[false; 2]; D];
         for s in &self.segments {
             if faces_done[s.axis][s.side] || !s.contains(grid, node) {
                 continue;
             }
             faces_done[s.axis][s.side] = true;
-            coulomb(v, &s.normal(), s.mu, friction);
+            let bit = 1 << (2 * s.axis + s.side);
+            if law(v, &s.normal(), s.mu, bit) {
+                acted |= bit;
+            }
         }
         if self.obstacles.is_empty() {
-            return;
+            return acted;
         }
         let o = grid.origin();
         let x: [f64; D] = std::array::from_fn(|a| o[a] + node[a] as f64 * grid.h);
         let reach = self.support * grid.h;
-        for ob in &self.obstacles {
+        for (k, ob) in self.obstacles.iter().enumerate() {
             let (phi, n_out) = ob.distance(&x, time);
             let l1: f64 = n_out.iter().map(|c| c.abs()).sum();
             if phi >= reach * l1 {
                 continue;
             }
+            let bit = 1 << (2 * D + k);
             let vo = Vector::<T, D>::from_fn(|a, _| T::cst(ob.velocity[a]));
             let n_in = Vector::<T, D>::from_fn(|a, _| T::cst(-n_out[a]));
             let mut vr = *v - vo;
-            if coulomb(&mut vr, &n_in, ob.mu, friction) {
+            if law(&mut vr, &n_in, ob.mu, bit) {
                 *v = vr + vo;
+                acted |= bit;
             }
         }
+        acted
     }
 
     /// The obstacle a particle at `x` (real parts) lies strictly inside at `time`, if any:
@@ -260,7 +299,7 @@ mod tests {
     fn sticks_when_the_tangential_speed_is_within_the_cone() {
         // Δv_n = 1, |v_t| = 0.4 ≤ μ Δv_n = 0.5: stops.
         let mut v = V2::new(0.4, -1.0);
-        assert!(coulomb(&mut v, &floor(), 0.5, true));
+        assert!(coulomb(&mut v, &floor(), 0.5));
         assert_eq!(v, V2::zeros());
     }
 
@@ -268,12 +307,12 @@ mod tests {
     fn slides_with_the_tangential_speed_reduced_by_mu_dvn() {
         // Δv_n = 2, μ = 0.25: |v_t| goes from 3 to 3 − 0.5 along v_t.
         let mut v = V2::new(-3.0, -2.0);
-        coulomb(&mut v, &floor(), 0.25, true);
+        coulomb(&mut v, &floor(), 0.25);
         assert_eq!(v, V2::new(-2.5, 0.0));
         // In 3D the reduction is along v_t.
         let mut v = Vector::<f64, 3>::new(3.0, -1.0, 4.0);
         let n = Vector::<f64, 3>::new(0.0, -1.0, 0.0);
-        coulomb(&mut v, &n, 1.0, true);
+        coulomb(&mut v, &n, 1.0);
         assert!((v - Vector::<f64, 3>::new(2.4, 0.0, 3.2)).norm() < 1e-15);
     }
 
@@ -281,7 +320,7 @@ mod tests {
     fn separating_nodes_are_untouched() {
         for v0 in [V2::new(1.0, 0.5), V2::new(-2.0, 0.0)] {
             let mut v = v0;
-            assert!(!coulomb(&mut v, &floor(), 0.7, true));
+            assert!(!coulomb(&mut v, &floor(), 0.7));
             assert_eq!(v, v0);
         }
     }
@@ -300,17 +339,40 @@ mod tests {
         for v0 in [V2::new(0.3, -1.7), V2::new(-1e-3, -2.0), V2::new(0.1, 0.4)] {
             for node in [[4, 2], [5, 1], [3, 0]] {
                 let (mut a, mut b) = (v0, v0);
-                c.apply(&g, node, 0.0, &mut a, true);
+                c.apply(&g, node, 0.0, &mut a);
                 slip.apply(&g, node, &mut a);
                 slip.apply(&g, node, &mut b);
                 assert_eq!(a, b);
                 assert_eq!(a[0], v0[0]);
             }
         }
-        // Without friction the normal part alone goes.
-        let mut v = V2::new(3.0, -1.0);
-        coulomb(&mut v, &floor(), 0.9, false);
-        assert_eq!(v, V2::new(3.0, 0.0));
+    }
+
+    /// `apply` returns the constraints that acted (a face bit, an obstacle bit); `enforce`
+    /// removes the normal part on exactly those, approaching or not, without friction.
+    #[test]
+    fn enforce_removes_the_normal_part_on_the_constraints_that_acted() {
+        // h = 0.25, pad 2: node (i, j) sits at ((i − 2)/4, (j − 2)/4).
+        let g = Grid::<2>::new([0.0, 0.0], [8, 8], 0.25, 2);
+        let mut c = Contact::<f64, 2>::new(Shape::QuadraticBspline);
+        c.segments.push(FrictionSegment::whole_face(1, 0, 0.5));
+        let floor_node = [4, 2];
+        let mut v = V2::new(1.0, -0.5);
+        let active = c.apply(&g, floor_node, 0.0, &mut v);
+        assert_eq!(active, 1 << 2, "the y_min face (bit 2·1 + 0) acted");
+        assert_eq!(
+            v,
+            V2::new(0.75, 0.0),
+            "Coulomb: |v_t| reduced by μ Δv_n = 0.25"
+        );
+        // Second velocity, separating: its normal part goes too, its tangent part stays.
+        let mut w = V2::new(1.0, 0.3);
+        c.enforce(&g, floor_node, 0.0, &mut w, active);
+        assert_eq!(w, V2::new(1.0, 0.0));
+        // Nothing acted: nothing is enforced.
+        let mut u = V2::new(1.0, -0.3);
+        c.enforce(&g, floor_node, 0.0, &mut u, 0);
+        assert_eq!(u, V2::new(1.0, -0.3));
     }
 
     #[test]
@@ -334,7 +396,7 @@ mod tests {
         });
         let run = |node: [usize; 2]| {
             let mut v = V2::new(0.5, -1.0);
-            c.apply(&g, node, 0.0, &mut v, true);
+            c.apply(&g, node, 0.0, &mut v);
             v
         };
         assert_eq!(run([4, 2]), V2::zeros()); // x = 0.5 on the face: μ = 1, sticks
@@ -359,7 +421,7 @@ mod tests {
         ));
         let run = |node: [usize; 2], v0: V2, time: f64| {
             let mut v = v0;
-            c.apply(&g, node, time, &mut v, true);
+            c.apply(&g, node, time, &mut v);
             v
         };
         // x = 0.9 (φ = 0.1 < 1.5 h): approaching from the left → normal part removed.
@@ -389,19 +451,19 @@ mod tests {
         // the disk at relative speed 1, so it is pushed up to the disk's speed, and a
         // tangential speed 0.3 ≤ μ·1 sticks.
         let mut v = V2::new(0.3, 0.0);
-        c.apply(&g, [7, 18], 0.2, &mut v, true);
+        c.apply(&g, [7, 18], 0.2, &mut v);
         assert!((v - V2::new(0.0, 1.0)).norm() < 1e-15, "{v}");
         // Tangential speed 2 slides, reduced by μ·1 = 0.5.
         let mut v = V2::new(2.0, 0.0);
-        c.apply(&g, [7, 18], 0.2, &mut v, true);
+        c.apply(&g, [7, 18], 0.2, &mut v);
         assert!((v - V2::new(1.5, 1.0)).norm() < 1e-15, "{v}");
         // A node moving up faster than the disk separates.
         let mut v = V2::new(2.0, 1.5);
-        c.apply(&g, [7, 18], 0.2, &mut v, true);
+        c.apply(&g, [7, 18], 0.2, &mut v);
         assert_eq!(v, V2::new(2.0, 1.5));
         // At t = 0 the same node is 0.3 away: out of the layer.
         let mut v = V2::new(0.3, 0.0);
-        c.apply(&g, [7, 18], 0.0, &mut v, true);
+        c.apply(&g, [7, 18], 0.0, &mut v);
         assert_eq!(v, V2::new(0.3, 0.0));
         // Penetration moves with the disk.
         assert_eq!(c.penetrated(&[0.5, 1.35], 0.0), None);
@@ -432,7 +494,7 @@ mod tests {
                         // A node moving straight at the centre must be stopped.
                         let xi: V2 = g.node_position(n.index);
                         let mut v = V2::new(2.0, 2.0) - xi;
-                        c.apply(&g, n.index, 0.0, &mut v, true);
+                        c.apply(&g, n.index, 0.0, &mut v);
                         let (_, nn) = o.distance(&[xi[0], xi[1]], 0.0);
                         assert!(v.dot(&V2::from(nn)) >= -1e-12, "h {h} r {r} node {xi}");
                     }
@@ -446,7 +508,7 @@ mod tests {
         // v_t = 3 − μ·2 with μ = 0.25 + ε: dv_t/dμ = −2.
         let mut v = Vector::<Dual64, 2>::new(Dual64::from_re(3.0), Dual64::from_re(-2.0));
         let n = Vector::<Dual64, 2>::new(Dual64::from_re(0.0), Dual64::from_re(-1.0));
-        coulomb(&mut v, &n, Dual64::new(0.25, 1.0), true);
+        coulomb(&mut v, &n, Dual64::new(0.25, 1.0));
         assert_eq!(v[0].re, 2.5);
         assert_eq!(v[0].eps, -2.0);
         assert_eq!(v[1].re, 0.0);
