@@ -277,23 +277,29 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let mut keys = std::mem::take(&mut self.keys);
         keys.resize(p.len(), 0);
         let (cfg, blocks) = (&self.config, &self.blocks);
+        // By chunks of particles with a plain loop inside: per particle the work is a few
+        // dozen instructions, less than what a zip of parallel iterators costs per item.
         let located = keys
-            .par_iter_mut()
-            .zip(p.x.par_iter())
-            .zip(p.v.par_iter())
-            .zip(p.material.par_iter().zip(p.mass.par_iter()))
-            .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(
-                #[inline(always)]
-                |(((key, x), v), (&material, mass))| {
-                    *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, x));
-                    Located {
-                        max_rate: self.wave_speed[material as usize] + v.map(|x| x.re()).norm(),
-                        max_mass: mass.re(),
-                        off_grid: *key == OFF_GRID,
-                    }
-                },
-            )
+            .par_chunks_mut(MIN_PARTICLES_PER_TASK)
+            .enumerate()
+            .map(|(c, keys)| {
+                let first = c * MIN_PARTICLES_PER_TASK;
+                let mut acc = Located::NONE;
+                for (k, key) in keys.iter_mut().enumerate() {
+                    let i = first + k;
+                    *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, &p.x[i]));
+                    let speed = p.v[i].map(|x| x.re()).norm();
+                    acc = Located::join(
+                        acc,
+                        Located {
+                            max_rate: self.wave_speed[p.material[i] as usize] + speed,
+                            max_mass: p.mass[i].re(),
+                            off_grid: *key == OFF_GRID,
+                        },
+                    );
+                }
+                acc
+            })
             .reduce(|| Located::NONE, Located::join);
         self.keys = keys;
         located
