@@ -149,9 +149,23 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
     /// weights: the same value `Stencil::new(shape, grid, x, _).base` has.
     #[inline]
     pub fn first_node(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>) -> [isize; D] {
-        let o = grid.origin();
-        let inv_h = T::cst(1.0 / grid.h);
-        std::array::from_fn(|a| shape.first_node(grid_coordinate(x[a], o[a], inv_h)))
+        Self::first_node_from(shape, &grid.origin(), T::cst(1.0 / grid.h), x)
+    }
+
+    /// [`Stencil::first_node`] with the grid's origin ([`Grid::origin`]) and `1/h` given, for
+    /// loops over many particles.
+    #[inline(always)]
+    pub fn first_node_from(
+        shape: Shape,
+        origin: &[f64; D],
+        inv_h: T,
+        x: &Vector<T, D>,
+    ) -> [isize; D] {
+        let mut base = [0; D];
+        for a in 0..D {
+            base[a] = shape.first_node(grid_coordinate(x[a], origin[a], inv_h));
+        }
+        base
     }
 
     /// Number of nodes, `b^D`.

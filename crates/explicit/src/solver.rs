@@ -277,6 +277,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let mut keys = std::mem::take(&mut self.keys);
         keys.resize(p.len(), 0);
         let (cfg, blocks) = (&self.config, &self.blocks);
+        let (origin, inv_h) = (cfg.grid.origin(), T::cst(1.0 / cfg.grid.h));
         // By chunks of particles with a plain loop inside: per particle the work is a few
         // dozen instructions, less than what a zip of parallel iterators costs per item.
         let located = keys
@@ -287,7 +288,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 let mut acc = Located::NONE;
                 for (k, key) in keys.iter_mut().enumerate() {
                     let i = first + k;
-                    *key = blocks.key(Stencil::first_node(cfg.shape, &cfg.grid, &p.x[i]));
+                    *key = blocks.key(Stencil::first_node_from(cfg.shape, &origin, inv_h, &p.x[i]));
                     let speed = p.v[i].map(|x| x.re()).norm();
                     acc = Located::join(
                         acc,
