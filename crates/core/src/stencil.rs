@@ -72,6 +72,29 @@ impl<const D: usize> Layout<D> {
     }
 }
 
+/// What stencils need of a grid, computed once for a pass over many particles: the position
+/// of node 0 ([`Grid::origin`]), `1/h` and `h` as scalars, and the node counts.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame<T, const D: usize> {
+    origin: [f64; D],
+    inv_h: T,
+    h: T,
+    nodes: [usize; D],
+}
+
+impl<T: Scalar, const D: usize> Frame<T, D> {
+    /// The frame of `grid`.
+    #[inline]
+    pub fn new(grid: &Grid<D>) -> Self {
+        Self {
+            origin: grid.origin(),
+            inv_h: T::cst(1.0 / grid.h),
+            h: T::cst(grid.h),
+            nodes: grid.nodes(),
+        }
+    }
+}
+
 /// Weights `w_ip` and gradients `∇w_ip` of one particle on its `b^D` nodes.
 #[derive(Clone, Copy, Debug)]
 pub struct Stencil<T, const D: usize> {
@@ -126,12 +149,22 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
         x: &Vector<T, D>,
         half_width: &Vector<T, D>,
     ) {
-        let o = grid.origin();
-        let inv_h = T::cst(1.0 / grid.h);
-        let h = T::cst(grid.h);
+        self.set_in(shape, &Frame::new(grid), x, half_width);
+    }
+
+    /// [`Stencil::set`] with the grid's [`Frame`] computed once for many particles.
+    #[inline(always)]
+    pub fn set_in(
+        &mut self,
+        shape: Shape,
+        frame: &Frame<T, D>,
+        x: &Vector<T, D>,
+        half_width: &Vector<T, D>,
+    ) {
+        let (o, inv_h, h) = (&frame.origin, frame.inv_h, frame.h);
         let b = shape.support_width();
         self.b = b;
-        self.nodes = grid.nodes();
+        self.nodes = frame.nodes;
         // Field by field, with plain loops (the closures of `array::from_fn` are not always
         // inlined): this runs for every particle in every step.
         for a in 0..D {
@@ -149,21 +182,15 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
     /// weights: the same value `Stencil::new(shape, grid, x, _).base` has.
     #[inline]
     pub fn first_node(shape: Shape, grid: &Grid<D>, x: &Vector<T, D>) -> [isize; D] {
-        Self::first_node_from(shape, &grid.origin(), T::cst(1.0 / grid.h), x)
+        Self::first_node_in(shape, &Frame::new(grid), x)
     }
 
-    /// [`Stencil::first_node`] with the grid's origin ([`Grid::origin`]) and `1/h` given, for
-    /// loops over many particles.
+    /// [`Stencil::first_node`] with the grid's [`Frame`] computed once for many particles.
     #[inline(always)]
-    pub fn first_node_from(
-        shape: Shape,
-        origin: &[f64; D],
-        inv_h: T,
-        x: &Vector<T, D>,
-    ) -> [isize; D] {
+    pub fn first_node_in(shape: Shape, frame: &Frame<T, D>, x: &Vector<T, D>) -> [isize; D] {
         let mut base = [0; D];
         for a in 0..D {
-            base[a] = shape.first_node(grid_coordinate(x[a], origin[a], inv_h));
+            base[a] = shape.first_node(grid_coordinate(x[a], frame.origin[a], frame.inv_h));
         }
         base
     }

@@ -5,7 +5,7 @@ use crate::config::Config;
 use crate::error::{ConfigError, StepError};
 use loam_core::constitutive::Kinematics;
 use loam_core::energy::{Energy, energy};
-use loam_core::stencil::{Layout, particle_half_width};
+use loam_core::stencil::{Frame, Layout, particle_half_width};
 use loam_core::tensor::{Tensor, Vector, det, from3, to3};
 use loam_core::transfer::{g2p, p2g, p2g_momentum};
 use loam_core::{
@@ -277,7 +277,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let mut keys = std::mem::take(&mut self.keys);
         keys.resize(p.len(), 0);
         let (cfg, blocks) = (&self.config, &self.blocks);
-        let (origin, inv_h) = (cfg.grid.origin(), T::cst(1.0 / cfg.grid.h));
+        let frame = Frame::new(&cfg.grid);
         // By chunks of particles with a plain loop inside: per particle the work is a few
         // dozen instructions, less than what a zip of parallel iterators costs per item.
         let located = keys
@@ -288,7 +288,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 let mut acc = Located::NONE;
                 for (k, key) in keys.iter_mut().enumerate() {
                     let i = first + k;
-                    *key = blocks.key(Stencil::first_node_from(cfg.shape, &origin, inv_h, &p.x[i]));
+                    *key = blocks.key(Stencil::first_node_in(cfg.shape, &frame, &p.x[i]));
                     let speed = p.v[i].map(|x| x.re()).norm();
                     acc = Located::join(
                         acc,
@@ -326,6 +326,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     fn transfer_to_grid(&mut self, p: &Particles<T, D>, dt: f64) {
         let cfg = &self.config;
         let affine = cfg.transfer.is_affine();
+        let frame = Frame::new(&cfg.grid);
         if self.kernels.len() != p.len() {
             let (zero, grid) = (Vector::zeros(), &cfg.grid);
             let placeholder = Kernel {
@@ -342,7 +343,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             #[inline(always)]
             |i, layout, buf, kernel| {
                 let hw = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
-                kernel.stencil.set(cfg.shape, &cfg.grid, &p.x[i], &hw);
+                kernel.stencil.set_in(cfg.shape, &frame, &p.x[i], &hw);
                 let st = &kernel.stencil;
                 let volume = p.volume0[i] * det(&p.f[i]);
                 let sv = from3::<T, D>(&p.stress[i]) * volume;
