@@ -449,7 +449,6 @@ mod tests {
         expected
     }
 
-    /// The ghost/mirror runs, expanded node by node, are the naive pairs in the same order.
     /// `apply` reports the separable walls that acted; `enforce` applies exactly those again
     /// (whatever the new velocity does) and the bilateral walls as always.
     #[test]
@@ -479,6 +478,7 @@ mod tests {
         assert_eq!(b.apply(&g, corner, &mut z), 0);
     }
 
+    /// The ghost/mirror runs, expanded node by node, are the naive pairs in the same order.
     #[test]
     fn ghosts_pair_with_their_mirror_images_in_flat_order() {
         let g = Grid::<3>::new([0.0; 3], [4, 5, 6], 0.5, 2);
