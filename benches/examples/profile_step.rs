@@ -1,8 +1,9 @@
 //! Runs explicit steps of a bench scene and prints the time per step (for profilers).
 //!
 //! `cargo run --release -p loam-benches --example profile_step -- [SCENE] [STEPS] [f32|f64]`
-//! with `SCENE` one of `dambreak` (the friction dam-break, 6,000 particles; default),
-//! `dambreak_usl` (the same with USL instead of MUSL), `dambreak4` (at scale 4, 96,000
+//! with `SCENE` one of `dambreak` (the friction dam-break, 6,000 particles, MLS-MPM with USL;
+//! default), `dambreak_apic` (the same with APIC's gradient force), `dambreak_apic_musl`
+//! (APIC with MUSL), `dambreak4` (at scale 4, 96,000
 //! particles), `dambreak13` (at scale 13, 1,014,000 particles), `column3d` (the 3D
 //! Drucker–Prager column at resolution 3, 93,312 particles), `block2d` (2D block collapse,
 //! 101k particles) or `block3d` (3D block collapse, 111k particles).
@@ -38,16 +39,22 @@ fn scene<T: Scalar>(scene: &str, steps: usize) {
         "dambreak4" => run(scene, steps, dambreak_friction_2d::<T>(4)),
         "dambreak13" => run(scene, steps, dambreak_friction_2d::<T>(13)),
         "column3d" => run(scene, steps, granular_column_3d::<T>(3)),
-        "dambreak_usl" => {
+        "dambreak_apic" => {
             let (mut config, particles) = dambreak_friction_2d::<T>(1);
-            config.scheme = loam_core::Scheme::Usl;
+            config.transfer = loam_core::Transfer::Apic;
+            run(scene, steps, (config, particles))
+        }
+        "dambreak_apic_musl" => {
+            let (mut config, particles) = dambreak_friction_2d::<T>(1);
+            config.transfer = loam_core::Transfer::Apic;
+            config.scheme = loam_core::Scheme::Musl;
             run(scene, steps, (config, particles))
         }
         "block2d" => run(scene, steps, fluid_block_2d::<T>(100_000)),
         "block3d" => run(scene, steps, fluid_block_3d::<T>(100_000)),
         _ => panic!(
             "unknown scene {scene} \
-             (dambreak, dambreak_usl, dambreak4, dambreak13, column3d, block2d, block3d)"
+             (dambreak, dambreak_apic, dambreak_apic_musl, dambreak4, dambreak13, column3d, block2d, block3d)"
         ),
     }
 }

@@ -199,6 +199,7 @@ fn label(transfer: Transfer, scheme: Scheme) -> String {
         Transfer::Pic => "pic".to_string(),
         Transfer::Apic => "apic".to_string(),
         Transfer::Tpic => "tpic".to_string(),
+        Transfer::Mls => "mls".to_string(),
         Transfer::Flip { alpha } => format!("flip{alpha}"),
     };
     let s = match scheme {

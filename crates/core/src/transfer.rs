@@ -9,6 +9,11 @@
 //! `C_p = D_p⁻¹-scaled Σ w_ip v_i (x_i − x_p)ᵀ` (B-splines, `D_p = κ h² I`) or `C_p = L_p`
 //! (hat and GIMP, whose `D_p` is position dependent and may be singular); TPIC always takes
 //! `C_p = L_p`.
+//!
+//! MLS-MPM (Hu et al. 2018) keeps the APIC transfers and replaces `∇w_ip` by its
+//! moving-least-squares form `w_ip D_p⁻¹ (x_i − x_p)` in the internal force, and `L_p` by
+//! `C_p`. The force then has the form of the affine term, and P2G adds both at once (see
+//! [`mls_affine_momentum`]).
 
 use crate::grid::Grid;
 use crate::scalar::Scalar;
@@ -35,12 +40,24 @@ pub enum Transfer {
     /// velocity gradient `C_p = L_p = Σ_i v_i ⊗ ∇w_ip` for every shape function, a first-order
     /// Taylor expansion of the grid velocity about the particle.
     Tpic,
+    /// MLS-MPM (Hu et al. 2018): the APIC transfers with the moving-least-squares internal
+    /// force `f_i = −V_p σ_p D_p⁻¹ (x_i − x_p) w_ip` and velocity gradient `L_p = C_p`
+    /// (B-splines only, `D_p = κ h² I`). No shape-function gradient is evaluated, which makes
+    /// it the cheapest affine transfer; it is the discretisation of JAX-MPM and Taichi's
+    /// MLS-MPM.
+    Mls,
 }
 
 impl Transfer {
     /// Whether P2G carries the affine term `C_p (x_i − x_p)`.
     pub fn is_affine(&self) -> bool {
-        matches!(self, Transfer::Apic | Transfer::Tpic)
+        matches!(self, Transfer::Apic | Transfer::Tpic | Transfer::Mls)
+    }
+
+    /// Whether the internal force and the velocity gradient take the moving-least-squares
+    /// form ([`Transfer::Mls`]).
+    pub fn is_mls(&self) -> bool {
+        matches!(self, Transfer::Mls)
     }
 
     /// Whether G2P needs the grid velocity at the start of the step.
@@ -133,24 +150,42 @@ fn p2g_rows<const B: usize, T: Scalar, const D: usize, X>(
     );
 }
 
-/// The momentum-only transfer of MUSL's second P2G: `add(&mut nodes[index], m_ip, p_ip)` for
-/// every stencil node (`index` as in [`p2g`], evaluated row by row in the same way).
+/// The momentum-only transfer: `add(&mut nodes[index], m_ip, p_ip)` for every stencil node,
+/// `p_ip = w_ip (m_p v_p + A_p (x_i − x_p))` with the affine momentum `A_p` (`m_p C_p` for
+/// APIC, zero for PIC, [`mls_affine_momentum`] for MLS-MPM); `index` as in [`p2g`], evaluated
+/// row by row in the same way. MUSL's second P2G and the whole P2G of MLS-MPM.
 #[inline(always)]
 pub fn p2g_momentum<T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
-    affine: Option<&Tensor<T, D>>,
+    affine_momentum: &Tensor<T, D>,
     mass: T,
     nodes: &mut [X],
     add: impl FnMut(&mut X, T, Vector<T, D>),
 ) {
     let (l, n) = (layout, nodes);
+    let a = affine_momentum;
     match stencil.width() {
-        2 => p2g_momentum_rows::<2, T, D, X>(stencil, l, v, affine, mass, n, add),
-        3 => p2g_momentum_rows::<3, T, D, X>(stencil, l, v, affine, mass, n, add),
-        _ => p2g_momentum_rows::<4, T, D, X>(stencil, l, v, affine, mass, n, add),
+        2 => p2g_momentum_rows::<2, T, D, X>(stencil, l, v, a, mass, n, add),
+        3 => p2g_momentum_rows::<3, T, D, X>(stencil, l, v, a, mass, n, add),
+        _ => p2g_momentum_rows::<4, T, D, X>(stencil, l, v, a, mass, n, add),
     }
+}
+
+/// The affine momentum of MLS-MPM's P2G, `A_p = m_p C_p − Δt V_p σ_p D_p⁻¹` with
+/// `D_p⁻¹ = I/(κ h²)` (`inverse_inertia = 1/κ`, see [`Shape::apic_inverse_inertia`]): with it,
+/// [`p2g_momentum`] adds `(m v)_i + Δt f_i` in one term, `f_i = −V_p σ_p D_p⁻¹ (x_i − x_p) w_ip`.
+#[inline(always)]
+pub fn mls_affine_momentum<T: Scalar, const D: usize>(
+    mass: T,
+    affine: &Tensor<T, D>,
+    stress_volume: &Tensor<T, D>,
+    dt: T,
+    inverse_inertia: f64,
+    h: f64,
+) -> Tensor<T, D> {
+    affine * mass - stress_volume * (dt * T::cst(inverse_inertia / (h * h)))
 }
 
 /// [`p2g_momentum`] for stencils of width `B`.
@@ -159,13 +194,12 @@ fn p2g_momentum_rows<const B: usize, T: Scalar, const D: usize, X>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     v: &Vector<T, D>,
-    affine: Option<&Tensor<T, D>>,
+    mc: &Tensor<T, D>,
     mass: T,
     nodes: &mut [X],
     mut add: impl FnMut(&mut X, T, Vector<T, D>),
 ) {
     let mv = v * mass;
-    let mc = affine.map_or_else(Tensor::zeros, |c| c * mass);
     let mc0 = mc.column(0).into_owned();
     let [w0, _, o0] = stencil.axis0();
     stencil.for_each_row(
@@ -245,7 +279,7 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
         affine: Tensor::zeros(),
     };
     let flip = transfer.needs_old_grid_velocity();
-    let apic_b = if transfer == Transfer::Apic {
+    let apic_b = if matches!(transfer, Transfer::Apic | Transfer::Mls) {
         shape.apic_inverse_inertia()
     } else {
         None
@@ -327,7 +361,7 @@ impl Transfer {
                 let a = T::cst(alpha);
                 ((v_old + g.dv) * a + g.v * (T::one() - a), Tensor::zeros())
             }
-            Transfer::Apic | Transfer::Tpic => (g.v, g.affine),
+            Transfer::Apic | Transfer::Tpic | Transfer::Mls => (g.v, g.affine),
         }
     }
 }

@@ -69,6 +69,15 @@ impl<T: Scalar, const D: usize> Config<T, D> {
                 ),
             );
         }
+        if self.transfer.is_mls() && self.shape.apic_inverse_inertia().is_none() {
+            return bad(
+                "transfer",
+                format!(
+                    "MLS-MPM needs a B-spline shape function (quadratic or cubic), got {:?}",
+                    self.shape
+                ),
+            );
+        }
         if let Transfer::Flip { alpha } = self.transfer
             && !(0.0..=1.0).contains(&alpha)
         {

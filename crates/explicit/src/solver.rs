@@ -7,7 +7,7 @@ use loam_core::constitutive::Kinematics;
 use loam_core::energy::{Energy, energy};
 use loam_core::stencil::{Frame, Layout, particle_half_width};
 use loam_core::tensor::{Tensor, Vector, det, from3, to3};
-use loam_core::transfer::{g2p, p2g, p2g_momentum};
+use loam_core::transfer::{g2p, mls_affine_momentum, p2g, p2g_momentum};
 use loam_core::{
     Grid, Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep, Transfer, WallKind,
 };
@@ -326,6 +326,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     fn transfer_to_grid(&mut self, p: &Particles<T, D>, dt: f64) {
         let cfg = &self.config;
         let affine = cfg.transfer.is_affine();
+        // MLS-MPM's `1/κ` (validated: MLS needs a B-spline).
+        let mls = cfg.transfer.is_mls().then(|| {
+            cfg.shape
+                .apic_inverse_inertia()
+                .expect("MLS with a B-spline")
+        });
+        let dtt = T::cst(dt);
         let frame = Frame::new(&cfg.grid);
         if self.kernels.len() != p.len() {
             let (zero, grid) = (Vector::zeros(), &cfg.grid);
@@ -337,32 +344,51 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             };
             self.kernels.resize(p.len(), placeholder);
         }
+        let h = cfg.grid.h;
         self.blocks.for_each_block(
             &mut self.kernels,
             |e| *e = Accum::zero(),
             #[inline(always)]
             |i, layout, buf, kernel| {
-                let hw = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
+                let hw = particle_half_width(cfg.shape, h, &p.half_width0[i], &p.f[i]);
                 kernel.stencil.set_in(cfg.shape, &frame, &p.x[i], &hw);
                 let st = &kernel.stencil;
                 let volume = p.volume0[i] * det(&p.f[i]);
                 let sv = from3::<T, D>(&p.stress[i]) * volume;
-                let c = affine.then_some(&p.c[i]);
-                p2g(
-                    st,
-                    layout,
-                    &p.v[i],
-                    c,
-                    p.mass[i],
-                    &sv,
-                    buf,
-                    #[inline(always)]
-                    |e, m, mom, f| {
-                        e.m += m;
-                        e.p += mom;
-                        e.f += f;
-                    },
-                );
+                if let Some(inverse_inertia) = mls {
+                    // Internal force and affine momentum in one term; `f` stays zero.
+                    let m = p.mass[i];
+                    let a = mls_affine_momentum(m, &p.c[i], &sv, dtt, inverse_inertia, h);
+                    p2g_momentum(
+                        st,
+                        layout,
+                        &p.v[i],
+                        &a,
+                        m,
+                        buf,
+                        #[inline(always)]
+                        |e, m, mom| {
+                            e.m += m;
+                            e.p += mom;
+                        },
+                    );
+                } else {
+                    p2g(
+                        st,
+                        layout,
+                        &p.v[i],
+                        affine.then_some(&p.c[i]),
+                        p.mass[i],
+                        &sv,
+                        buf,
+                        #[inline(always)]
+                        |e, m, mom, f| {
+                            e.m += m;
+                            e.p += mom;
+                            e.f += f;
+                        },
+                    );
+                }
             },
         );
         let floor = self.mass_floor;
@@ -373,7 +399,6 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         );
         // Contact acts at the end of the step, when the grid velocity is reached.
         let conditions = NodeConditions::new(&self.config, self.time + dt);
-        let dtt = T::cst(dt);
         let flip = self.config.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
         // One pass over the row groups (closed under the wall mirrors): gather the block
@@ -431,6 +456,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let (vel, vel_old) = (&self.velocity, &self.velocity_old);
         let checks = Checks::new(cfg, self.time + dt);
         let (blocks, kernels) = (&self.blocks, &self.kernels);
+        let mls = cfg.transfer.is_mls();
         let Particles {
             x,
             v,
@@ -450,18 +476,19 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 #[inline(always)]
                 |(i, ((x, v, f, c, stress, state), &mat))| {
                     let st = &kernels[blocks.rank(i)].stencil;
-                    let g = gather(cfg, st, &layout, true, vel, vel_old);
+                    // MLS takes L = C and needs no gradient sums (a constant flag per call,
+                    // so each inlines to only its own sums).
+                    let (g, l) = if mls {
+                        let g = gather(cfg, st, &layout, false, vel, vel_old);
+                        (g, g.affine)
+                    } else {
+                        let g = gather(cfg, st, &layout, true, vel, vel_old);
+                        (g, g.grad_v)
+                    };
                     (*v, *c) = cfg.transfer.particle_velocity(v, &g);
                     *x += g.v * dtt;
                     checks.project(x, v);
-                    update_stress(
-                        &cfg.materials[mat as usize],
-                        &g.grad_v,
-                        dtt,
-                        f,
-                        stress,
-                        state,
-                    );
+                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
                     checks.flag(x, v, f, stress)
                 },
             )
@@ -489,12 +516,16 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     let (v, c) = cfg.transfer.particle_velocity(&pr.v[i], &g);
                     // Second P2G: momentum of the updated particle velocities at the
                     // start-of-step positions.
-                    let ca = affine.then_some(&c);
+                    let mc = if affine {
+                        c * pr.mass[i]
+                    } else {
+                        Tensor::zeros()
+                    };
                     p2g_momentum(
                         st,
                         block,
                         &v,
-                        ca,
+                        &mc,
                         pr.mass[i],
                         buf,
                         #[inline(always)]
@@ -543,6 +574,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let (cfg, vel, blocks, kernels) =
             (&self.config, &self.velocity, &self.blocks, &self.kernels);
         let checks = Checks::new(cfg, self.time + dt);
+        let mls = cfg.transfer.is_mls();
         let Particles {
             x,
             v,
@@ -562,17 +594,14 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 #[inline(always)]
                 |(i, ((x, v, f, c, stress, state), &mat))| {
                     let k = &kernels[blocks.rank(i)];
-                    let l = g2p(
-                        &k.stencil,
-                        &layout,
-                        &cfg.grid,
-                        cfg.shape,
-                        Transfer::Pic,
-                        true,
-                        vel,
-                        &[],
-                    )
-                    .grad_v;
+                    // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two
+                    // calls with constant transfers, so each inlines to only its own sums).
+                    let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
+                    let l = if mls {
+                        g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
+                    } else {
+                        g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
+                    };
                     (*x, *v, *c) = (k.x, k.v, k.c);
                     checks.project(x, v);
                     update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);

@@ -6,7 +6,7 @@ use loam_explicit::{Config, Solver};
 
 /// An elastic block dropped onto a slip floor next to a fixed wall: gravity, walls, contact of
 /// particles through the grid, deformation; 3000+ particles across many P2G blocks.
-fn scene<const D: usize>() -> (Config<f64, D>, Particles<f64, D>) {
+fn scene<const D: usize>(transfer: Transfer) -> (Config<f64, D>, Particles<f64, D>) {
     let h = 0.05;
     let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
     boundary.walls[0][0] = Wall::new(WallKind::Fixed);
@@ -15,7 +15,7 @@ fn scene<const D: usize>() -> (Config<f64, D>, Particles<f64, D>) {
     let config = Config {
         grid: Grid::new([0.0; D], [20; D], h, 2),
         shape: Shape::QuadraticBspline,
-        transfer: Transfer::Apic,
+        transfer,
         scheme: Scheme::Musl,
         boundary,
         contact: Default::default(),
@@ -43,13 +43,13 @@ fn scene<const D: usize>() -> (Config<f64, D>, Particles<f64, D>) {
     (config, particles)
 }
 
-fn run<const D: usize>(threads: usize) -> Particles<f64, D> {
+fn run<const D: usize>(threads: usize, transfer: Transfer) -> Particles<f64, D> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .expect("thread pool");
     pool.install(|| {
-        let (config, mut particles) = scene::<D>();
+        let (config, mut particles) = scene::<D>(transfer);
         let mut solver = Solver::new(config, &particles).expect("valid scene");
         for _ in 0..100 {
             solver
@@ -72,22 +72,24 @@ fn bits<const D: usize>(p: &Particles<f64, D>) -> Vec<u64> {
 
 #[test]
 fn same_bits_with_one_and_two_threads_2d() {
-    let (a, b) = (run::<2>(1), run::<2>(2));
-    assert!(
-        bits(&a) == bits(&b),
-        "2D particle state differs between 1 and 2 threads"
-    );
-    // The run did something: the block moved and deformed.
-    assert!(
-        a.x.iter()
-            .zip(&scene::<2>().1.x)
-            .any(|(x, x0)| (x - x0).norm() > 1e-3)
-    );
+    for transfer in [Transfer::Apic, Transfer::Mls] {
+        let (a, b) = (run::<2>(1, transfer), run::<2>(2, transfer));
+        assert!(
+            bits(&a) == bits(&b),
+            "2D particle state differs between 1 and 2 threads ({transfer:?})"
+        );
+        // The run did something: the block moved and deformed.
+        assert!(
+            a.x.iter()
+                .zip(&scene::<2>(transfer).1.x)
+                .any(|(x, x0)| (x - x0).norm() > 1e-3)
+        );
+    }
 }
 
 #[test]
 fn same_bits_with_one_and_two_threads_3d() {
-    let (a, b) = (run::<3>(1), run::<3>(2));
+    let (a, b) = (run::<3>(1, Transfer::Apic), run::<3>(2, Transfer::Apic));
     assert!(
         bits(&a) == bits(&b),
         "3D particle state differs between 1 and 2 threads"

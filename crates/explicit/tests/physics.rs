@@ -47,6 +47,7 @@ fn linear_momentum_is_conserved_without_external_forces() {
         Transfer::Flip { alpha: 0.95 },
         Transfer::Apic,
         Transfer::Tpic,
+        Transfer::Mls,
     ] {
         for scheme in [Scheme::Usl, Scheme::Musl] {
             let (config, mut p) = block(
@@ -90,6 +91,25 @@ fn centre_of_mass_falls_at_g() {
     assert!(
         (dv[0]).abs() < 1e-12 && (dv[1] - g[1] * 0.05).abs() < 1e-12,
         "Δv_cm = {dv}"
+    );
+}
+
+/// MLS-MPM's force needs the constant moment matrix of a B-spline; with any other shape the
+/// configuration is refused, naming the field.
+#[test]
+fn mls_with_a_shape_other_than_a_bspline_is_refused() {
+    let (mut config, p) = block(
+        Transfer::Mls,
+        Scheme::Usl,
+        [0.0, 0.0],
+        Boundary::all(Wall::new(WallKind::Free)),
+    );
+    config.shape = Shape::Cpgimp;
+    let err = Solver::new(config, &p).err().expect("refused");
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("transfer:") && msg.contains("B-spline"),
+        "{msg}"
     );
 }
 

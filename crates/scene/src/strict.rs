@@ -24,6 +24,7 @@ enum TransferTable {
     Flip { alpha: f64 },
     Apic {},
     Tpic {},
+    Mls {},
 }
 
 impl From<TransferTable> for Transfer {
@@ -33,6 +34,7 @@ impl From<TransferTable> for Transfer {
             TransferTable::Flip { alpha } => Transfer::Flip { alpha },
             TransferTable::Apic {} => Transfer::Apic,
             TransferTable::Tpic {} => Transfer::Tpic,
+            TransferTable::Mls {} => Transfer::Mls,
         }
     }
 }
@@ -212,6 +214,7 @@ mod tests {
             ("transfer = \"apic\"", Transfer::Apic),
             ("transfer = { type = \"apic\" }", Transfer::Apic),
             ("transfer = \"tpic\"", Transfer::Tpic),
+            ("transfer = \"mls\"", Transfer::Mls),
             ("transfer = \"pic\"", Transfer::Pic),
             (
                 "transfer = { type = \"flip\", alpha = 0.9 }",

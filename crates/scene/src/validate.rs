@@ -646,6 +646,16 @@ impl Scene {
 
     fn check_explicit(&self, c: &mut Checker) {
         let s = &self.solver;
+        let shape = self.grid.shape_function;
+        if s.transfer == Some(Transfer::Mls) && shape.apic_inverse_inertia().is_none() {
+            c.issue(
+                "solver.transfer",
+                format!(
+                    "MLS-MPM needs a B-spline shape function (grid.shape_function = \
+                     \"quadratic_bspline\" or \"cubic_bspline\"), got {shape:?}"
+                ),
+            );
+        }
         if let Some(Transfer::Flip { alpha }) = s.transfer
             && c.finite("solver.transfer.alpha", alpha)
             && !(0.0..=1.0).contains(&alpha)

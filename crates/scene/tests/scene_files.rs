@@ -70,7 +70,11 @@ const BAD: &[(&str, &[&str])] = &[
     ),
     (
         "unknown_transfer.toml",
-        &["solver.transfer: unknown variant `mls`", "`apic`"],
+        &["solver.transfer: unknown variant `sph`", "`apic`"],
+    ),
+    (
+        "mls_with_gimp.toml",
+        &["solver.transfer: MLS-MPM needs a B-spline shape function"],
     ),
     (
         "flip_without_alpha.toml",

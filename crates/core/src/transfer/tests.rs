@@ -46,11 +46,23 @@ fn to_grid<const D: usize>(
     let layout = Layout::grid(&cl.grid);
     for k in 0..cl.x.len() {
         let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
-        let c = affine.then_some(&cl.c[k]);
-        p2g_momentum(&st, &layout, &cl.v[k], c, cl.m[k], &mut mp, |e, mw, mv| {
-            e.0 += mw;
-            e.1 += mv;
-        });
+        let mc = if affine {
+            cl.c[k] * cl.m[k]
+        } else {
+            Tensor::zeros()
+        };
+        p2g_momentum(
+            &st,
+            &layout,
+            &cl.v[k],
+            &mc,
+            cl.m[k],
+            &mut mp,
+            |e, mw, mv| {
+                e.0 += mw;
+                e.1 += mv;
+            },
+        );
     }
     let m = mp.iter().map(|e| e.0).collect();
     let v = mp
@@ -248,5 +260,72 @@ fn tpic_round_trip_is_exact_for_affine_fields() {
             assert!((v - cl.v[k]).norm() < 1e-12, "{shape:?}: velocity");
             assert!((c - a).norm() < 1e-11, "{shape:?}: gradient {c} vs {a}");
         }
+    }
+}
+
+/// The nodal forces of MLS-MPM's P2G term for one particle with stress `σ` (volume 1), read
+/// off [`p2g_momentum`] with `v = 0`, `C = 0`, `Δt = 1`: `f_i = −σ D⁻¹ (x_i − x_p) w_ip`.
+fn mls_forces<const D: usize>(
+    cl: &Cloud<D>,
+    shape: Shape,
+    k: usize,
+    sigma: &Tensor<f64, D>,
+) -> Vec<Vector<f64, D>> {
+    let kappa_inv = shape.apic_inverse_inertia().expect("a B-spline");
+    let a = mls_affine_momentum(cl.m[k], &Tensor::zeros(), sigma, 1.0, kappa_inv, cl.grid.h);
+    let mut f = vec![Vector::<f64, D>::zeros(); cl.grid.num_nodes()];
+    let hw = Vector::<f64, D>::repeat(cl.grid.h / 4.0);
+    let st = Stencil::new(shape, &cl.grid, &cl.x[k], &hw);
+    let layout = Layout::grid(&cl.grid);
+    p2g_momentum(
+        &st,
+        &layout,
+        &Vector::zeros(),
+        &a,
+        cl.m[k],
+        &mut f,
+        |e, _, p| *e += p,
+    );
+    f
+}
+
+/// MLS-MPM's internal force is exact in the three senses the method rests on (Hu et al.
+/// 2018): the nodal forces of one particle sum to zero (`Σ_i w_ip (x_i − x_p) = 0`), their
+/// moment vanishes for a symmetric stress, and their work on any affine grid velocity
+/// `v_i = G x_i + b` is the particle's stress power `−V σ : G` (`Σ_i w (x_i − x_p) ⊗
+/// (x_i − x_p) = D_p`). All to round-off.
+#[test]
+fn mls_force_balances_and_does_the_stress_power_on_affine_fields() {
+    fn check<const D: usize>(shape: Shape) {
+        let cl = cloud::<D>(40, 23 + D as u64);
+        for k in 0..cl.x.len() {
+            let g = cl.c[(k + 1) % cl.x.len()];
+            let b = cl.v[(k + 2) % cl.x.len()];
+            // A symmetric stress of order 1.
+            let sigma = (cl.c[k] + cl.c[k].transpose()) * 0.5;
+            let f = mls_forces(&cl, shape, k, &sigma);
+            let (mut sum, mut moment, mut work) = (Vector::<f64, D>::zeros(), [0.0; 3], 0.0);
+            for (i, fi) in f.iter().enumerate() {
+                let xi = cl.grid.node_position::<f64>(cl.grid.multi(i));
+                sum += fi;
+                add(&mut moment, 1.0, cross(&xi, fi));
+                work += fi.dot(&(g * xi + b));
+            }
+            // Forces of order 1/h ≈ 4 summed over ≤ 64 nodes: 1e-12 is round-off.
+            assert!(sum.norm() < 1e-12, "{shape:?} D={D}: Σ f = {sum}");
+            assert!(
+                moment.iter().all(|m| m.abs() < 1e-12),
+                "{shape:?} D={D}: moment {moment:?}"
+            );
+            let power = -(sigma.component_mul(&g)).sum();
+            assert!(
+                (work - power).abs() < 1e-12 * power.abs().max(1.0),
+                "{shape:?} D={D}: work {work} vs −σ:G = {power}"
+            );
+        }
+    }
+    for shape in [Shape::QuadraticBspline, Shape::CubicBspline] {
+        check::<2>(shape);
+        check::<3>(shape);
     }
 }
