@@ -208,7 +208,7 @@ pub fn cases() -> Vec<Case> {
         },
         Case {
             name: "column-runout",
-            description: "granular column collapse, a = 0.5, 1, 2, 4 (Drucker–Prager φ = 30°, Coulomb floor): (L∞ − L0)/L0 between Lube et al. (2005) and Lajeunesse et al. (2005)",
+            description: "granular column collapse, a = 0.5, 1, 2, 4 (Drucker–Prager φ = 32°, Coulomb floor): (L∞ − L0)/L0 between Lube et al. (2005) and Lajeunesse et al. (2005)",
             run: runout::run,
         },
         Case {
