@@ -52,14 +52,15 @@ pub fn material() -> Granular {
     }
 }
 
-/// The collapse with cell size `h` (a divisor of 0.01 m): a 0.6 m × 0.12 m box, 2 × 2
-/// particles per cell, 1 s (the pile is at rest by about 0.6 s).
+/// The collapse with cell size `h` (a divisor of 0.01 m): a 0.7 m × 0.12 m box (long enough
+/// for the upper runout bound, 0.63 m, to lie inside it), 2 × 2 particles per cell, 1 s (the
+/// pile is at rest by about 0.6 s).
 pub fn collapse(h: f64) -> Collapse {
     Collapse {
         material: material(),
         l0: L0,
         h0: H0,
-        length: 0.6,
+        length: 0.7,
         height: 0.12,
         h,
         ppc: 2,
