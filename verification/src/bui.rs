@@ -150,11 +150,11 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     write_text(&md, &summary(&o, band, bounds))?;
     files.push(md);
 
-    // Height at the wall against H₀ (Nguyen et al.: h∞ = H₀ for a ≤ 0.65). Measured: 0.0980 m (−2.0 %) at h = 10 mm, 0.0990 m
-    // (−1.0 %) at 5 mm: the wall column settles by the elastic compression (ρgH₀/M = 0.2 %)
-    // and by the slumping of the mobilised region next to it, which reaches the wall at the
-    // coarse grid's resolution. 3 % bounds both; a column whose top left were mobilised
-    // would lose far more.
+    // Height at the wall against H₀ (Nguyen et al.: h∞ = H₀ for a ≤ 0.65). Measured:
+    // 0.0980 m (−2.0 %) at h = 10 mm, 0.0990 m (−1.0 %) at 5 mm: the wall column settles by
+    // the elastic compression (ρgH₀/M = 0.2 %) and by the slumping of the mobilised region
+    // next to it, which reaches the wall at the coarse grid's resolution. 3 % bounds both; a
+    // column whose top left were mobilised would lose far more.
     let wall_tol = 0.03;
     // Runout against the bounds [0.32, 0.63] m, as the relative distance outside them
     // (tolerance 0 at both sizes). Measured: 0.381 m at h = 10 mm, 0.415 m at 5 mm and 0.445 m
