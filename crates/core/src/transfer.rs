@@ -254,15 +254,17 @@ pub fn g2p<T: Scalar, const D: usize>(
 ) -> Gathered<T, D> {
     let (l, t, g) = (layout, transfer, gradient);
     match stencil.width() {
-        2 => g2p_rows::<2, T, D>(stencil, l, grid, shape, t, g, velocity, old),
-        3 => g2p_rows::<3, T, D>(stencil, l, grid, shape, t, g, velocity, old),
-        _ => g2p_rows::<4, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+        2 => g2p_flags::<2, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+        3 => g2p_flags::<3, T, D>(stencil, l, grid, shape, t, g, velocity, old),
+        _ => g2p_flags::<4, T, D>(stencil, l, grid, shape, t, g, velocity, old),
     }
 }
 
-/// [`g2p`] for stencils of width `B`.
+/// [`g2p`] for stencils of width `B`: picks the kernel for the sums the transfer needs, so
+/// that none of them is tested (or formed) node by node.
 #[inline(always)]
-fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
+#[allow(clippy::too_many_arguments)]
+fn g2p_flags<const B: usize, T: Scalar, const D: usize>(
     stencil: &Stencil<T, D>,
     layout: &Layout<D>,
     grid: &Grid<D>,
@@ -272,12 +274,6 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
     velocity: &[Vector<T, D>],
     old: &[Vector<T, D>],
 ) -> Gathered<T, D> {
-    let mut out = Gathered {
-        v: Vector::zeros(),
-        dv: Vector::zeros(),
-        grad_v: Tensor::zeros(),
-        affine: Tensor::zeros(),
-    };
     let flip = transfer.needs_old_grid_velocity();
     let apic_b = if matches!(transfer, Transfer::Apic | Transfer::Mls) {
         shape.apic_inverse_inertia()
@@ -285,6 +281,46 @@ fn g2p_rows<const B: usize, T: Scalar, const D: usize>(
         None
     };
     let want_grad = gradient || (transfer.is_affine() && apic_b.is_none());
+    let (st, l, t, v, o) = (stencil, layout, transfer, velocity, old);
+    let k = apic_b.unwrap_or(0.0);
+    match (apic_b.is_some(), want_grad, flip) {
+        (true, false, _) => g2p_rows::<B, T, D, true, false, false>(st, l, grid, t, k, v, o),
+        (true, true, _) => g2p_rows::<B, T, D, true, true, false>(st, l, grid, t, k, v, o),
+        (false, true, false) => g2p_rows::<B, T, D, false, true, false>(st, l, grid, t, k, v, o),
+        (false, false, false) => g2p_rows::<B, T, D, false, false, false>(st, l, grid, t, k, v, o),
+        (false, true, true) => g2p_rows::<B, T, D, false, true, true>(st, l, grid, t, k, v, o),
+        (false, false, true) => g2p_rows::<B, T, D, false, false, true>(st, l, grid, t, k, v, o),
+    }
+}
+
+/// [`g2p`] for stencils of width `B`, with the APIC sum `Σ w v (x_i − x_p)ᵀ` (`APIC`, scaled
+/// by `apic_b/h²`), the gradient sum `Σ v ∇wᵀ` (`GRAD`) and the FLIP increment (`FLIP`)
+/// chosen at compile time.
+#[inline(always)]
+fn g2p_rows<
+    const B: usize,
+    T: Scalar,
+    const D: usize,
+    const APIC: bool,
+    const GRAD: bool,
+    const FLIP: bool,
+>(
+    stencil: &Stencil<T, D>,
+    layout: &Layout<D>,
+    grid: &Grid<D>,
+    transfer: Transfer,
+    apic_b: f64,
+    velocity: &[Vector<T, D>],
+    old: &[Vector<T, D>],
+) -> Gathered<T, D> {
+    let mut out = Gathered {
+        v: Vector::zeros(),
+        dv: Vector::zeros(),
+        grad_v: Tensor::zeros(),
+        affine: Tensor::zeros(),
+    };
+    let (flip, want_grad) = (FLIP, GRAD);
+    let apic_b = APIC.then_some(apic_b);
     let [w0, dw0, o0] = stencil.axis0();
     stencil.for_each_row(
         layout,
