@@ -134,7 +134,7 @@ fn floor_index<T: Scalar>(x: T) -> isize {
 }
 
 /// Hat: `N = 1 − |ξ|` on the two nodes of the cell that holds the particle.
-#[inline]
+#[inline(always)]
 fn linear<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
     let base = Shape::Linear.first_node(xi);
     let f = xi - c::<T>(base as f64);
@@ -148,7 +148,7 @@ fn linear<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 
 /// Quadratic B-spline on the nodes `base..base+3`, `base = ⌊ξ − ½⌋`, `f = ξ − base ∈ [½, 3/2)`:
 /// `N₀ = ½(3/2 − f)²`, `N₁ = 3/4 − (f − 1)²`, `N₂ = ½(f − ½)²`.
-#[inline]
+#[inline(always)]
 fn quadratic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
     let base = Shape::QuadraticBspline.first_node(xi);
     let f = xi - c::<T>(base as f64);
@@ -168,7 +168,7 @@ fn quadratic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 
 /// Cubic B-spline on `base..base+4`, `base = ⌊ξ⌋ − 1`:
 /// `N(r) = ½|r|³ − r² + 2/3` for `|r| < 1`, `(2 − |r|)³/6` for `1 ≤ |r| < 2`.
-#[inline]
+#[inline(always)]
 fn cubic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
     let base = Shape::CubicBspline.first_node(xi);
     let f = xi - c::<T>(base as f64); // ∈ [1, 2)
@@ -200,7 +200,7 @@ fn cubic<T: Scalar>(xi: T, inv_h: T) -> Weights1D<T> {
 /// `r = ξ − ξ_i`:
 /// `S = 1 − (r² + l²)/(2l)` for `|r| < l`; `1 − |r|` for `l ≤ |r| < 1 − l`;
 /// `(1 + l − |r|)²/(4l)` for `1 − l ≤ |r| < 1 + l`; 0 beyond.
-#[inline]
+#[inline(always)]
 fn gimp<T: Scalar>(xi: T, l: T, inv_h: T) -> Weights1D<T> {
     let base = Shape::Ugimp.first_node(xi);
     let mut w = [T::zero(); MAX_SUPPORT];

@@ -161,18 +161,50 @@ impl<T: Scalar, const D: usize> Stencil<T, D> {
         x: &Vector<T, D>,
         half_width: &Vector<T, D>,
     ) {
+        // One branch on the shape per particle, then a fill specialised for it: with the
+        // shape (and so the width) a constant, the weights inline without their own dispatch
+        // and the loops have constant length (this runs for every particle in every step).
+        let (f, x, hw) = (frame, x, half_width);
+        match shape {
+            Shape::Linear => {
+                self.fill::<2>(f, x, hw, |xi, l| Shape::Linear.weights_1d(xi, l, f.inv_h))
+            }
+            Shape::Ugimp => {
+                self.fill::<3>(f, x, hw, |xi, l| Shape::Ugimp.weights_1d(xi, l, f.inv_h))
+            }
+            Shape::Cpgimp => {
+                self.fill::<3>(f, x, hw, |xi, l| Shape::Cpgimp.weights_1d(xi, l, f.inv_h))
+            }
+            Shape::QuadraticBspline => self.fill::<3>(f, x, hw, |xi, l| {
+                Shape::QuadraticBspline.weights_1d(xi, l, f.inv_h)
+            }),
+            Shape::CubicBspline => self.fill::<4>(f, x, hw, |xi, l| {
+                Shape::CubicBspline.weights_1d(xi, l, f.inv_h)
+            }),
+        }
+    }
+
+    /// [`Stencil::set_in`] for a shape of support width `B` whose 1D weights at the grid
+    /// coordinate `ξ` and half-width `l` (in cells) are `weights(ξ, l)`.
+    #[inline(always)]
+    fn fill<const B: usize>(
+        &mut self,
+        frame: &Frame<T, D>,
+        x: &Vector<T, D>,
+        half_width: &Vector<T, D>,
+        weights: impl Fn(T, T) -> Weights1D<T>,
+    ) {
         let (o, inv_h, h) = (&frame.origin, frame.inv_h, frame.h);
-        let b = shape.support_width();
-        self.b = b;
+        self.b = B;
         self.nodes = frame.nodes;
         // Field by field, with plain loops (the closures of `array::from_fn` are not always
-        // inlined): this runs for every particle in every step.
+        // inlined).
         for a in 0..D {
             let xi = grid_coordinate(x[a], o[a], inv_h);
-            self.axes[a] = shape.weights_1d(xi, half_width[a] * inv_h, inv_h);
+            self.axes[a] = weights(xi, half_width[a] * inv_h);
             let base = self.axes[a].base;
             self.base[a] = base;
-            for k in 0..b {
+            for k in 0..B {
                 self.offsets[a][k] = (T::cst((base + k as isize) as f64) - xi) * h;
             }
         }
