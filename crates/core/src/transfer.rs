@@ -283,6 +283,7 @@ fn g2p_flags<const B: usize, T: Scalar, const D: usize>(
     let want_grad = gradient || (transfer.is_affine() && apic_b.is_none());
     let (st, l, t, v, o) = (stencil, layout, transfer, velocity, old);
     let k = apic_b.unwrap_or(0.0);
+    // The APIC sum belongs to APIC and MLS-MPM, which never need the FLIP increment.
     match (apic_b.is_some(), want_grad, flip) {
         (true, false, _) => g2p_rows::<B, T, D, true, false, false>(st, l, grid, t, k, v, o),
         (true, true, _) => g2p_rows::<B, T, D, true, true, false>(st, l, grid, t, k, v, o),
