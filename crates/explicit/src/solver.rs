@@ -457,29 +457,42 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let checks = Checks::new(cfg, self.time + dt);
         let (blocks, kernels) = (&self.blocks, &self.kernels);
         let mls = cfg.transfer.is_mls();
-        particle_pass(
-            p,
-            cfg,
-            dtt,
-            &checks,
-            #[inline(always)]
-            |i, x, v, c| {
-                let st = &kernels[blocks.rank(i)].stencil;
-                // MLS takes L = C and needs no gradient sums (a constant flag per call, so
-                // each inlines to only its own sums).
-                let (g, l) = if mls {
-                    let g = gather(cfg, st, &layout, false, vel, vel_old);
-                    (g, g.affine)
-                } else {
-                    let g = gather(cfg, st, &layout, true, vel, vel_old);
-                    (g, g.grad_v)
-                };
-                (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-                *x += g.v * dtt;
-                checks.project(x, v);
-                l
-            },
-        )
+        let Particles {
+            x,
+            v,
+            f,
+            c,
+            stress,
+            material,
+            state,
+            ..
+        } = p;
+        (x, v, f, c, stress, state)
+            .into_par_iter()
+            .zip(material.par_iter())
+            .enumerate()
+            .with_min_len(MIN_PARTICLES_PER_TASK)
+            .map(
+                #[inline(always)]
+                |(i, ((x, v, f, c, stress, state), &mat))| {
+                    let st = &kernels[blocks.rank(i)].stencil;
+                    // MLS takes L = C and needs no gradient sums (a constant flag per call,
+                    // so each inlines to only its own sums).
+                    let (g, l) = if mls {
+                        let g = gather(cfg, st, &layout, false, vel, vel_old);
+                        (g, g.affine)
+                    } else {
+                        let g = gather(cfg, st, &layout, true, vel, vel_old);
+                        (g, g.grad_v)
+                    };
+                    (*v, *c) = cfg.transfer.particle_velocity(v, &g);
+                    *x += g.v * dtt;
+                    checks.project(x, v);
+                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
+                    checks.flag(x, v, f, stress)
+                },
+            )
+            .reduce(|| false, |a, b| a || b)
     }
 
     /// MUSL: G2P velocity and position; map the new particle momentum back to the grid (same
@@ -562,26 +575,40 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             (&self.config, &self.velocity, &self.blocks, &self.kernels);
         let checks = Checks::new(cfg, self.time + dt);
         let mls = cfg.transfer.is_mls();
-        particle_pass(
-            p,
-            cfg,
-            dtt,
-            &checks,
-            #[inline(always)]
-            |i, x, v, c| {
-                let k = &kernels[blocks.rank(i)];
-                (*x, *v, *c) = (k.x, k.v, k.c);
-                checks.project(x, v);
-                // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two calls
-                // with constant transfers, so each inlines to only its own sums).
-                let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
-                if mls {
-                    g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
-                } else {
-                    g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
-                }
-            },
-        )
+        let Particles {
+            x,
+            v,
+            f,
+            c,
+            stress,
+            material,
+            state,
+            ..
+        } = p;
+        (x, v, f, c, stress, state)
+            .into_par_iter()
+            .zip(material.par_iter())
+            .enumerate()
+            .with_min_len(MIN_PARTICLES_PER_TASK)
+            .map(
+                #[inline(always)]
+                |(i, ((x, v, f, c, stress, state), &mat))| {
+                    let k = &kernels[blocks.rank(i)];
+                    // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two
+                    // calls with constant transfers, so each inlines to only its own sums).
+                    let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
+                    let l = if mls {
+                        g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
+                    } else {
+                        g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
+                    };
+                    (*x, *v, *c) = (k.x, k.v, k.c);
+                    checks.project(x, v);
+                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
+                    checks.flag(x, v, f, stress)
+                },
+            )
+            .reduce(|| false, |a, b| a || b)
     }
 }
 
@@ -790,68 +817,6 @@ impl<'a, T: Scalar, const D: usize> Checks<'a, T, D> {
         }
         out || (!self.contact.is_empty() && self.contact.penetrated(&xr, self.time).is_some())
     }
-}
-
-/// Particles per chunk of [`particle_pass`].
-const PASS_CHUNK: usize = 16;
-
-/// The end of a step for every particle: `kinematics(i, x, v, c)` updates particle `i`'s
-/// position, velocity and affine matrix and returns its velocity gradient `L`; then
-/// [`update_stress`] and the checks' flag. Returns whether any particle was flagged.
-///
-/// By chunks of [`PASS_CHUNK`] particles, all kinematics of a chunk before all its stress
-/// updates: a stress update is a short chain of dependent operations (`det F`, a power, a
-/// division), which the processor overlaps across the particles of a tight loop, and not
-/// across the long G2P bodies of one loop doing both. The same operations per particle as
-/// one loop, so the same bits.
-#[inline(always)]
-fn particle_pass<T: Scalar, const D: usize>(
-    p: &mut Particles<T, D>,
-    cfg: &Config<T, D>,
-    dt: T,
-    checks: &Checks<'_, T, D>,
-    kinematics: impl Fn(usize, &mut Vector<T, D>, &mut Vector<T, D>, &mut Tensor<T, D>) -> Tensor<T, D>
-    + Sync,
-) -> bool {
-    let Particles {
-        x,
-        v,
-        f,
-        c,
-        stress,
-        material,
-        state,
-        ..
-    } = p;
-    (
-        x.par_chunks_mut(PASS_CHUNK),
-        v.par_chunks_mut(PASS_CHUNK),
-        f.par_chunks_mut(PASS_CHUNK),
-        c.par_chunks_mut(PASS_CHUNK),
-        stress.par_chunks_mut(PASS_CHUNK),
-        state.par_chunks_mut(PASS_CHUNK),
-    )
-        .into_par_iter()
-        .zip(material.par_chunks(PASS_CHUNK))
-        .enumerate()
-        .with_min_len(MIN_PARTICLES_PER_TASK / PASS_CHUNK)
-        .map(
-            #[inline(always)]
-            |(k, ((x, v, f, c, stress, state), material))| {
-                let mut l = [Tensor::<T, D>::zeros(); PASS_CHUNK];
-                for j in 0..x.len() {
-                    l[j] = kinematics(k * PASS_CHUNK + j, &mut x[j], &mut v[j], &mut c[j]);
-                }
-                let mut flagged = false;
-                for j in 0..x.len() {
-                    let m = &cfg.materials[material[j] as usize];
-                    update_stress(m, &l[j], dt, &mut f[j], &mut stress[j], &mut state[j]);
-                    flagged |= checks.flag(&x[j], &v[j], &f[j], &stress[j]);
-                }
-                flagged
-            },
-        )
-        .reduce(|| false, |a, b| a || b)
 }
 
 /// `F ← (I + Δt L) F`, then the constitutive update on the 3×3 embedding.
