@@ -93,6 +93,8 @@ pub struct Setup {
     pub dt: f64,
     /// Transfer scheme.
     pub transfer: Transfer,
+    /// Artificial sound speed `c` (m/s), `K = ρ₀c²` ([`SOUND_SPEED`] in the case).
+    pub sound_speed: f64,
 }
 
 impl Setup {
@@ -116,7 +118,7 @@ pub fn build(setup: &Setup) -> (Config<f64, 2>, Particles<f64, 2>) {
         contact: Default::default(),
         gravity: Vector::<f64, 2>::new(0.0, -G),
         materials: vec![Material::fluid(
-            DENSITY * SOUND_SPEED * SOUND_SPEED,
+            DENSITY * setup.sound_speed * setup.sound_speed,
             GAMMA,
             0.0,
             DENSITY,
@@ -317,6 +319,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             ppc: PPC,
             dt,
             transfer,
+            sound_speed: SOUND_SPEED,
         };
         runs.push((name, simulate(&setup, t_w, samples, &profile_times)?));
     }
