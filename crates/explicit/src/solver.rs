@@ -457,42 +457,28 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let checks = Checks::new(cfg, self.time + dt);
         let (blocks, kernels) = (&self.blocks, &self.kernels);
         let mls = cfg.transfer.is_mls();
-        let Particles {
-            x,
-            v,
-            f,
-            c,
-            stress,
-            material,
-            state,
-            ..
-        } = p;
-        (x, v, f, c, stress, state)
-            .into_par_iter()
-            .zip(material.par_iter())
-            .enumerate()
-            .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(
-                #[inline(always)]
-                |(i, ((x, v, f, c, stress, state), &mat))| {
-                    let st = &kernels[blocks.rank(i)].stencil;
-                    // MLS takes L = C and needs no gradient sums (a constant flag per call,
-                    // so each inlines to only its own sums).
-                    let (g, l) = if mls {
-                        let g = gather(cfg, st, &layout, false, vel, vel_old);
-                        (g, g.affine)
-                    } else {
-                        let g = gather(cfg, st, &layout, true, vel, vel_old);
-                        (g, g.grad_v)
-                    };
-                    (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-                    *x += g.v * dtt;
-                    checks.project(x, v);
-                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
-                    checks.flag(x, v, f, stress)
-                },
-            )
-            .reduce(|| false, |a, b| a || b)
+        finish_particles(
+            p,
+            cfg,
+            &checks,
+            dtt,
+            #[inline(always)]
+            |i, x, v, c| {
+                let st = &kernels[blocks.rank(i)].stencil;
+                // MLS takes L = C and needs no gradient sums (a constant flag per call, so
+                // each inlines to only its own sums).
+                let (g, l) = if mls {
+                    let g = gather(cfg, st, &layout, false, vel, vel_old);
+                    (g, g.affine)
+                } else {
+                    let g = gather(cfg, st, &layout, true, vel, vel_old);
+                    (g, g.grad_v)
+                };
+                (*v, *c) = cfg.transfer.particle_velocity(v, &g);
+                *x += g.v * dtt;
+                l
+            },
+        )
     }
 
     /// MUSL: G2P velocity and position; map the new particle momentum back to the grid (same
@@ -575,41 +561,68 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             (&self.config, &self.velocity, &self.blocks, &self.kernels);
         let checks = Checks::new(cfg, self.time + dt);
         let mls = cfg.transfer.is_mls();
-        let Particles {
-            x,
-            v,
-            f,
-            c,
-            stress,
-            material,
-            state,
-            ..
-        } = p;
-        (x, v, f, c, stress, state)
-            .into_par_iter()
-            .zip(material.par_iter())
-            .enumerate()
-            .with_min_len(MIN_PARTICLES_PER_TASK)
-            .map(
-                #[inline(always)]
-                |(i, ((x, v, f, c, stress, state), &mat))| {
-                    let k = &kernels[blocks.rank(i)];
-                    // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two
-                    // calls with constant transfers, so each inlines to only its own sums).
-                    let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
-                    let l = if mls {
-                        g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
-                    } else {
-                        g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
-                    };
-                    (*x, *v, *c) = (k.x, k.v, k.c);
-                    checks.project(x, v);
-                    update_stress(&cfg.materials[mat as usize], &l, dtt, f, stress, state);
-                    checks.flag(x, v, f, stress)
-                },
-            )
-            .reduce(|| false, |a, b| a || b)
+        finish_particles(
+            p,
+            cfg,
+            &checks,
+            dtt,
+            #[inline(always)]
+            |i, x, v, c| {
+                let k = &kernels[blocks.rank(i)];
+                (*x, *v, *c) = (k.x, k.v, k.c);
+                // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two calls
+                // with constant transfers, so each inlines to only its own sums).
+                let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
+                if mls {
+                    g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
+                } else {
+                    g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
+                }
+            },
+        )
     }
+}
+
+/// The end of a step for every particle, in parallel: `motion(i, x, v, c)` sets particle `i`'s
+/// new position, velocity and affine matrix and returns its velocity gradient `L`; then the
+/// projection of shallow wall crossings ([`Checks::project`]), `F ← (I + Δt L) F` with the
+/// stress update ([`update_stress`]) and the per-particle checks. Returns whether a particle
+/// needs a closer look by the checks ([`Checks::flag`]).
+#[inline(always)]
+fn finish_particles<T: Scalar, const D: usize>(
+    p: &mut Particles<T, D>,
+    cfg: &Config<T, D>,
+    checks: &Checks<'_, T, D>,
+    dt: T,
+    motion: impl Fn(usize, &mut Vector<T, D>, &mut Vector<T, D>, &mut Tensor<T, D>) -> Tensor<T, D>
+    + Sync
+    + Send,
+) -> bool {
+    let Particles {
+        x,
+        v,
+        f,
+        c,
+        stress,
+        material,
+        state,
+        ..
+    } = p;
+    (x, v, f, c, stress, state)
+        .into_par_iter()
+        .zip(material.par_iter())
+        .enumerate()
+        .with_min_len(MIN_PARTICLES_PER_TASK)
+        .map(
+            #[inline(always)]
+            |(i, ((x, v, f, c, stress, state), &mat))| {
+                let l = motion(i, x, v, c);
+                checks.project(x, v);
+                update_stress(&cfg.materials[mat as usize], &l, dt, f, stress, state);
+                checks.flag(x, v, f, stress)
+            },
+        )
+        .reduce(|| false, |a, b| a || b)
 }
 
 /// G2P of the updated grid velocity `vel` (and `old`, for FLIP) at the particle with stencil
