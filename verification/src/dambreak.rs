@@ -29,12 +29,15 @@
 //! flow, and the zero-depth tip is not representable by particles of finite size), and that
 //! start-up lag is what the relative error then decays from.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, write_csv, write_plot,
+    write_text,
+};
 use loam_core::tensor::Vector;
 use loam_core::{
     Boundary, Grid, Material, Particles, Scheme, Shape, TimeStep, Transfer, Wall, WallKind,
 };
-use loam_explicit::{Config, Solver};
+use loam_explicit::Config;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -209,10 +212,7 @@ pub fn simulate(
     const CASE: &str = "dambreak-2d";
     let (config, mut particles) = build(setup);
     let (radius, half) = (setup.h, 0.5 * setup.spacing());
-    let mut solver = Solver::new(config, &particles).map_err(|source| VerifyError::Config {
-        case: CASE.into(),
-        source,
-    })?;
+    let mut solver = explicit_solver(CASE, config, &particles)?;
     let start = std::time::Instant::now();
     let max_x =
         |p: &Particles<f64, 2>| p.x.iter().fold(f64::NEG_INFINITY, |a, x| a.max(x[0])) + half;
@@ -221,12 +221,7 @@ pub fn simulate(
     let mut profiles = Vec::new();
     for k in 1..=samples {
         let t = t_end * k as f64 / samples as f64;
-        solver
-            .advance_to(&mut particles, t, |_, _| {})
-            .map_err(|source| VerifyError::Solver {
-                case: CASE.into(),
-                source,
-            })?;
+        advance(CASE, &mut solver, &mut particles, t)?;
         front.push((t, front_position(&particles, radius, half)));
         max.push(max_x(&particles));
         if profile_times

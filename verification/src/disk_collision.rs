@@ -5,13 +5,15 @@
 //! energy: with no dissipation in the continuum, kinetic + strain energy is constant, so the
 //! drift of the total measures the scheme's numerical dissipation through the impact.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, write_csv, write_plot,
+};
 use loam_core::tensor::Vector;
 use loam_core::{
     Boundary, Grid, Material, ModelKind, Particles, Scheme, Shape, TimeStep, Transfer, Wall,
     WallKind,
 };
-use loam_explicit::{Config, Solver};
+use loam_explicit::Config;
 use std::path::Path;
 
 /// Builds the two-disk problem with `cells` cells per side and `ppc` particles per cell per axis.
@@ -63,22 +65,14 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         Size::Full => 50,
     };
     let (config, mut particles) = build(cells, 2, Transfer::Apic);
-    let mut solver = Solver::new(config, &particles).map_err(|source| VerifyError::Config {
-        case: CASE.into(),
-        source,
-    })?;
+    let mut solver = explicit_solver(CASE, config, &particles)?;
     let e0 = solver.energy(&particles);
     let mut rows = vec![vec![0.0, e0.kinetic, e0.strain, e0.total()]];
     let t_end = 4.0;
     let frames = 200;
     for k in 1..=frames {
         let t = t_end * k as f64 / frames as f64;
-        solver
-            .advance_to(&mut particles, t, |_, _| {})
-            .map_err(|source| VerifyError::Solver {
-                case: CASE.into(),
-                source,
-            })?;
+        advance(CASE, &mut solver, &mut particles, t)?;
         let e = solver.energy(&particles);
         rows.push(vec![t, e.kinetic, e.strain, e.total()]);
     }

@@ -56,7 +56,7 @@
 //! potential energy released, `ΔE_p = E_p(0) − E_p(t)`, and its toe has stopped moving
 //! ([`Outcome::rest_ratio`], [`Outcome::late_toe_motion`]).
 
-use crate::{Series, VerifyError, write_csv};
+use crate::{Series, VerifyError, advance, explicit_solver, write_csv};
 use loam_core::tensor::Vector;
 use loam_core::{
     Boundary, Contact, FrictionSegment, Grid, Material, MaterialState, Particles, Scheme, Shape,
@@ -412,10 +412,7 @@ impl Outcome {
 /// Runs a collapse to its end time, sampling the history `samples` times at equal intervals.
 pub fn simulate(case: &str, c: &Collapse, samples: usize) -> Result<Outcome, VerifyError> {
     let (config, mut particles) = build(c);
-    let mut solver = Solver::new(config, &particles).map_err(|source| VerifyError::Config {
-        case: case.into(),
-        source,
-    })?;
+    let mut solver = explicit_solver(case, config, &particles)?;
     let (w, dp, rho) = (c.h, c.spacing(), c.material.density);
     let e0 = solver.energy(&particles).gravity;
     let sample = |s: &Solver<f64, 2>, p: &Particles<f64, 2>, t: f64| {
@@ -433,12 +430,7 @@ pub fn simulate(case: &str, c: &Collapse, samples: usize) -> Result<Outcome, Ver
     let mut history = vec![sample(&solver, &particles, 0.0)];
     for k in 1..=samples {
         let t = c.end_time * k as f64 / samples as f64;
-        solver
-            .advance_to(&mut particles, t, |_, _| {})
-            .map_err(|source| VerifyError::Solver {
-                case: case.into(),
-                source,
-            })?;
+        advance(case, &mut solver, &mut particles, t)?;
         history.push(sample(&solver, &particles, t));
     }
     let wall = start.elapsed().as_secs_f64();

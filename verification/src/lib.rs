@@ -148,6 +148,33 @@ pub enum VerifyError {
     UnknownCase(String),
 }
 
+/// The explicit solver for a case's set-up (a rejected set-up is an error of the case).
+pub(crate) fn explicit_solver(
+    case: &str,
+    config: loam_explicit::Config<f64, 2>,
+    particles: &loam_core::Particles<f64, 2>,
+) -> Result<loam_explicit::Solver<f64, 2>, VerifyError> {
+    loam_explicit::Solver::new(config, particles).map_err(|source| VerifyError::Config {
+        case: case.into(),
+        source,
+    })
+}
+
+/// Advances a case's run to the time `t` (a run that stops is an error of the case).
+pub(crate) fn advance(
+    case: &str,
+    solver: &mut loam_explicit::Solver<f64, 2>,
+    particles: &mut loam_core::Particles<f64, 2>,
+    t: f64,
+) -> Result<(), VerifyError> {
+    solver
+        .advance_to(particles, t, |_, _| {})
+        .map_err(|source| VerifyError::Solver {
+            case: case.into(),
+            source,
+        })
+}
+
 /// A verification case.
 pub struct Case {
     /// Name used on the command line.
