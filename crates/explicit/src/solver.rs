@@ -457,28 +457,21 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let checks = Checks::new(cfg, self.time + dt);
         let (blocks, kernels) = (&self.blocks, &self.kernels);
         let mls = cfg.transfer.is_mls();
-        finish_particles(
-            p,
-            cfg,
-            &checks,
-            dtt,
-            #[inline(always)]
-            |i, x, v, c| {
-                let st = &kernels[blocks.rank(i)].stencil;
-                // MLS takes L = C and needs no gradient sums (a constant flag per call, so
-                // each inlines to only its own sums).
-                let (g, l) = if mls {
-                    let g = gather(cfg, st, &layout, false, vel, vel_old);
-                    (g, g.affine)
-                } else {
-                    let g = gather(cfg, st, &layout, true, vel, vel_old);
-                    (g, g.grad_v)
-                };
-                (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-                *x += g.v * dtt;
-                l
-            },
-        )
+        finish_particles(p, cfg, &checks, dtt, |i, x, v, c| {
+            let st = &kernels[blocks.rank(i)].stencil;
+            // MLS takes L = C and needs no gradient sums (a constant flag per call, so
+            // each inlines to only its own sums).
+            let (g, l) = if mls {
+                let g = gather(cfg, st, &layout, false, vel, vel_old);
+                (g, g.affine)
+            } else {
+                let g = gather(cfg, st, &layout, true, vel, vel_old);
+                (g, g.grad_v)
+            };
+            (*v, *c) = cfg.transfer.particle_velocity(v, &g);
+            *x += g.v * dtt;
+            l
+        })
     }
 
     /// MUSL: G2P velocity and position; map the new particle momentum back to the grid (same
@@ -561,25 +554,18 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             (&self.config, &self.velocity, &self.blocks, &self.kernels);
         let checks = Checks::new(cfg, self.time + dt);
         let mls = cfg.transfer.is_mls();
-        finish_particles(
-            p,
-            cfg,
-            &checks,
-            dtt,
-            #[inline(always)]
-            |i, x, v, c| {
-                let k = &kernels[blocks.rank(i)];
-                (*x, *v, *c) = (k.x, k.v, k.c);
-                // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two calls
-                // with constant transfers, so each inlines to only its own sums).
-                let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
-                if mls {
-                    g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
-                } else {
-                    g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
-                }
-            },
-        )
+        finish_particles(p, cfg, &checks, dtt, |i, x, v, c| {
+            let k = &kernels[blocks.rank(i)];
+            (*x, *v, *c) = (k.x, k.v, k.c);
+            // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two calls
+            // with constant transfers, so each inlines to only its own sums).
+            let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
+            if mls {
+                g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
+            } else {
+                g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
+            }
+        })
     }
 }
 
