@@ -488,7 +488,6 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             self.blocks.for_each_block(
                 &mut self.kernels,
                 |e| e.p = Vector::zeros(),
-                #[inline(always)]
                 |i, block, buf, kernel| {
                     let st = &kernel.stencil;
                     let g = gather(cfg, st, &layout, false, vel, vel_old);
