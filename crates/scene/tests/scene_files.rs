@@ -1350,12 +1350,12 @@ fn contact_fixture_builds_segments_and_obstacles_and_clips_particles() {
                     lo: [0.4, 0.1],
                     hi: [0.6, 0.3]
                 },
-                velocity: [0.0, 0.0],
+                velocity: [0.0, 0.0].into(),
                 mu: 0.3
             },
             Obstacle {
                 shape: ObstacleShape::disk([1.5, 0.3], 0.1),
-                velocity: [-1.0, 0.0],
+                velocity: [-1.0, 0.0].into(),
                 mu: 0.0
             },
         ]
@@ -1393,7 +1393,10 @@ fn cylinder_fixture_builds_3d_obstacles() {
         c.obstacles[0].shape,
         ObstacleShape::cylinder([0.6, 0.2, 0.1], 0.05, 1, 0.4)
     );
-    assert_eq!(c.obstacles[1].velocity, [0.0, 0.0, 0.1]);
+    assert_eq!(
+        c.obstacles[1].velocity,
+        loam_core::tensor::Vector::<f64, 3>::new(0.0, 0.0, 0.1)
+    );
     // Without obstacles in the way the column holds 6 × 4 × 8 cells × 8 particles.
     assert_eq!(built.particles.len(), 1536);
 }

@@ -12,7 +12,7 @@ mod j2;
 mod linear_elastic;
 mod neo_hookean;
 
-pub use drucker_prager::{DpRegion, DruckerPrager};
+pub use drucker_prager::DruckerPrager;
 pub use fluid::Fluid;
 pub use hencky::Hencky;
 pub use j2::J2;
@@ -103,6 +103,24 @@ pub struct Kinematics<'a, T> {
     pub dt: T,
     /// Cauchy stress at the start of the step (rate models integrate from it).
     pub stress: &'a Matrix3<T>,
+}
+
+/// Which branch a stress update took: what a reverse pass replays. Branches are decided on
+/// real parts; the dual parts follow the branch taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Region {
+    /// No return mapping: elastic models, the fluid, and a trial state inside the yield
+    /// surface.
+    #[default]
+    Elastic,
+    /// Return to the yield surface along the flow direction: [`J2`]'s radial return, or
+    /// [`DruckerPrager`]'s return to the cone along its plastic potential.
+    Shear,
+    /// [`DruckerPrager`]: return to the tension cutoff plane `p = σ_t` (deviator unchanged).
+    Tension,
+    /// [`DruckerPrager`]: return to the corner where the cone meets the cutoff (the apex when
+    /// `σ_t = c cot φ`).
+    Corner,
 }
 
 /// A constitutive model: kinematics and history in, Cauchy stress and new history out.
@@ -380,13 +398,24 @@ impl<T: Scalar> Material<T> {
     /// Stress update by static dispatch on the model.
     #[inline]
     pub fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
+        self.update_region(kin, state).0
+    }
+
+    /// [`Material::update`] with the branch the update took ([`Region::Elastic`] for the
+    /// models without a return mapping), for a step record.
+    #[inline]
+    pub fn update_region(
+        &self,
+        kin: &Kinematics<'_, T>,
+        state: &mut MaterialState<T>,
+    ) -> (Matrix3<T>, Region) {
         match &self.model {
-            Model::LinearElastic(m) => m.update(kin, state),
-            Model::NeoHookean(m) => m.update(kin, state),
-            Model::Hencky(m) => m.update(kin, state),
-            Model::J2(m) => m.update(kin, state),
-            Model::Fluid(m) => m.update(kin, state),
-            Model::DruckerPrager(m) => m.update(kin, state),
+            Model::LinearElastic(m) => (m.update(kin, state), Region::Elastic),
+            Model::NeoHookean(m) => (m.update(kin, state), Region::Elastic),
+            Model::Hencky(m) => (m.update(kin, state), Region::Elastic),
+            Model::J2(m) => m.update_region(kin, state),
+            Model::Fluid(m) => (m.update(kin, state), Region::Elastic),
+            Model::DruckerPrager(m) => m.update_region(kin, state),
         }
     }
 }
