@@ -112,7 +112,7 @@ impl Setup {
                 ModelKind::LinearElastic,
                 young,
                 T::zero(),
-                DENSITY,
+                T::cst(DENSITY),
             )],
             time_step: TimeStep::Fixed { dt: self.dt() },
         };

@@ -181,6 +181,26 @@ impl<const D: usize> Built<D> {
         }
     }
 
+    /// The explicit solver's configuration of this scene (`None` for an implicit scene): the
+    /// one way from a scene to `loam_explicit::Solver`, used by the command line, the
+    /// verification cases, the benches and the tests alike.
+    pub fn explicit_config(&self) -> Option<loam_explicit::Config<f64, D>> {
+        let SolverPlan::Explicit(plan) = self.plan else {
+            return None;
+        };
+        Some(loam_explicit::Config {
+            grid: self.grid.clone(),
+            shape: self.shape,
+            transfer: plan.transfer,
+            scheme: plan.scheme,
+            boundary: self.boundary,
+            contact: self.contact.clone(),
+            gravity: self.gravity,
+            materials: self.materials.clone(),
+            time_step: plan.time_step,
+        })
+    }
+
     /// Implicit: the load steps after which frames are written, from 0 (the initial state):
     /// `round(k · load_steps / frames)` for `k = 0..=frames` (halves round up), repeats
     /// dropped, so `frames + 1` steps when `frames ≤ load_steps` and every step otherwise;

@@ -3,7 +3,7 @@
 use super::Recorder;
 use crate::Outcome;
 use indicatif::{ProgressBar, ProgressStyle};
-use loam_explicit::{Config, Solver};
+use loam_explicit::Solver;
 use loam_scene::{Built, ExplicitPlan};
 use std::time::{Duration, Instant};
 
@@ -15,17 +15,9 @@ pub fn run<const D: usize>(
     quiet: bool,
 ) -> Outcome {
     let frame_times = built.frame_times();
-    let config = Config {
-        grid: built.grid.clone(),
-        shape: built.shape,
-        transfer: plan.transfer,
-        scheme: plan.scheme,
-        boundary: built.boundary,
-        contact: built.contact.clone(),
-        gravity: built.gravity,
-        materials: built.materials.clone(),
-        time_step: plan.time_step,
-    };
+    let config = built
+        .explicit_config()
+        .expect("an explicit plan has an explicit configuration");
     let mut particles = built.particles;
     let mut solver = match Solver::new(config, &particles) {
         Ok(s) => s,

@@ -324,6 +324,37 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
     }
 }
 
+impl<const D: usize> Contact<f64, D> {
+    /// The same contact with its parameters (each segment's and obstacle's `μ`, each
+    /// obstacle's velocity) as constants of another scalar type; seed the derivative parts of
+    /// the result to differentiate with respect to one of them.
+    pub fn lift<T: Scalar>(&self) -> Contact<T, D> {
+        Contact {
+            segments: self
+                .segments
+                .iter()
+                .map(|s| FrictionSegment {
+                    axis: s.axis,
+                    side: s.side,
+                    from: s.from,
+                    to: s.to,
+                    mu: T::cst(s.mu),
+                })
+                .collect(),
+            obstacles: self
+                .obstacles
+                .iter()
+                .map(|o| Obstacle {
+                    shape: o.shape.clone(),
+                    velocity: o.velocity.map(T::cst),
+                    mu: T::cst(o.mu),
+                })
+                .collect(),
+            support: self.support,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -264,7 +264,12 @@ fn particle_end_updates_and_projects<T: Probe>() {
     let l0 = Tensor::<f64, 2>::new(0.5, 2.0, -1.0, 0.25);
     let l = l0.map(T::cst) * T::seeded(1.0);
     let f0 = Tensor::<f64, 2>::new(1.01, 0.02, 0.0, 0.99);
-    let rubber = Material::elastic(ModelKind::NeoHookean, T::cst(1e6), T::cst(0.3), 1000.0);
+    let rubber = Material::elastic(
+        ModelKind::NeoHookean,
+        T::cst(1e6),
+        T::cst(0.3),
+        T::cst(1000.0),
+    );
     let (mut f, mut stress, mut state) = (f0.map(T::cst), Matrix3::zeros(), Default::default());
     let region = update_stress(&rubber, &l, dt, &mut f, &mut stress, &mut state);
     assert_eq!(region, Region::Elastic);
@@ -288,7 +293,13 @@ fn particle_end_updates_and_projects<T: Probe>() {
     }
     // J2 in simple shear past yield: the radial return.
     let shear = Tensor::<T, 2>::new(T::zero(), T::cst(10.0), T::zero(), T::zero());
-    let clay = Material::j2(T::cst(1e7), T::cst(0.3), T::cst(1e4), T::zero(), 1800.0);
+    let clay = Material::j2(
+        T::cst(1e7),
+        T::cst(0.3),
+        T::cst(1e4),
+        T::zero(),
+        T::cst(1800.0),
+    );
     let (mut f, mut stress) = (Tensor::identity(), Matrix3::zeros());
     let mut state = MaterialState::default();
     let region = update_stress(&clay, &shear, dt, &mut f, &mut stress, &mut state);
@@ -302,7 +313,7 @@ fn particle_end_updates_and_projects<T: Probe>() {
         T::zero(),
         T::zero(),
         None,
-        1800.0,
+        T::cst(1800.0),
     );
     let stretch = Tensor::<T, 2>::identity() * T::cst(10.0);
     let (mut f, mut stress) = (Tensor::identity(), Matrix3::zeros());
