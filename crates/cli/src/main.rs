@@ -130,6 +130,12 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let outcome = match cli.command {
+        Command::Run { progress_every, .. }
+            if !(progress_every.is_finite() && progress_every >= 0.0) =>
+        {
+            eprintln!("error: --progress-every {progress_every}: expected seconds, 0 or more");
+            Outcome::BadInput
+        }
         Command::Run {
             scene,
             out,

@@ -141,7 +141,7 @@ impl Size {
 /// constraints) and the P2G block buffers, which cover each node of an occupied block up to
 /// `(6/4)^D` times. Where a size is not public it is rounded up. Measured: the peak resident
 /// memory of a 250,000-particle 2D run and a 64,000-particle 3D run (two frames each) was
-/// 0.78 and 0.87 of this estimate.
+/// 0.77 and 0.87 of this estimate.
 fn bytes_per_item<const D: usize>() -> (f64, f64) {
     let (vector, tensor) = (size_of::<Vector<f64, D>>(), size_of::<Tensor<f64, D>>());
     let particle = 5 * vector
@@ -234,5 +234,33 @@ pub fn explicit_steps<const D: usize>(
             plan.end_time / (cfl * solver.stability_limit(particles).0).min(max_dt)
         }
         (None, TimeStep::Fixed { dt }) => plan.end_time / dt,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_memory_limit_comes_from_the_flag_or_the_machine() {
+        let flag = MemoryLimit::new(Some(2.0)).expect("a limit");
+        assert_eq!(flag.bytes, 2.0 * GIB);
+        assert_eq!(flag.source, "allowed by --memory-limit");
+        // On Linux /proc/meminfo gives the memory available now.
+        if cfg!(target_os = "linux") {
+            let machine = MemoryLimit::new(None).expect("MemAvailable is read");
+            assert!(machine.bytes > 0.0 && machine.source.contains("MemAvailable"));
+        }
+    }
+
+    #[test]
+    fn per_item_sizes_cover_the_particle_arrays_and_the_grid_arrays() {
+        // A 2D particle holds at least x, v, a (2 each), F, C (4 each), σ (9), m, V₀,
+        // half-width (2) and the state (10) in f64: 38 numbers; a node at least its mass and
+        // two velocities: 5 numbers.
+        let (particle, node) = bytes_per_item::<2>();
+        assert!(particle >= 38.0 * 8.0 && node >= 5.0 * 8.0);
+        let (particle3, node3) = bytes_per_item::<3>();
+        assert!(particle3 > particle && node3 > node);
     }
 }

@@ -483,6 +483,8 @@ fn progress_is_printed_as_lines_when_stderr_is_not_a_terminal() {
     assert!(stderr.contains(&format!("step {steps},")), "{stderr}");
     let quiet = loam(&["run", &scene, "--out", out_arg, "--quiet"]);
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains("progress: "));
+    let bad = loam(&["run", &scene, "--out", out_arg, "--progress-every", "inf"]);
+    assert_eq!(bad.status.code(), Some(2));
 }
 
 #[test]
