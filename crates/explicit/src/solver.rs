@@ -210,7 +210,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         Ok(dt.min(cap))
     }
 
-    /// Advances the particles by one step of at most `max_dt` (use `f64::INFINITY` for no cap).
+    /// Advances the particles by one step of the configured size, capped at `max_dt` (use
+    /// `f64::INFINITY` for no cap). The cap shortens a fixed step too: that is the explicit way
+    /// to land on a given time ([`Solver::advance_exactly_to`]); plain runs never cap a fixed
+    /// step ([`Solver::advance_to`]).
     ///
     /// The step runs on a thread of the current rayon pool (one hand-over per step), so its
     /// parallel phases do not each wake the pool from outside.
@@ -274,18 +277,72 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         })
     }
 
-    /// Steps until the simulated time reaches `t_end` exactly (the last step is shortened),
-    /// calling `on_step` after every step.
+    /// Steps until the simulated time reaches `t_end`, calling `on_step` after every step.
+    ///
+    /// - Fixed step: every step keeps its size Δt; the run stops after the first step that
+    ///   reaches or passes `t_end`, so it may end up to one step past it (see
+    ///   [`Solver::next_step_cap`] for the round-off allowance).
+    /// - Adaptive step: the last step is shortened to end on `t_end`.
+    ///
+    /// [`Solver::advance_exactly_to`] shortens the last fixed step too, for a caller that must
+    /// sample the state at `t_end` itself.
     pub fn advance_to(
         &mut self,
         particles: &mut Particles<T, D>,
         t_end: f64,
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+    ) -> Result<(), StepError> {
+        self.advance_while(particles, |s| s.next_step_cap(t_end), on_step)
+    }
+
+    /// Steps until the simulated time is `t_end` exactly, shortening the last step (fixed or
+    /// adaptive) to end on it, and calling `on_step` after every step.
+    pub fn advance_exactly_to(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        t_end: f64,
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+    ) -> Result<(), StepError> {
+        self.advance_while(particles, |s| s.landing_cap(t_end), on_step)
+    }
+
+    /// The cap (`max_dt` of [`Solver::step`]) on the next step of [`Solver::advance_to`]
+    /// towards `t_end`, or `None` once `t_end` is reached. A front end that steps on its own
+    /// (to check for an interruption between steps, say) loops on it.
+    ///
+    /// - Fixed step Δt: `f64::INFINITY` (no shortening) while the time is short of `t_end`. A
+    ///   time short by at most `1e-9 · t_end` (and by less than Δt/2) counts as reached: the
+    ///   round-off of summing Δt over the steps, below `n ε t` after `n` steps, stays under
+    ///   that up to ten million steps.
+    /// - Adaptive step: `t_end − t`, so that the last step ends on `t_end`, while more than
+    ///   `1e-12 · t_end` remains (shorter steps would be the round-off of that last sum).
+    pub fn next_step_cap(&self, t_end: f64) -> Option<f64> {
+        match self.config.time_step {
+            TimeStep::Fixed { dt } => {
+                let allowance = (1e-9 * t_end.abs()).min(0.5 * dt);
+                (t_end - self.time > allowance).then_some(f64::INFINITY)
+            }
+            TimeStep::Adaptive { .. } => self.landing_cap(t_end),
+        }
+    }
+
+    /// The cap that makes the next step end on `t_end` (see [`Solver::next_step_cap`]), or
+    /// `None` when less than `1e-12 · t_end` remains.
+    fn landing_cap(&self, t_end: f64) -> Option<f64> {
+        let left = t_end - self.time;
+        (left > 1e-12 * t_end.abs().max(1e-300)).then_some(left)
+    }
+
+    /// Steps with the caps `cap(self)` until it gives `None`, calling `on_step` after every
+    /// step.
+    fn advance_while(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        cap: impl Fn(&Self) -> Option<f64>,
         mut on_step: impl FnMut(&StepInfo, &Particles<T, D>),
     ) -> Result<(), StepError> {
-        // Steps shorter than this fraction of the time are round-off from summing dt.
-        let tiny = 1e-12 * t_end.abs().max(1e-300);
-        while t_end - self.time > tiny {
-            let info = self.step(particles, t_end - self.time)?;
+        while let Some(max_dt) = cap(self) {
+            let info = self.step(particles, max_dt)?;
             on_step(&info, particles);
         }
         Ok(())

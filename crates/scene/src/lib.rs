@@ -45,6 +45,9 @@
 //! - [`Scene::build`] returns a [`Built`] of plain `loam-core` structs (grid, boundary,
 //!   materials, particles, node constraints, point loads) and the solver settings with their
 //!   defaults ([`SolverPlan`]) for a solver; dispatch on [`Scene::dim`] to pick `D`.
+//! - [`Scene::read_path`] and [`Scene::parse_str`] check the fields only, so that
+//!   [`Scene::estimate`] can size a scene (particles, grid nodes) before a single particle
+//!   is generated; [`Scene::validate`] then checks the particle generation.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
 //!
 //! This crate depends on `loam-core` only: solvers take the plain structs it builds.
@@ -52,6 +55,7 @@
 mod build;
 mod contact;
 mod error;
+mod estimate;
 mod geometry;
 mod load;
 pub mod output;
@@ -63,6 +67,7 @@ pub use build::{
     Built, ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, OutputPlan, SolverPlan,
 };
 pub use error::{Issue, Location, SceneError, SceneFormat};
+pub use estimate::Estimate;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
     FrictionSpec, GridSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec,

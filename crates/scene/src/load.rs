@@ -12,6 +12,15 @@ impl Scene {
     /// Reads, parses and validates a scene file; the format follows the extension
     /// (`.toml` or `.json`).
     pub fn from_path(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        let scene = Self::read_path(path)?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads and parses a scene file and checks its fields ([`Scene::check_fields`]), without
+    /// generating particles: for a front end that [estimates](Scene::estimate) the size of a
+    /// scene before it validates ([`Scene::validate`]) and builds it.
+    pub fn read_path(path: impl AsRef<Path>) -> Result<Self, SceneError> {
         let path = path.as_ref();
         let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
             path: path.to_path_buf(),
@@ -22,7 +31,15 @@ impl Scene {
         })?;
         let mut scene = parse(&text, format).map_err(|e| e.in_file(path))?;
         scene.source = Some(path.to_path_buf());
-        scene.validate()?;
+        scene.check_fields()?;
+        Ok(scene)
+    }
+
+    /// Parses a scene written in the given format and checks its fields, without generating
+    /// particles (see [`Scene::read_path`]).
+    pub fn parse_str(text: &str, format: SceneFormat) -> Result<Self, SceneError> {
+        let scene = parse(text, format)?;
+        scene.check_fields()?;
         Ok(scene)
     }
 

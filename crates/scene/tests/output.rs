@@ -92,6 +92,8 @@ fn frames_read_back_and_the_series_lists_them_all() {
     assert!((pressure[1] + 8.0 / 3.0).abs() < 1e-14);
     let ids: Vec<u32> = array(&last, "material_id").unwrap().into_vec().unwrap();
     assert_eq!(ids, [0, 1, 0]);
+    let ids: Vec<u64> = array(&last, "id").unwrap().into_vec().unwrap();
+    assert_eq!(ids, [0, 1, 2]);
     for field in Field::ALL {
         assert!(
             array(&last, field.name()).is_some(),
@@ -144,6 +146,65 @@ fn a_3d_frame_keeps_the_z_components() {
     assert_eq!(v, [1.0, 2.0, 3.0]);
     let m: Vec<f64> = array(&piece, "mass").unwrap().into_vec().unwrap();
     assert_eq!(m, [1.0]);
+}
+
+#[test]
+fn a_non_finite_field_is_an_error_naming_it_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut writer = FrameWriter::create(&out, &Field::ALL).unwrap();
+    let mut p = particles();
+    writer.write_frame(0.0, &p, None).unwrap();
+    // A NaN stress at particle 1.
+    p.stress[1][(0, 1)] = f64::NAN;
+    let err = writer.write_frame(0.5, &p, None).unwrap_err();
+    match &err {
+        OutputError::NonFinite { field, ids, .. } => {
+            assert_eq!((field.as_str(), ids.as_slice()), ("stress", &[1][..]));
+        }
+        e => panic!("unexpected error {e}"),
+    }
+    // F = 0 at particle 2: F Fᵀ = 0, whose logarithm is −∞; the message gives det F.
+    p.stress[1] = Matrix3::zeros();
+    p.f[2] = Matrix2::zeros();
+    let err = writer.write_frame(0.5, &p, None).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("non-finite strain in 1 particle(s), first ids [2]")
+            && msg.contains("det F is down to 0.000e0"),
+        "{msg}"
+    );
+    // The failed frames were not written; the series still lists the first one only.
+    assert!(!out.join("frame_0001.vtu").exists() && !out.join("frame_0001.vtu.tmp").exists());
+    let pvd = std::fs::read_to_string(writer.pvd_path()).unwrap();
+    assert_eq!(pvd.matches("<DataSet ").count(), 1);
+}
+
+#[test]
+fn a_new_writer_removes_an_earlier_runs_files_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut writer = FrameWriter::create(&out, &[Field::Velocity]).unwrap();
+    let p = particles();
+    for k in 0..3 {
+        writer.write_frame(k as f64, &p, None).unwrap();
+    }
+    for name in [
+        "summary.json",
+        "frame_0007.vtu.tmp",
+        "notes.txt",
+        "frame_a.vtu",
+    ] {
+        std::fs::write(out.join(name), "x").unwrap();
+    }
+    let writer = FrameWriter::create(&out, &[Field::Velocity]).unwrap();
+    assert!(writer.entries().is_empty());
+    let mut left: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["frame_a.vtu", "notes.txt"]);
 }
 
 #[test]

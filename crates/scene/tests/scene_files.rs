@@ -85,6 +85,13 @@ const BAD: &[(&str, &[&str])] = &[
         &["solver.time_step.cfl: must be in (0, 1], got 1.5"],
     ),
     (
+        "fixed_dt_above_end_time.toml",
+        &[
+            "solver.time_step.dt: 0.001 s is more than twice solver.end_time = 0.0004 s",
+            "round(end_time / dt) steps, here none",
+        ],
+    ),
+    (
         "zero_frames.toml",
         &["output.frames: must be at least 1, got 0"],
     ),
@@ -469,12 +476,14 @@ fn box_fixture_builds_400_particles_with_the_expected_state() {
         })
     );
     assert!(built.constraints.is_empty() && built.point_loads.is_empty());
-    assert!(built.frame_steps().is_empty());
+    // A fixed step: 0.5 s / 1e-4 s = 5000 steps, a frame every 250.
+    let frame_steps: Vec<usize> = (0..=20).map(|k| 250 * k).collect();
+    assert_eq!(built.frame_steps(), frame_steps);
     assert_eq!(built.output.dir, Path::new("out/box_2d"));
     assert_eq!(built.output.frames, 20);
     assert_eq!(built.output.fields, loam_scene::output::Field::ALL);
     assert_eq!(built.frame_times().len(), 21);
-    assert_eq!(built.frame_times()[20], 0.5);
+    assert!((built.frame_times()[20] - 0.5).abs() < 1e-15);
 }
 
 #[test]

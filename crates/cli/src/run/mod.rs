@@ -1,33 +1,67 @@
-//! `loam run`: simulate a scene, writing frames, a progress bar or a Newton table, and a run
-//! summary.
+//! `loam run`: simulate a scene, writing frames, a progress display or a Newton table, and a
+//! run summary.
+//!
+//! Before anything is built the scene's size is estimated and checked against the memory
+//! limit ([`crate::preflight`]); an explicit run also checks its fixed time step against the
+//! initial state's stability limit before it writes anything. A signal (Ctrl-C) stops the run
+//! after the step in progress ([`interrupt`]).
 
 mod explicit;
 mod implicit;
+pub mod interrupt;
+mod progress;
 
 use crate::Outcome;
+use crate::preflight::{self, MemoryLimit};
 use loam_core::Particles;
 use loam_core::energy::energy;
 use loam_core::tensor::Vector;
-use loam_scene::output::{EnergySample, FrameWriter, RunStatus, RunSummary, write_summary};
+use loam_scene::output::{
+    EnergySample, FrameWriter, OutputError, RunStatus, RunSummary, write_summary,
+};
 use loam_scene::{Built, Scene, SolverPlan};
 use std::path::{Path, PathBuf};
 
+/// The options of `loam run`.
+pub struct Options<'a> {
+    /// Output folder instead of the scene's.
+    pub out: Option<&'a Path>,
+    /// No progress display and no Newton table.
+    pub quiet: bool,
+    /// Seconds between plain progress lines (when stderr is not a terminal).
+    pub progress_every: f64,
+    /// The memory the run may use.
+    pub memory_limit: Option<MemoryLimit>,
+}
+
 /// Loads `scene`, runs it and reports; see the module docs of `main` for exit codes.
-pub fn run(path: &Path, out: Option<&Path>, quiet: bool) -> Outcome {
-    let scene = match Scene::from_path(path) {
+pub fn run(path: &Path, options: &Options) -> Outcome {
+    let scene = match Scene::read_path(path) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
             return Outcome::BadInput;
         }
     };
+    if let Err(msg) = preflight::size(&scene, options.memory_limit) {
+        eprintln!("error: {}: {msg}", path.display());
+        return Outcome::BadInput;
+    }
+    if let Err(e) = scene.validate() {
+        eprintln!("error: {e}");
+        return Outcome::BadInput;
+    }
+    if let Err(e) = interrupt::install() {
+        eprintln!("error: {e}");
+        return Outcome::Failed;
+    }
     match scene.dim() {
-        2 => run_dim::<2>(&scene, path, out, quiet),
-        _ => run_dim::<3>(&scene, path, out, quiet),
+        2 => run_dim::<2>(&scene, path, options),
+        _ => run_dim::<3>(&scene, path, options),
     }
 }
 
-fn run_dim<const D: usize>(scene: &Scene, path: &Path, out: Option<&Path>, quiet: bool) -> Outcome {
+fn run_dim<const D: usize>(scene: &Scene, path: &Path, options: &Options) -> Outcome {
     let built: Built<D> = match scene.build() {
         Ok(b) => b,
         Err(e) => {
@@ -35,18 +69,38 @@ fn run_dim<const D: usize>(scene: &Scene, path: &Path, out: Option<&Path>, quiet
             return Outcome::BadInput;
         }
     };
-    let dir = out.map_or_else(|| built.output.dir.clone(), Path::to_path_buf);
-    let rec = match Recorder::new(path, &dir, &built) {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return Outcome::Failed;
-        }
-    };
+    let dir = options
+        .out
+        .map_or_else(|| built.output.dir.clone(), Path::to_path_buf);
+    let target = Target { scene: path, dir };
     match built.plan {
-        SolverPlan::Explicit(plan) => explicit::run(built, plan, rec, quiet),
-        SolverPlan::Implicit(plan) => implicit::run(built, plan, rec, quiet),
+        SolverPlan::Explicit(plan) => explicit::run(built, plan, target, options),
+        SolverPlan::Implicit(plan) => implicit::run(built, plan, target, options),
     }
+}
+
+/// Where a run writes: the scene file it came from and the output folder.
+pub struct Target<'a> {
+    scene: &'a Path,
+    dir: PathBuf,
+}
+
+impl Target<'_> {
+    /// Opens the output folder (removing an earlier run's files) and starts the summary.
+    fn recorder<const D: usize>(&self, built: &Built<D>) -> Result<Recorder<D>, Outcome> {
+        Recorder::new(self.scene, &self.dir, built).map_err(|e| {
+            eprintln!("error: {e}");
+            Outcome::Failed
+        })
+    }
+}
+
+/// Why a run stopped before its end.
+pub enum Stop {
+    /// An error (the message).
+    Failed(String),
+    /// A signal.
+    Interrupted,
 }
 
 /// Writes frames and the summary of a run, whichever solver drives it.
@@ -95,13 +149,14 @@ impl<const D: usize> Recorder<D> {
     }
 
     /// Writes a frame at `time` (simulated time, or load factor for implicit runs) and records
-    /// the energy.
+    /// the energy. A non-finite value in a field is an error naming the step, the field and
+    /// the particles, and the frame is not written.
     pub fn frame(
         &mut self,
         step: usize,
         time: f64,
         particles: &Particles<f64, D>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Stop> {
         let e = energy(particles, &self.materials, &self.gravity);
         self.summary.energy.push(EnergySample {
             step: step as u64,
@@ -114,19 +169,24 @@ impl<const D: usize> Recorder<D> {
         let p = self
             .writer
             .write_frame(time, particles, Some(&self.initial))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| match e {
+                OutputError::NonFinite { .. } => {
+                    Stop::Failed(format!("step {step} (t = {time:.6e} s): {e}"))
+                }
+                e => Stop::Failed(e.to_string()),
+            })?;
         self.summary.frames.push(p.display().to_string());
         Ok(())
     }
 
     /// Completes the summary, writes it and prints the outcome: `done` on success, the error
-    /// and what was kept otherwise.
+    /// or the interruption and what was kept otherwise.
     pub fn finish(
         mut self,
         steps: usize,
         reached: f64,
         wall: f64,
-        failure: Option<String>,
+        stop: Option<Stop>,
         done: &str,
     ) -> Outcome {
         let s = &mut self.summary;
@@ -138,16 +198,26 @@ impl<const D: usize> Recorder<D> {
         if steps == 0 || !s.dt_min.is_finite() {
             s.dt_min = 0.0;
         }
-        if let Some(msg) = &failure {
-            s.status = RunStatus::Failed;
-            s.error = Some(msg.clone());
+        match &stop {
+            None => {}
+            Some(Stop::Failed(msg)) => {
+                s.status = RunStatus::Failed;
+                s.error = Some(msg.clone());
+            }
+            Some(Stop::Interrupted) => s.status = RunStatus::Interrupted,
         }
-        let summary_path = self.writer.dir().join("summary.json");
+        let summary_path = self.writer.dir().join(FrameWriter::SUMMARY_NAME);
         if let Err(e) = write_summary(&summary_path, &self.summary) {
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
-        match failure {
+        let kept = format!(
+            "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",
+            self.summary.frames.len(),
+            self.writer.pvd_path().display(),
+            summary_path.display()
+        );
+        match stop {
             None => {
                 println!(
                     "{}: {done}; wrote {} frames to {} ({})",
@@ -158,15 +228,17 @@ impl<const D: usize> Recorder<D> {
                 );
                 Outcome::Ok
             }
-            Some(msg) => {
+            Some(Stop::Failed(msg)) => {
                 eprintln!("error: {}: {msg}", self.scene.display());
-                eprintln!(
-                    "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",
-                    self.summary.frames.len(),
-                    self.writer.pvd_path().display(),
-                    summary_path.display()
-                );
+                eprintln!("{kept}");
                 Outcome::Failed
+            }
+            Some(Stop::Interrupted) => {
+                eprintln!(
+                    "{}: interrupted after {steps} steps; {kept}",
+                    self.scene.display()
+                );
+                Outcome::Interrupted
             }
         }
     }

@@ -31,11 +31,14 @@ pub enum Field {
     Mass,
     /// Index of the particle's material in the scene's material table.
     MaterialId,
+    /// The particle's id: its index in the particle arrays (bodies in file order), the number
+    /// that run errors quote.
+    Id,
 }
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 10] = [
+    pub const ALL: [Field; 11] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
@@ -46,6 +49,7 @@ impl Field {
         Field::Volume,
         Field::Mass,
         Field::MaterialId,
+        Field::Id,
     ];
 
     /// The field's name, in scene files and as the `.vtu` array name.
@@ -61,6 +65,7 @@ impl Field {
             Field::Volume => "volume",
             Field::Mass => "mass",
             Field::MaterialId => "material_id",
+            Field::Id => "id",
         }
     }
 }
