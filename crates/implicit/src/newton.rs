@@ -3,14 +3,17 @@
 use crate::linear::{LinearError, LinearSolver, LinearSolverKind};
 use crate::system::{Inverted, Materials, StepSystem};
 
-/// How the tangent is assembled.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// How the tangent is assembled (in a scene file: `tangent = "local"` or `"colour"`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum TangentMethod {
     /// Per-particle forward-mode AD of the stress w.r.t. `ΔF`, chained with the shape-function
     /// gradients (fast; tested against the colour-seeded one).
     #[default]
     Local,
-    /// Block-colour seeding over the `b^D` node colours (the reference).
+    /// Block-colour seeding over the `b^D` node colours (the reference); `color` is
+    /// accepted.
+    #[serde(alias = "color")]
     Colour,
 }
 

@@ -4,12 +4,14 @@ use crate::error::{Issue, SceneError};
 use crate::output::Field;
 use crate::schema::{
     DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind,
-    LinearSpec, NewtonSpec, PreconditionerKind, Scene, SolverKind, SolverSpec,
+    LinearSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
 };
 use loam_core::{
     Boundary, Contact, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme,
     Shape, TimeStep, Transfer,
 };
+use loam_implicit::NewtonSettings;
+use loam_implicit::linear::LinearSolverKind;
 use nalgebra::SVector;
 use std::path::PathBuf;
 
@@ -92,50 +94,45 @@ pub struct ImplicitPlan {
     pub load_steps: usize,
     /// Newmark time step (s) for implicit dynamics; `None` for a quasi-static run.
     pub newmark_dt: Option<f64>,
-    /// Newton settings.
-    pub newton: NewtonSpec,
-    /// Linear solver of the Newton corrections.
-    pub linear: LinearMethod,
-}
-
-/// A linear solver with its settings.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LinearMethod {
-    /// Sparse LU.
-    Lu,
-    /// Sparse Cholesky.
-    Cholesky,
-    /// Preconditioned conjugate gradient.
-    Cg(KrylovSettings),
-    /// Preconditioned BiCGSTAB.
-    Bicgstab(KrylovSettings),
-}
-
-/// The settings of an iterative linear solver.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct KrylovSettings {
-    /// Preconditioner.
-    pub preconditioner: PreconditionerKind,
-    /// Stop when `‖b − A x‖ < rel_tol ‖b‖`.
-    pub rel_tol: f64,
-    /// Iteration limit.
-    pub max_iterations: usize,
+    /// Newton and linear-solver settings, as the solver takes them.
+    pub newton: NewtonSettings,
 }
 
 impl LinearSpec {
-    /// The method with the iterative solvers' defaults filled in (preconditioner `ilu0`,
-    /// `rel_tol` 1e-10, `max_iterations` 1000).
-    pub fn method(&self) -> LinearMethod {
-        let krylov = KrylovSettings {
-            preconditioner: self.preconditioner.unwrap_or_default(),
-            rel_tol: self.rel_tol.unwrap_or(DEFAULT_LINEAR_REL_TOL),
-            max_iterations: self.max_iterations.unwrap_or(DEFAULT_LINEAR_MAX_ITERATIONS),
-        };
+    /// The solver's linear method with the iterative solvers' defaults filled in
+    /// (preconditioner `ilu0`, `rel_tol` 1e-10, `max_iterations` 1000).
+    pub fn solver(&self) -> LinearSolverKind {
+        let preconditioner = self.preconditioner.unwrap_or_default();
+        let rel_tol = self.rel_tol.unwrap_or(DEFAULT_LINEAR_REL_TOL);
+        let max_iter = self.max_iterations.unwrap_or(DEFAULT_LINEAR_MAX_ITERATIONS);
         match self.kind {
-            LinearKind::Lu => LinearMethod::Lu,
-            LinearKind::Cholesky => LinearMethod::Cholesky,
-            LinearKind::Cg => LinearMethod::Cg(krylov),
-            LinearKind::Bicgstab => LinearMethod::Bicgstab(krylov),
+            LinearKind::Lu => LinearSolverKind::Lu,
+            LinearKind::Cholesky => LinearSolverKind::Cholesky,
+            LinearKind::Cg => LinearSolverKind::Cg {
+                preconditioner,
+                rel_tol,
+                max_iter,
+            },
+            LinearKind::Bicgstab => LinearSolverKind::Bicgstab {
+                preconditioner,
+                rel_tol,
+                max_iter,
+            },
+        }
+    }
+}
+
+impl NewtonSpec {
+    /// The solver's Newton settings, with `linear` as the linear method.
+    pub fn settings(&self, linear: LinearSolverKind) -> NewtonSettings {
+        NewtonSettings {
+            residual_tol: self.residual_tol,
+            increment_tol: self.increment_tol,
+            max_iterations: self.max_iterations,
+            line_search: self.line_search,
+            max_cuts: self.max_cuts,
+            tangent: self.tangent,
+            linear,
         }
     }
 }
@@ -155,8 +152,10 @@ impl SolverSpec {
             SolverKind::Implicit => SolverPlan::Implicit(ImplicitPlan {
                 load_steps: self.load_steps?,
                 newmark_dt: self.newmark_dt,
-                newton: self.newton.unwrap_or_default(),
-                linear: self.linear.unwrap_or_default().method(),
+                newton: self
+                    .newton
+                    .unwrap_or_default()
+                    .settings(self.linear.unwrap_or_default().solver()),
             }),
         })
     }
@@ -220,6 +219,27 @@ impl<const D: usize> Built<D> {
             gravity: self.gravity,
             materials: self.materials.clone(),
             time_step: plan.time_step,
+        })
+    }
+
+    /// The implicit solver's configuration of this scene (`None` for an explicit scene), as
+    /// [`Built::explicit_config`] is for the explicit one.
+    pub fn implicit_config(&self) -> Option<loam_implicit::ImplicitConfig<D>> {
+        let SolverPlan::Implicit(plan) = self.plan else {
+            return None;
+        };
+        Some(loam_implicit::ImplicitConfig {
+            grid: self.grid.clone(),
+            shape: self.shape,
+            boundary: self.boundary,
+            materials: self.materials.clone(),
+            gravity: self.gravity,
+            constraints: self.constraints.clone(),
+            point_loads: self.point_loads.clone(),
+            load_steps: plan.load_steps,
+            newton: plan.newton,
+            dynamics: plan.newmark_dt,
+            min_node_support: loam_implicit::ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
         })
     }
 

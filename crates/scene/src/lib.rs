@@ -63,14 +63,11 @@ mod schema;
 mod strict;
 mod validate;
 
-pub use build::{
-    Built, ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, OutputPlan, SolverPlan,
-};
+pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, SolverPlan};
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
     FrictionSpec, GridSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec,
-    ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, PreconditionerKind, Scene, SolverKind,
-    SolverSpec, TangentKind,
+    ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, Scene, SolverKind, SolverSpec,
 };

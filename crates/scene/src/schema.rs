@@ -10,6 +10,8 @@
 use crate::output::Field;
 use crate::strict;
 use loam_core::{ModelKind, Scheme, Shape, TimeStep, Transfer, Wall};
+use loam_implicit::TangentMethod;
+use loam_implicit::linear::Preconditioner;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -401,7 +403,7 @@ pub struct NewtonSpec {
     pub max_cuts: usize,
     /// Tangent assembly (default `local`).
     #[serde(default)]
-    pub tangent: TangentKind,
+    pub tangent: TangentMethod,
 }
 
 fn default_residual_tol() -> f64 {
@@ -432,28 +434,15 @@ impl Default for NewtonSpec {
             max_iterations: default_newton_iterations(),
             line_search: default_line_search(),
             max_cuts: default_max_cuts(),
-            tangent: TangentKind::default(),
+            tangent: TangentMethod::default(),
         }
     }
-}
-
-/// How the implicit solver assembles the tangent matrix.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TangentKind {
-    /// Per-particle forward-mode AD of the stress, chained with the shape-function gradients
-    /// (fast).
-    #[default]
-    Local,
-    /// Block-colour seeding over the grid nodes (the slower reference); `color` is accepted.
-    #[serde(alias = "color")]
-    Colour,
 }
 
 /// `[solver.linear]`: the linear solver of the Newton corrections.
 ///
 /// `preconditioner`, `rel_tol` and `max_iterations` belong to the iterative solvers (`cg`,
-/// `bicgstab`) and are errors on the direct ones; [`LinearSpec::method`] fills in their
+/// `bicgstab`) and are errors on the direct ones; [`LinearSpec::solver`] fills in their
 /// defaults.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -463,7 +452,7 @@ pub struct LinearSpec {
     pub kind: LinearKind,
     /// Iterative solvers: the preconditioner (default `ilu0`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub preconditioner: Option<PreconditionerKind>,
+    pub preconditioner: Option<Preconditioner>,
     /// Iterative solvers: stop when `‖b − A x‖ < rel_tol ‖b‖`; in (0, 1) (default 1e-10).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rel_tol: Option<f64>,
@@ -492,19 +481,6 @@ impl LinearKind {
     pub fn is_iterative(self) -> bool {
         matches!(self, Self::Cg | Self::Bicgstab)
     }
-}
-
-/// Preconditioners of the iterative linear solvers.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PreconditionerKind {
-    /// None.
-    Identity,
-    /// Inverse of the diagonal.
-    Jacobi,
-    /// Incomplete LU without fill-in.
-    #[default]
-    Ilu0,
 }
 
 /// Default relative tolerance of the iterative linear solvers.

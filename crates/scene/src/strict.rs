@@ -237,7 +237,8 @@ mod tests {
 
     #[test]
     fn linear_solver_short_and_table_forms() {
-        use crate::schema::{LinearKind, PreconditionerKind};
+        use crate::schema::LinearKind;
+        use loam_implicit::linear::Preconditioner;
         let doc = read("transfer = \"pic\"\nlinear = \"cholesky\"").unwrap();
         assert_eq!(
             doc.linear,
@@ -250,7 +251,7 @@ mod tests {
             read("transfer = \"pic\"\nlinear = { type = \"cg\", preconditioner = \"jacobi\" }");
         let linear = doc.unwrap().linear.unwrap();
         assert_eq!(linear.kind, LinearKind::Cg);
-        assert_eq!(linear.preconditioner, Some(PreconditionerKind::Jacobi));
+        assert_eq!(linear.preconditioner, Some(Preconditioner::Jacobi));
         let err = read("transfer = \"pic\"\nlinear = { type = \"lu\", tol = 1 }").unwrap_err();
         assert!(err.contains("unknown field `tol`"), "{err}");
     }

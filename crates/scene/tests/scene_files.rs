@@ -3,9 +3,10 @@
 
 use loam_core::constitutive::{DruckerPrager, Fluid, J2, Lame, Model};
 use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
+use loam_implicit::linear::{LinearSolverKind, Preconditioner};
+use loam_implicit::{NewtonSettings, TangentMethod};
 use loam_scene::{
-    ExplicitPlan, ImplicitPlan, KrylovSettings, LinearMethod, NewtonSpec, PreconditionerKind,
-    Scene, SceneError, SolverKind, SolverPlan, TangentKind,
+    ExplicitPlan, ImplicitPlan, NewtonSpec, Scene, SceneError, SolverKind, SolverPlan,
 };
 use std::path::{Path, PathBuf};
 
@@ -889,19 +890,19 @@ fn implicit_2d_fixture_builds_constraints_and_point_loads() {
         SolverPlan::Implicit(ImplicitPlan {
             newmark_dt: None,
             load_steps: 20,
-            newton: NewtonSpec {
+            newton: NewtonSettings {
                 residual_tol: 1e-9,
                 increment_tol: 1e-10,
                 max_iterations: 40,
                 line_search: false,
                 max_cuts: 6,
-                tangent: TangentKind::Colour,
+                tangent: TangentMethod::Colour,
+                linear: LinearSolverKind::Cg {
+                    preconditioner: Preconditioner::Jacobi,
+                    rel_tol: 1e-10,
+                    max_iter: 500,
+                },
             },
-            linear: LinearMethod::Cg(KrylovSettings {
-                preconditioner: PreconditionerKind::Jacobi,
-                rel_tol: 1e-10,
-                max_iterations: 500,
-            }),
         })
     );
     assert_eq!(built.gravity, nalgebra::vector![0.0, -9.81]);
@@ -940,8 +941,7 @@ fn implicit_3d_fixture_builds_with_the_defaults() {
         SolverPlan::Implicit(ImplicitPlan {
             newmark_dt: None,
             load_steps: 3,
-            newton: NewtonSpec::default(),
-            linear: LinearMethod::Lu,
+            newton: NewtonSpec::default().settings(LinearSolverKind::Lu),
         })
     );
     assert_eq!(NewtonSpec::default().residual_tol, 1e-8);
@@ -1115,12 +1115,12 @@ fn implicit_rules_name_the_field() {
         panic!()
     };
     assert_eq!(
-        plan.linear,
-        LinearMethod::Bicgstab(KrylovSettings {
-            preconditioner: PreconditionerKind::Ilu0,
+        plan.newton.linear,
+        LinearSolverKind::Bicgstab {
+            preconditioner: Preconditioner::Ilu0,
             rel_tol: 1e-10,
-            max_iterations: 1000,
-        })
+            max_iter: 1000,
+        }
     );
 }
 
@@ -1191,8 +1191,8 @@ fn implicit_examples_build_the_benchmarks() {
         panic!("{:?}", built.plan)
     };
     assert_eq!(plan.load_steps, 50);
-    assert_eq!(plan.linear, LinearMethod::Lu);
-    assert_eq!(plan.newton.tangent, TangentKind::Local);
+    assert_eq!(plan.newton.linear, LinearSolverKind::Lu);
+    assert_eq!(plan.newton.tangent, TangentMethod::Local);
     assert_eq!(
         built.frame_steps(),
         (0..=10).map(|k| 5 * k).collect::<Vec<_>>()

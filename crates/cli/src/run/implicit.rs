@@ -2,68 +2,10 @@
 
 use super::{Options, Stop, Target, interrupt};
 use crate::Outcome;
-use loam_implicit::linear::{LinearSolverKind, Preconditioner};
-use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings, TangentMethod};
+use loam_implicit::ImplicitSolver;
 use loam_scene::output::LoadStepSummary;
-use loam_scene::{
-    Built, ImplicitPlan, KrylovSettings, LinearMethod, PreconditionerKind, TangentKind,
-};
+use loam_scene::{Built, ImplicitPlan};
 use std::time::Instant;
-
-fn preconditioner(p: PreconditionerKind) -> Preconditioner {
-    match p {
-        PreconditionerKind::Identity => Preconditioner::Identity,
-        PreconditionerKind::Jacobi => Preconditioner::Jacobi,
-        PreconditionerKind::Ilu0 => Preconditioner::Ilu0,
-    }
-}
-
-fn linear(m: LinearMethod) -> LinearSolverKind {
-    let krylov = |k: KrylovSettings| {
-        (
-            preconditioner(k.preconditioner),
-            k.rel_tol,
-            k.max_iterations,
-        )
-    };
-    match m {
-        LinearMethod::Lu => LinearSolverKind::Lu,
-        LinearMethod::Cholesky => LinearSolverKind::Cholesky,
-        LinearMethod::Cg(k) => {
-            let (preconditioner, rel_tol, max_iter) = krylov(k);
-            LinearSolverKind::Cg {
-                preconditioner,
-                rel_tol,
-                max_iter,
-            }
-        }
-        LinearMethod::Bicgstab(k) => {
-            let (preconditioner, rel_tol, max_iter) = krylov(k);
-            LinearSolverKind::Bicgstab {
-                preconditioner,
-                rel_tol,
-                max_iter,
-            }
-        }
-    }
-}
-
-/// The solver's settings from the scene's plan.
-fn settings(plan: &ImplicitPlan) -> NewtonSettings {
-    let n = &plan.newton;
-    NewtonSettings {
-        residual_tol: n.residual_tol,
-        increment_tol: n.increment_tol,
-        max_iterations: n.max_iterations,
-        line_search: n.line_search,
-        max_cuts: n.max_cuts,
-        tangent: match n.tangent {
-            TangentKind::Local => TangentMethod::Local,
-            TangentKind::Colour => TangentMethod::Colour,
-        },
-        linear: linear(plan.linear),
-    }
-}
 
 /// Runs an implicit scene, printing one line per load step (unless `quiet`).
 pub fn run<const D: usize>(
@@ -74,19 +16,9 @@ pub fn run<const D: usize>(
 ) -> Outcome {
     let quiet = options.quiet;
     let frame_steps = built.frame_steps();
-    let config = ImplicitConfig {
-        grid: built.grid.clone(),
-        shape: built.shape,
-        boundary: built.boundary,
-        materials: built.materials.clone(),
-        gravity: built.gravity,
-        constraints: built.constraints.clone(),
-        point_loads: built.point_loads.clone(),
-        load_steps: plan.load_steps,
-        newton: settings(&plan),
-        dynamics: plan.newmark_dt,
-        min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
-    };
+    let config = built
+        .implicit_config()
+        .expect("an implicit plan has an implicit configuration");
     let mut solver = match ImplicitSolver::new(config, &built.particles) {
         Ok(s) => s,
         Err(e) => {

@@ -3,8 +3,10 @@
 
 use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
-/// Preconditioner of an iterative solver.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Preconditioner of an iterative solver (in a scene file: `"identity"`, `"jacobi"` or
+/// `"ilu0"`, the default).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Preconditioner {
     /// No preconditioning.
     Identity,
@@ -12,6 +14,7 @@ pub enum Preconditioner {
     Jacobi,
     /// Incomplete LU factorisation without fill-in: `L U` equals `A` on the pattern of `A`
     /// (needs every diagonal entry in the pattern; fails on a zero pivot).
+    #[default]
     Ilu0,
 }
 
