@@ -27,14 +27,23 @@ struct Cli {
 enum Command {
     /// Run a scene and write ParaView output (.vtu frames + .pvd) and a JSON summary.
     Run {
-        /// Scene file (.toml or .json).
-        scene: PathBuf,
+        /// Scene file (.toml or .json); not with --resume.
+        #[arg(required_unless_present = "resume")]
+        scene: Option<PathBuf>,
         /// Output folder (overrides the scene's `output.dir`).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "resume")]
         out: Option<PathBuf>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Explicit runs: save the state every N steps in OUT/checkpoint/ (the latest only),
+        /// so the run can be continued with --resume.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        checkpoint_every: Option<u64>,
+        /// Continue the run whose output folder is DIR from its checkpoint, with the scene
+        /// recorded there.
+        #[arg(long, value_name = "DIR", conflicts_with = "scene")]
+        resume: Option<PathBuf>,
     },
     /// Validate a scene file: exit 0 if it is valid, 2 with the problems otherwise.
     Check {
@@ -98,7 +107,21 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let outcome = match cli.command {
-        Command::Run { scene, out, quiet } => run::run(&scene, out.as_deref(), quiet),
+        Command::Run {
+            scene,
+            out,
+            quiet,
+            checkpoint_every,
+            resume,
+        } => {
+            let every = checkpoint_every.map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+            match (resume, scene) {
+                (Some(dir), _) => run::resume(&dir, quiet, every),
+                (None, Some(scene)) => run::run(&scene, out.as_deref(), quiet, every),
+                // clap requires one of the two.
+                (None, None) => Outcome::BadInput,
+            }
+        }
         Command::Check { scene } => check::check(&scene),
         Command::Verify {
             cases,

@@ -231,3 +231,160 @@ fn bench_times_the_dam_break_and_writes_json() {
     );
     assert!(wall > 0.0 && (rate * wall - 18_000.0).abs() < 1e-6 * 18_000.0);
 }
+
+/// A small explicit scene with plastic flow on a friction floor (see `tests/restart.rs`),
+/// fixed Δt = 2e-4 s to 0.012 s: about 60 steps, 4 frames after the initial one.
+const SAND: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.6, 0.3]
+cell_size = 0.02
+
+[[materials]]
+name = "sand"
+model = "drucker_prager"
+density = 1800.0
+youngs_modulus = 2.0e6
+poisson_ratio = 0.3
+friction_angle = 30.0
+
+[[bodies]]
+material = "sand"
+shape = { type = "box", lo = [0.04, 0.0], hi = [0.24, 0.12] }
+velocity = [1.5, 0.0]
+
+[boundaries]
+x_min = "fixed"
+y_min = { kind = "slip", separable = true }
+
+[[friction]]
+wall = "y_min"
+mu = 0.4
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+transfer = "mls"
+time_step = { type = "fixed", dt = 2.0e-4 }
+end_time = 0.012
+
+[output]
+frames = 4
+"#;
+
+#[test]
+fn a_run_resumed_from_its_checkpoint_rewrites_the_later_frames_with_the_same_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("sand.toml");
+    std::fs::write(&scene, SAND).expect("write scene");
+    let out = dir.path().join("out");
+    let run = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        out.to_str().expect("path"),
+        "--checkpoint-every",
+        "25",
+        "--quiet",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).expect("summary"))
+            .expect("json")
+    };
+    let first = summary(&out);
+    let steps = first["steps"].as_u64().expect("steps");
+    let saved = first["checkpoint"]["step"]
+        .as_u64()
+        .expect("checkpoint step");
+    assert_eq!(saved, steps / 25 * 25, "the latest multiple of 25 steps");
+    assert!(out.join("checkpoint/state.ckpt").exists());
+    assert_eq!(
+        std::fs::read_to_string(out.join("checkpoint/scene.toml")).expect("scene copy"),
+        SAND
+    );
+    let pvd = std::fs::read_to_string(out.join("particles.pvd")).expect("pvd");
+    let last = std::fs::read(out.join("frame_0004.vtu")).expect("last frame");
+
+    // Continue from the checkpoint: the frames after it are written again, identically,
+    // and the series lists every frame once.
+    let resumed = loam(&["run", "--resume", out.to_str().expect("path"), "--quiet"]);
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("particles.pvd")).expect("pvd"),
+        pvd
+    );
+    assert!(std::fs::read(out.join("frame_0004.vtu")).expect("last frame") == last);
+    let second = summary(&out);
+    assert_eq!(second["status"], "completed");
+    assert_eq!(second["steps"].as_u64(), Some(steps));
+    assert_eq!(second["resumed_from"]["step"].as_u64(), Some(saved));
+    assert_eq!(second["frames"].as_array().expect("frames").len(), 5);
+    assert_eq!(second["energy"], first["energy"]);
+
+    // A damaged checkpoint, an edited scene copy and a folder without a checkpoint are
+    // input errors that name the problem.
+    let state = out.join("checkpoint/state.ckpt");
+    let bytes = std::fs::read(&state).expect("state");
+    let resume = || loam(&["run", "--resume", out.to_str().expect("path"), "--quiet"]);
+    let refused = |expected: &str| {
+        let r = resume();
+        let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert_eq!(r.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
+    };
+    std::fs::write(&state, &bytes[..bytes.len() / 2]).expect("truncate");
+    refused("truncated");
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 1;
+    std::fs::write(&state, &flipped).expect("flip a bit");
+    refused("checksum mismatch");
+    std::fs::write(&state, &bytes).expect("restore");
+    std::fs::write(
+        out.join("checkpoint/scene.toml"),
+        SAND.replace("mu = 0.4", "mu = 0.5"),
+    )
+    .expect("edit the copy");
+    refused("has changed since the state was saved");
+    let empty = dir.path().join("empty");
+    let r = loam(&["run", "--resume", empty.to_str().expect("path")]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("no checkpoint to resume"));
+
+    // A fresh run into the folder removes the old checkpoint with the old frames' run.
+    let again = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        out.to_str().expect("path"),
+        "--quiet",
+    ]);
+    assert!(again.status.success());
+    assert!(!state.exists());
+}
+
+#[test]
+fn checkpoints_are_refused_for_implicit_scenes() {
+    let scene = workspace().join("crates/scene/tests/fixtures/good/implicit_2d.toml");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        dir.path().to_str().expect("path"),
+        "--checkpoint-every",
+        "5",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("for explicit runs"));
+}

@@ -46,10 +46,12 @@
 //!   materials, particles, node constraints, point loads) and the solver settings with their
 //!   defaults ([`SolverPlan`]) for a solver; dispatch on [`Scene::dim`] to pick `D`.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
+//! - [`checkpoint`] writes and reads the restartable state of an explicit run.
 //!
 //! This crate depends on `loam-core` only: solvers take the plain structs it builds.
 
 mod build;
+pub mod checkpoint;
 mod contact;
 mod error;
 mod geometry;

@@ -12,15 +12,34 @@ impl Scene {
     /// Reads, parses and validates a scene file; the format follows the extension
     /// (`.toml` or `.json`).
     pub fn from_path(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        Self::from_path_with_text(path).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::from_path`], also returning the file's text (what a run that keeps a copy
+    /// of its scene, such as one writing checkpoints, records).
+    pub fn from_path_with_text(path: impl AsRef<Path>) -> Result<(Self, String), SceneError> {
         let path = path.as_ref();
-        let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
+        // The extension first, so a wrong one is reported before the file is read.
+        SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
             path: path.to_path_buf(),
         })?;
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        let mut scene = parse(&text, format).map_err(|e| e.in_file(path))?;
+        Self::from_text_of(path, &text).map(|scene| (scene, text))
+    }
+
+    /// Parses and validates `text` as the contents of the scene file `path` (the format
+    /// follows its extension; errors name it, and relative paths in the scene resolve
+    /// against its folder) without reading the file: for a scene kept elsewhere, such as
+    /// the copy a checkpoint keeps beside the state.
+    pub fn from_text_of(path: impl AsRef<Path>, text: &str) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
+            path: path.to_path_buf(),
+        })?;
+        let mut scene = parse(text, format).map_err(|e| e.in_file(path))?;
         scene.source = Some(path.to_path_buf());
         scene.validate()?;
         Ok(scene)

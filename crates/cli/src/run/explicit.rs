@@ -1,18 +1,33 @@
 //! Explicit runs: step to each frame time with a progress bar.
 
 use super::Recorder;
+use super::checkpoint::Checkpointer;
 use crate::Outcome;
 use indicatif::{ProgressBar, ProgressStyle};
+use loam_core::Particles;
 use loam_explicit::{Config, Solver};
 use loam_scene::{Built, ExplicitPlan};
 use std::time::{Duration, Instant};
 
-/// Runs an explicit scene.
+/// The saved state a resumed run starts from.
+pub struct Restart<const D: usize> {
+    /// The particles.
+    pub particles: Particles<f64, D>,
+    /// Simulated time.
+    pub time: f64,
+    /// Steps completed.
+    pub steps: usize,
+}
+
+/// Runs an explicit scene, from its initial state or from `restart`, saving the state with
+/// `checkpoints` if given.
 pub fn run<const D: usize>(
     built: Built<D>,
     plan: ExplicitPlan,
     mut rec: Recorder<D>,
     quiet: bool,
+    mut checkpoints: Option<Checkpointer>,
+    restart: Option<Restart<D>>,
 ) -> Outcome {
     let frame_times = built.frame_times();
     let config = Config {
@@ -26,7 +41,10 @@ pub fn run<const D: usize>(
         materials: built.materials.clone(),
         time_step: plan.time_step,
     };
-    let mut particles = built.particles;
+    let (mut particles, clock) = match restart {
+        None => (built.particles, None),
+        Some(r) => (r.particles, Some((r.time, r.steps))),
+    };
     let mut solver = match Solver::new(config, &particles) {
         Ok(s) => s,
         Err(e) => {
@@ -34,17 +52,25 @@ pub fn run<const D: usize>(
             return Outcome::BadInput;
         }
     };
+    if let Some((time, steps)) = clock {
+        solver.set_clock(time, steps);
+    }
     rec.summary.end_time = plan.end_time;
     let bar = progress_bar(quiet);
     let start = Instant::now();
     let mut last_draw = Instant::now();
     let mut failure = None;
-    for (k, &t) in frame_times.iter().enumerate() {
+    // A resumed run continues after the frames it kept.
+    let first = rec.frames_written();
+    for (k, &t) in frame_times.iter().enumerate().skip(first) {
         if k > 0 {
             let summary = &mut rec.summary;
-            let result = solver.advance_to(&mut particles, t, |info, _| {
+            let result = solver.advance_to(&mut particles, t, |info, p| {
                 summary.dt_min = summary.dt_min.min(info.dt);
                 summary.dt_max = summary.dt_max.max(info.dt);
+                if let Some(c) = checkpoints.as_mut() {
+                    c.after_step(info.step, info.time, p);
+                }
                 if last_draw.elapsed() > Duration::from_millis(100) {
                     last_draw = Instant::now();
                     draw(
@@ -60,6 +86,10 @@ pub fn run<const D: usize>(
                 failure = Some(e.to_string());
                 break;
             }
+            if let Some(e) = checkpoints.as_ref().and_then(Checkpointer::failure) {
+                failure = Some(e.to_owned());
+                break;
+            }
         }
         if let Err(e) = rec.frame(solver.steps(), solver.time(), &particles) {
             failure = Some(e);
@@ -67,12 +97,18 @@ pub fn run<const D: usize>(
         }
     }
     bar.finish_and_clear();
+    rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
     let wall = start.elapsed().as_secs_f64();
     let steps = solver.steps();
+    let (first_step, resumed) = match clock {
+        Some((time, step)) => (step, format!("resumed at step {step} (t = {time:.4} s), ")),
+        None => (0, String::new()),
+    };
     let done = format!(
-        "{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} particles)",
+        "{resumed}{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} \
+         particles)",
         solver.time(),
-        steps as f64 * particles.len() as f64 / wall.max(1e-9),
+        (steps - first_step) as f64 * particles.len() as f64 / wall.max(1e-9),
         particles.len()
     );
     rec.finish(steps, solver.time(), wall, failure, &done)

@@ -14,8 +14,10 @@ mod summary;
 mod vtu;
 
 pub use field::{Field, hencky_strain, pressure, von_mises};
-pub use pvd::{PvdEntry, write_pvd};
-pub use summary::{EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary};
+pub use pvd::{PvdEntry, read_pvd, write_pvd};
+pub use summary::{
+    CheckpointNote, EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary,
+};
 pub use vtu::write_vtu;
 
 use loam_core::Particles;
@@ -46,6 +48,16 @@ pub enum OutputError {
     /// The run summary could not be serialised.
     #[error("cannot serialise the run summary: {0}")]
     Json(#[source] serde_json::Error),
+    /// A `.pvd` collection that is to be continued could not be read.
+    #[error("{}: line {line}: {message}", path.display())]
+    Series {
+        /// The collection file.
+        path: PathBuf,
+        /// The 1-based line.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
     /// The initial positions passed for the displacement field do not match the particles.
     #[error("{given} initial positions were given for {particles} particles")]
     InitialPositions {
@@ -58,15 +70,20 @@ pub enum OutputError {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    let io = |source| OutputError::Io {
+    write_file_atomically(path, bytes).map_err(|source| OutputError::Io {
         path: path.to_path_buf(),
         source,
-    };
+    })
+}
+
+/// Writes `bytes` to `path` through a temporary file (`path` + `.tmp`) and a rename, so a
+/// reader (or a run killed while writing) never sees a half-written file.
+pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
 }
 
 /// Writes a series of particle frames, `frame_0000.vtu`, `frame_0001.vtu`, …, and the
@@ -93,6 +110,41 @@ impl FrameWriter {
             dir,
             fields: fields.to_vec(),
             entries: Vec::new(),
+        })
+    }
+
+    /// A writer that continues the series in `dir` from simulated time `until` on: the frames
+    /// its collection lists after `until` are dropped from it and their files removed, and
+    /// the next frame takes the next number. For a run resumed from a state saved at
+    /// `until`, so the series has no duplicates.
+    pub fn resume(
+        dir: impl Into<PathBuf>,
+        fields: &[Field],
+        until: f64,
+    ) -> Result<Self, OutputError> {
+        let dir = dir.into();
+        let pvd = dir.join(Self::PVD_NAME);
+        let mut entries = read_pvd(&pvd)?;
+        let keep = entries.iter().take_while(|e| e.time <= until).count();
+        for dropped in entries.drain(keep..) {
+            // Only plain names in this folder, as the writer makes them.
+            let name = Path::new(&dropped.file);
+            if name.file_name() != Some(name.as_os_str()) {
+                continue;
+            }
+            let path = dir.join(name);
+            match std::fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(OutputError::Io { path, source: e });
+                }
+                _ => {}
+            }
+        }
+        write_pvd(&pvd, &entries)?;
+        Ok(Self {
+            dir,
+            fields: fields.to_vec(),
+            entries,
         })
     }
 
