@@ -4,10 +4,13 @@
 //! continued to step `n`, has the same bits at step `n` as the run that never stopped, with
 //! one thread and with two.
 
+mod common;
+
+use common::config;
 use loam_core::Particles;
-use loam_explicit::{Config, Solver};
+use loam_explicit::Solver;
+use loam_scene::Scene;
 use loam_scene::checkpoint::{CheckpointHeader, read_checkpoint, scene_hash, write_checkpoint};
-use loam_scene::{Built, Scene, SolverPlan};
 use std::path::Path;
 
 /// Drucker–Prager sand (history: the plastic strain and the elastic-strain state) thrown
@@ -53,24 +56,6 @@ time_step = {{ type = "adaptive", cfl = 0.4, max_dt = 1e-3 }}
 end_time = 1.0
 "#
     )
-}
-
-/// The solver configuration of a built scene, as `loam run` makes it.
-fn config(built: &Built<2>) -> Config<f64, 2> {
-    let SolverPlan::Explicit(plan) = built.plan else {
-        panic!("an explicit scene");
-    };
-    Config {
-        grid: built.grid.clone(),
-        shape: built.shape,
-        transfer: plan.transfer,
-        scheme: plan.scheme,
-        boundary: built.boundary,
-        contact: built.contact.clone(),
-        gravity: built.gravity,
-        materials: built.materials.clone(),
-        time_step: plan.time_step,
-    }
 }
 
 fn steps(solver: &mut Solver<f64, 2>, p: &mut Particles<f64, 2>, n: usize) {

@@ -55,6 +55,7 @@ pub mod checkpoint;
 mod contact;
 mod error;
 mod geometry;
+mod initial;
 mod load;
 pub mod output;
 mod schema;
@@ -67,7 +68,7 @@ pub use build::{
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
-    FrictionSpec, GridSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec,
-    ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, PreconditionerKind, Scene, SolverKind,
-    SolverSpec, TangentKind,
+    FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec,
+    NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, PreconditionerKind,
+    RotationSpec, Scene, SolverKind, SolverSpec, TangentKind,
 };

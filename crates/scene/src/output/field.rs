@@ -31,11 +31,16 @@ pub enum Field {
     Mass,
     /// Index of the particle's material in the scene's material table.
     MaterialId,
+    /// The affine velocity matrix `C` of APIC, TPIC and MLS-MPM (1/s), a 3×3 tensor (the
+    /// in-plane block in 2D); written only for those transfers. With it the angular momentum
+    /// of the particles, `L = Σ m (x × v) + Σ m ε:(C D)` (`D = κh² I`), can be audited
+    /// from the frames (`docs/scene-format.md`).
+    Affine,
 }
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 10] = [
+    pub const ALL: [Field; 11] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
@@ -46,6 +51,7 @@ impl Field {
         Field::Volume,
         Field::Mass,
         Field::MaterialId,
+        Field::Affine,
     ];
 
     /// The field's name, in scene files and as the `.vtu` array name.
@@ -61,6 +67,7 @@ impl Field {
             Field::Volume => "volume",
             Field::Mass => "mass",
             Field::MaterialId => "material_id",
+            Field::Affine => "affine",
         }
     }
 }

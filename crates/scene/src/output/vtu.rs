@@ -6,7 +6,7 @@
 use super::OutputError;
 use super::field::{Field, hencky_strain, pressure, von_mises};
 use loam_core::Particles;
-use loam_core::tensor::det;
+use loam_core::tensor::{det, to3};
 use nalgebra::{Matrix3, SVector};
 use std::path::Path;
 use vtkio::model::{
@@ -89,6 +89,7 @@ fn point_data<const D: usize>(
         ),
         Field::Mass => scalars(p.mass.clone()),
         Field::MaterialId => scalar_array(name, IOBuffer::U32(p.material.clone())),
+        Field::Affine => tensor_array(name, p.c.iter().map(|c| to3(c, 0.0))),
     })
 }
 
