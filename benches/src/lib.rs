@@ -81,7 +81,7 @@ fn fluid_block<T: Scalar, const D: usize>(
             ModelKind::NeoHookean,
             T::cst(YOUNG),
             T::cst(POISSON),
-            DENSITY,
+            T::cst(DENSITY),
         )],
         time_step: TimeStep::Adaptive {
             cfl: 0.4,
@@ -164,7 +164,7 @@ pub fn dambreak_friction_2d<T: Scalar>(scale: usize) -> (Config<T, 2>, Particles
             T::cst(DENSITY * sound_speed * sound_speed),
             T::cst(7.0),
             T::zero(),
-            DENSITY,
+            T::cst(DENSITY),
         )],
         time_step: TimeStep::Fixed {
             dt: DAMBREAK_DT / scale as f64,
@@ -233,7 +233,7 @@ pub fn granular_column_3d<T: Scalar>(resolution: usize) -> (Config<T, 3>, Partic
             T::zero(),
             T::zero(),
             None,
-            2650.0,
+            T::cst(2650.0),
         )],
         time_step: TimeStep::Adaptive {
             cfl: 0.4,

@@ -112,7 +112,7 @@ impl Setup {
                 ModelKind::LinearElastic,
                 young,
                 T::zero(),
-                DENSITY,
+                T::cst(DENSITY),
             )],
             time_step: TimeStep::Fixed { dt: self.dt() },
         };
@@ -136,8 +136,9 @@ impl Setup {
         (config, particles)
     }
 
-    /// Runs to `t_end` and returns the centre-of-mass x-velocity after every step
-    /// (with `(0, v_cm(0))` first).
+    /// Runs until the first step that reaches or passes `t_end` (the step is fixed and never
+    /// shortened) and returns the centre-of-mass x-velocity after every step, with its time
+    /// (`(0, v_cm(0))` first).
     pub fn vcm_history<T: Scalar>(&self, young: T, t_end: f64) -> Result<Vec<(f64, T)>, StepError> {
         let (config, mut particles) = self.build(young);
         let mut solver = Solver::new(config, &particles).expect("axial-bar set-up is valid");

@@ -213,7 +213,7 @@ pub enum FeError {
 
 /// The material: Hencky elasticity `τ = 2μ ε + λ tr(ε) I`, `ε = ½ ln(F Fᵀ)`.
 pub fn material<T: Scalar>() -> Material<T> {
-    Material::<T>::elastic(ModelKind::Hencky, T::cst(YOUNG), T::cst(POISSON), 1.0)
+    Material::<T>::elastic(ModelKind::Hencky, T::cst(YOUNG), T::cst(POISSON), T::one())
 }
 
 /// 1D quadratic Lagrange shape functions on `ξ ∈ [−1, 1]` with nodes at `−1, 0, 1`:

@@ -160,7 +160,9 @@ pub(crate) fn explicit_solver(
     })
 }
 
-/// Advances a case's run to the time `t` (a run that stops is an error of the case).
+/// Advances a case's run to the time `t` exactly, the last step shortened to end on it also
+/// with a fixed step, so that the samples a case takes are at their nominal times (a run that
+/// stops is an error of the case).
 pub(crate) fn advance(
     case: &str,
     solver: &mut loam_explicit::Solver<f64, 2>,
@@ -168,7 +170,7 @@ pub(crate) fn advance(
     t: f64,
 ) -> Result<(), VerifyError> {
     solver
-        .advance_to(particles, t, |_, _| {})
+        .advance_exactly_to(particles, t, |_, _| {})
         .map_err(|source| VerifyError::Solver {
             case: case.into(),
             source,

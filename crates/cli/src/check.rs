@@ -1,40 +1,78 @@
-//! `loam check`: parse, validate and build a scene without running it.
+//! `loam check`: parse and validate a scene, estimate its size before building it, build it,
+//! and make the checks a run makes before its first step.
 
 use crate::Outcome;
-use loam_scene::{Scene, SceneError};
+use crate::preflight::{self, MemoryLimit};
+use loam_explicit::Solver;
+use loam_scene::{Built, Scene, SolverPlan};
 use std::path::Path;
 
-/// Loads and builds the scene; returns the particle count.
-fn particle_count(scene: &Scene) -> Result<usize, SceneError> {
-    Ok(match scene.dim() {
-        2 => scene.build::<2>()?.particles.len(),
-        _ => scene.build::<3>()?.particles.len(),
-    })
-}
-
-/// Validates `path`, printing a one-line summary or the problems.
-pub fn check(path: &Path) -> Outcome {
-    let result = Scene::from_path(path).and_then(|s| particle_count(&s).map(|n| (s, n)));
-    match result {
-        Ok((scene, n)) => {
-            let extent = match (scene.solver.end_time, scene.solver.load_steps) {
-                (Some(t), _) => format!("end time {t} s"),
-                (None, Some(n)) => format!("{n} load steps"),
-                (None, None) => String::new(),
-            };
-            println!(
-                "{}: valid {}D {} scene, {} material(s), {} bod(y/ies), {n} particles, {extent}",
-                path.display(),
-                scene.dim(),
-                scene.solver.kind.name(),
-                scene.materials.len(),
-                scene.bodies.len(),
-            );
-            Outcome::Ok
-        }
+/// Validates `path`, printing a summary with the estimates and any warnings, or the
+/// problems.
+pub fn check(path: &Path, memory_limit: Option<MemoryLimit>) -> Outcome {
+    let scene = match Scene::read_path(path) {
+        Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
-            Outcome::BadInput
+            return Outcome::BadInput;
         }
+    };
+    let size = match preflight::size(&scene, memory_limit) {
+        Ok(s) => s,
+        Err(msg) => {
+            eprintln!("error: {}: {msg}", path.display());
+            return Outcome::BadInput;
+        }
+    };
+    if let Err(e) = scene.validate() {
+        eprintln!("error: {e}");
+        return Outcome::BadInput;
+    }
+    let checked = match scene.dim() {
+        2 => check_dim::<2>(&scene),
+        _ => check_dim::<3>(&scene),
+    };
+    let (particles, steps, warnings) = match checked {
+        Ok(c) => c,
+        Err(msg) => {
+            eprintln!("error: {}: {msg}", path.display());
+            return Outcome::BadInput;
+        }
+    };
+    let extent = match (scene.solver.end_time, scene.solver.load_steps) {
+        (Some(t), _) => format!("end time {t} s"),
+        (None, Some(n)) => format!("{n} load steps"),
+        (None, None) => String::new(),
+    };
+    println!(
+        "{}: valid {}D {} scene, {} material(s), {} bod(y/ies), {particles} particles, {extent}",
+        path.display(),
+        scene.dim(),
+        scene.solver.kind.name(),
+        scene.materials.len(),
+        scene.bodies.len(),
+    );
+    let steps = steps.map_or_else(String::new, |s| format!("; about {s:.3e} steps"));
+    println!("  estimated before building: {}{steps}", size.describe());
+    for w in warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Outcome::Ok
+}
+
+/// Builds the scene and makes the solver's checks: the particle count, the estimated steps
+/// (explicit) and the warnings, or the problem.
+fn check_dim<const D: usize>(scene: &Scene) -> Result<(usize, Option<f64>, Vec<String>), String> {
+    let built: Built<D> = scene.build().map_err(|e| e.to_string())?;
+    let n = built.particles.len();
+    match built.plan {
+        SolverPlan::Explicit(plan) => {
+            let config = built.explicit_config().expect("an explicit plan");
+            let solver = Solver::new(config, &built.particles).map_err(|e| e.to_string())?;
+            let warnings = preflight::explicit(&built, &plan, &solver, &built.particles)?;
+            let steps = preflight::explicit_steps(&plan, &solver, &built.particles);
+            Ok((n, Some(steps), warnings))
+        }
+        SolverPlan::Implicit(_) => Ok((n, None, Vec::new())),
     }
 }

@@ -1,10 +1,12 @@
 //! `loam`: run, check, verify and bench MPM scenes.
 //!
 //! Exit codes: 0 success; 1 a run or a verification failed; 2 the input (scene file,
-//! arguments) is invalid.
+//! arguments) is invalid, or the scene would not fit in memory or run stably; 130 a run was
+//! interrupted by a signal (its summary says `interrupted`).
 
 mod bench;
 mod check;
+mod preflight;
 mod run;
 mod verify;
 
@@ -16,9 +18,14 @@ use std::process::ExitCode;
 #[derive(Parser, Debug)]
 #[command(name = "loam", version, about, long_about = None)]
 struct Cli {
-    /// Worker threads (default: all cores). Results are bitwise identical for any count.
+    /// Worker threads, at most 1024 (default: all cores). Results are bitwise identical for
+    /// any count.
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Memory a run may use, in GiB (default: the memory available now, MemAvailable in
+    /// /proc/meminfo). `run` and `check` refuse a scene whose estimate exceeds it.
+    #[arg(long, global = true, value_name = "GIB")]
+    memory_limit: Option<f64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -33,9 +40,13 @@ enum Command {
         /// Output folder (overrides the scene's `output.dir`).
         #[arg(long, conflicts_with = "resume")]
         out: Option<PathBuf>,
-        /// No progress bar.
+        /// No progress display and no Newton table.
         #[arg(long)]
         quiet: bool,
+        /// Seconds between progress lines when stderr is not a terminal (a bar is drawn
+        /// when it is).
+        #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
+        progress_every: f64,
         /// Explicit runs: save the state every N steps in OUT/checkpoint/ (the latest only),
         /// so the run can be continued with --resume.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -45,7 +56,8 @@ enum Command {
         #[arg(long, value_name = "DIR", conflicts_with = "scene")]
         resume: Option<PathBuf>,
     },
-    /// Validate a scene file: exit 0 if it is valid, 2 with the problems otherwise.
+    /// Validate a scene file and estimate its size, memory and steps: exit 0 if it can run,
+    /// 2 with the problems otherwise.
     Check {
         /// Scene file (.toml or .json).
         scene: PathBuf,
@@ -94,10 +106,30 @@ pub enum Outcome {
     Failed,
     /// The input was invalid (exit 2).
     BadInput,
+    /// A signal stopped the run (exit 130).
+    Interrupted,
 }
+
+/// The most worker threads `--threads` accepts: far above the cores of any machine loam
+/// runs on, and far below the tens of thousands that would load a machine for minutes just
+/// to start and stop them.
+const MAX_THREADS: usize = 1024;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(n) = cli.threads.filter(|&n| n > MAX_THREADS) {
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        eprintln!(
+            "error: --threads {n}: at most {MAX_THREADS} worker threads (this machine has {cores} \
+             cores; more threads than cores do not make a run faster)"
+        );
+        return ExitCode::from(2);
+    }
+    if let Some(g) = cli.memory_limit.filter(|g| !(g.is_finite() && *g > 0.0)) {
+        eprintln!("error: --memory-limit {g}: expected a positive number of GiB");
+        return ExitCode::from(2);
+    }
+    let memory_limit = preflight::MemoryLimit::new(cli.memory_limit);
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -107,22 +139,36 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let outcome = match cli.command {
+        Command::Run { progress_every, .. }
+            if !(progress_every.is_finite() && progress_every >= 0.0) =>
+        {
+            eprintln!("error: --progress-every {progress_every}: expected seconds, 0 or more");
+            Outcome::BadInput
+        }
         Command::Run {
             scene,
             out,
             quiet,
+            progress_every,
             checkpoint_every,
             resume,
         } => {
-            let every = checkpoint_every.map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+            let options = run::Options {
+                out: out.as_deref(),
+                quiet,
+                progress_every,
+                memory_limit,
+                checkpoint_every: checkpoint_every
+                    .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
+            };
             match (resume, scene) {
-                (Some(dir), _) => run::resume(&dir, quiet, every),
-                (None, Some(scene)) => run::run(&scene, out.as_deref(), quiet, every),
+                (Some(dir), _) => run::resume(&dir, &options),
+                (None, Some(scene)) => run::run(&scene, &options),
                 // clap requires one of the two.
                 (None, None) => Outcome::BadInput,
             }
         }
-        Command::Check { scene } => check::check(&scene),
+        Command::Check { scene } => check::check(&scene, memory_limit),
         Command::Verify {
             cases,
             list,
@@ -142,5 +188,6 @@ fn main() -> ExitCode {
         Outcome::Ok => ExitCode::SUCCESS,
         Outcome::Failed => ExitCode::from(1),
         Outcome::BadInput => ExitCode::from(2),
+        Outcome::Interrupted => ExitCode::from(run::interrupt::EXIT_CODE),
     }
 }

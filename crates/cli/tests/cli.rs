@@ -84,14 +84,83 @@ fn run_writes_a_paraview_series_and_a_summary() {
     assert_eq!(summary["frames"].as_array().expect("frames").len(), frames);
 }
 
-#[test]
-fn an_unstable_run_stops_with_the_step_and_keeps_its_frames() {
-    // A stiff block with a fixed time step far above h/c: the first step must be refused.
-    let dir = tempfile::tempdir().expect("tempdir");
-    let scene = dir.path().join("unstable.toml");
-    std::fs::write(
-        &scene,
+/// Writes `text` as `name` in `dir` and returns its path as a string.
+fn scene_file(dir: &Path, name: &str, text: &str) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write scene");
+    path.to_str().expect("utf-8 path").to_owned()
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).expect("summary"))
+        .expect("json")
+}
+
+/// The frame files the `.pvd` of `dir` lists.
+fn listed_frames(dir: &Path) -> Vec<String> {
+    let pvd = std::fs::read_to_string(dir.join("particles.pvd")).expect("pvd");
+    pvd.split("file=\"")
+        .skip(1)
+        .map(|rest| rest.split('"').next().expect("closing quote").to_owned())
+        .collect()
+}
+
+/// A series is valid when every frame the `.pvd` lists exists, the summary lists the same
+/// frames, and no temporary file is left over.
+fn assert_valid_series(dir: &Path) {
+    let listed = listed_frames(dir);
+    for f in &listed {
+        assert!(dir.join(f).exists(), "{f} listed but missing");
+    }
+    let in_summary = summary(dir)["frames"].as_array().expect("frames").len();
+    assert_eq!(in_summary, listed.len());
+    for entry in std::fs::read_dir(dir).expect("dir") {
+        let name = entry.expect("entry").file_name();
+        let name = name.to_string_lossy();
+        assert!(!name.ends_with(".tmp"), "left over: {name}");
+    }
+}
+
+/// The README's minimal scene with a given Young's modulus, end time and frame count.
+fn readme_scene(youngs_modulus: f64, end_time: f64, frames: usize) -> String {
+    format!(
         r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [1.0, 1.0]
+cell_size = 0.02
+shape_function = "quadratic_bspline"
+
+[[materials]]
+name = "rubber"
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = {youngs_modulus:e}
+poisson_ratio = 0.3
+
+[[bodies]]
+material = "rubber"
+shape = {{ type = "disk", centre = [0.5, 0.5], radius = 0.2 }}
+
+[boundaries]
+y_min = "slip"
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+time_step = {{ type = "adaptive", cfl = 0.4, max_dt = 1e-3 }}
+end_time = {end_time:e}
+
+[output]
+frames = {frames}
+"#
+    )
+}
+
+/// A steel block at rest, h = 0.05 m, with a fixed step: `h / c` is 8.6e-6 s for steel
+/// (c = √(M/ρ) ≈ 5.8 km/s), so 1e-3 s is far above it.
+const STEEL_FIXED_1E3: &str = r#"
 [grid]
 lo = [0.0, 0.0]
 hi = [1.0, 1.0]
@@ -114,13 +183,73 @@ end_time = 0.01
 
 [output]
 frames = 2
+"#;
+
+#[test]
+fn a_fixed_dt_above_the_initial_stability_limit_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene_file(dir.path(), "unstable.toml", STEEL_FIXED_1E3);
+    let out = loam(&["check", &scene]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    for want in [
+        "solver.time_step.dt",
+        "stability limit",
+        "particle 0 of material \"steel\"",
+    ] {
+        assert!(stderr.contains(want), "{want} missing from {stderr}");
+    }
+    // `run` refuses it the same way, before it writes anything.
+    let out_dir = dir.path().join("out");
+    let out = loam(&["run", &scene, "--out", out_dir.to_str().expect("path")]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("solver.time_step.dt"), "{stderr}");
+    assert!(!out_dir.exists());
+}
+
+#[test]
+fn an_unstable_run_stops_with_the_step_and_keeps_its_frames() {
+    // A soft block (c = √(M/ρ) = 3.67 m/s with M = E(1−ν)/((1+ν)(1−2ν)) = 13,462 Pa) at
+    // rest: h/c = 0.05/3.669 = 0.013628 s, so a fixed dt = 0.0136 s passes the check of the
+    // initial state. Gravity of 100 m/s² gives it |v| = 1.36 m/s in the first step, after
+    // which h/(c + |v|) = 0.0099 s: step 2 must be refused.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene_file(
+        dir.path(),
+        "unstable.toml",
+        r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [1.0, 1.0]
+cell_size = 0.05
+
+[[materials]]
+name = "foam"
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1.0e4
+poisson_ratio = 0.3
+
+[[bodies]]
+material = "foam"
+shape = { type = "box", lo = [0.4, 0.4], hi = [0.6, 0.6] }
+
+[loads]
+gravity = [0.0, -100.0]
+
+[solver]
+time_step = { type = "fixed", dt = 0.0136 }
+end_time = 0.0544
+
+[output]
+frames = 4
 "#,
-    )
-    .expect("write scene");
+    );
     let out_dir = dir.path().join("out");
     let out = loam(&[
         "run",
-        scene.to_str().expect("path"),
+        &scene,
         "--out",
         out_dir.to_str().expect("path"),
         "--quiet",
@@ -128,24 +257,453 @@ frames = 2
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("step 1") && stderr.contains("stability limit"),
+        stderr.contains("step 2") && stderr.contains("stability limit"),
         "{stderr}"
     );
-    // The initial frame stays a valid series, and the summary says what happened.
-    assert!(out_dir.join("frame_0000.vtu").exists());
-    let pvd = std::fs::read_to_string(out_dir.join("particles.pvd")).expect("pvd");
-    assert_eq!(pvd.matches("<DataSet").count(), 1);
-    let summary: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(out_dir.join("summary.json")).expect("summary"),
-    )
-    .expect("json");
+    // The frames of t = 0 and of step 1 stay a valid series, and the summary says what
+    // happened.
+    assert_eq!(listed_frames(&out_dir).len(), 2);
+    assert_valid_series(&out_dir);
+    let summary = summary(&out_dir);
     assert_eq!(summary["status"], "failed");
+    assert_eq!(summary["steps"], 1);
     assert!(
         summary["error"]
             .as_str()
             .expect("error")
             .contains("stability limit")
     );
+}
+
+#[test]
+fn a_fixed_step_run_makes_round_end_time_over_dt_steps() {
+    // end_time / dt = 0.01 / 3e-4 = 33.3: 33 steps, none shortened (stepping to the end
+    // time would take 34, the last one shortened). Frames after steps ⌈33 k / 4⌉.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = readme_scene(1.0e6, 0.01, 4).replace(
+        r#"time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }"#,
+        r#"time_step = { type = "fixed", dt = 3e-4 }"#,
+    );
+    let scene = scene_file(dir.path(), "fixed.toml", &text);
+    let out = loam(&["run", &scene, "--out", dir.path().to_str().expect("path")]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("33 steps"), "{stdout}");
+    let s = summary(dir.path());
+    assert_eq!(s["steps"], 33);
+    assert_eq!(
+        (s["dt_min"].as_f64(), s["dt_max"].as_f64()),
+        (Some(3e-4), Some(3e-4))
+    );
+    let steps: Vec<u64> = s["energy"]
+        .as_array()
+        .expect("energy")
+        .iter()
+        .map(|e| e["step"].as_u64().expect("step"))
+        .collect();
+    assert_eq!(steps, [0, 9, 17, 25, 33]);
+    let reached = s["time_reached"].as_f64().expect("time");
+    assert!((reached - 33.0 * 3e-4).abs() < 1e-15, "{reached}");
+}
+
+#[test]
+fn a_run_whose_strain_turns_non_finite_stops_with_the_step_the_field_and_the_ids() {
+    // The README's scene with E = 1 Pa: the disk cannot carry its weight (ρ g R = 2 kPa ≫
+    // E), collapses and crushes; det F falls below 1e-8 by t ≈ 0.35 s, where ½ ln(F Fᵀ) is no
+    // longer computable (the smallest eigenvalue of F Fᵀ is lost in the round-off of the
+    // largest) although F is finite with det F > 0.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene_file(dir.path(), "soft.toml", &readme_scene(1.0, 1.0, 20));
+    let out = loam(&[
+        "run",
+        &scene,
+        "--out",
+        dir.path().to_str().expect("path"),
+        "--quiet",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    for want in ["non-finite strain", "first ids [", "det F is down to"] {
+        assert!(stderr.contains(want), "{want} missing from {stderr}");
+    }
+    let error = summary(dir.path())["error"]
+        .as_str()
+        .expect("error")
+        .to_owned();
+    assert_eq!(summary(dir.path())["status"], "failed");
+    assert!(
+        error.starts_with("step ") && error.contains("strain"),
+        "{error}"
+    );
+    // Every frame written is finite, and the series is valid.
+    assert!(listed_frames(dir.path()).len() < 21);
+    assert_valid_series(dir.path());
+}
+
+#[test]
+fn a_scene_too_large_for_memory_is_refused_before_anything_is_built() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // cell_size = 1e-4 on the README's 1 m square: 1e8 cells and 5e7 particles, about
+    // 70 GiB.
+    let fine = scene_file(
+        dir.path(),
+        "fine.toml",
+        &readme_scene(1.0e6, 1.0, 20).replace("cell_size = 0.02", "cell_size = 1e-4"),
+    );
+    // 1000³ cells in 3D: 1e9 grid nodes, some 250 GiB before a particle.
+    let cube = scene_file(
+        dir.path(),
+        "cube.toml",
+        r#"
+[grid]
+lo = [0.0, 0.0, 0.0]
+hi = [1.0, 1.0, 1.0]
+cell_size = 0.001
+
+[[materials]]
+name = "m"
+model = "linear_elastic"
+density = 1000.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+
+[[bodies]]
+material = "m"
+shape = { type = "box", lo = [0.4, 0.4, 0.4], hi = [0.41, 0.41, 0.41] }
+
+[solver]
+time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }
+end_time = 1.0
+"#,
+    );
+    for (scene, field) in [(&fine, "grid.cell_size"), (&cube, "grid.cell_size")] {
+        for command in ["check", "run"] {
+            let out_dir = dir.path().join("out");
+            let mut args = vec!["--memory-limit", "16", command, scene];
+            if command == "run" {
+                args.extend(["--out", out_dir.to_str().expect("path")]);
+            }
+            let out = loam(&args);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{command} {scene}: {stderr}");
+            for want in [
+                field,
+                "particles",
+                "grid nodes",
+                "GiB of memory",
+                "16.0 GiB",
+            ] {
+                assert!(stderr.contains(want), "{want} missing from {stderr}");
+            }
+            assert!(!out_dir.exists());
+        }
+    }
+    // A scene that fits: check reports its estimates.
+    let ok = scene_file(dir.path(), "ok.toml", &readme_scene(1.0e6, 1.0, 20));
+    let out = loam(&["check", &ok]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("MiB of memory"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("steps"), "{stdout}");
+}
+
+#[test]
+fn check_warns_of_runs_that_cannot_finish_in_reasonable_time() {
+    // A stable fixed step of 1e-6 s to 1000 s: 1e9 steps; and 200,000 frames.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = readme_scene(1.0e6, 1000.0, 200_000).replace(
+        r#"time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }"#,
+        r#"time_step = { type = "fixed", dt = 1e-6 }"#,
+    );
+    let scene = scene_file(dir.path(), "long.toml", &text);
+    let out = loam(&["check", &scene]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning:") && stderr.contains("solver.end_time: about 1.00e9 steps"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("output.frames: 200000 frames"), "{stderr}");
+}
+
+#[test]
+fn a_second_run_into_a_folder_replaces_the_first_runs_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out_dir = dir.path().join("out");
+    let out_arg = out_dir.to_str().expect("path");
+    let six = scene_file(dir.path(), "six.toml", &readme_scene(1.0e6, 0.01, 6));
+    let two = scene_file(dir.path(), "two.toml", &readme_scene(1.0e6, 0.01, 2));
+    assert!(
+        loam(&["run", &six, "--out", out_arg, "--quiet"])
+            .status
+            .success()
+    );
+    assert!(out_dir.join("frame_0006.vtu").exists());
+    std::fs::write(out_dir.join("notes.txt"), "mine").expect("write");
+    assert!(
+        loam(&["run", &two, "--out", out_arg, "--quiet"])
+            .status
+            .success()
+    );
+    for k in 3..=6 {
+        assert!(!out_dir.join(format!("frame_{k:04}.vtu")).exists());
+    }
+    assert_eq!(listed_frames(&out_dir).len(), 3);
+    assert_valid_series(&out_dir);
+    assert!(
+        out_dir.join("notes.txt").exists(),
+        "a file the run did not write was removed"
+    );
+}
+
+#[test]
+fn progress_is_printed_as_lines_when_stderr_is_not_a_terminal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene_file(dir.path(), "s.toml", &readme_scene(1.0e6, 0.01, 2));
+    let out_arg = dir.path().join("out");
+    let out_arg = out_arg.to_str().expect("path");
+    let out = loam(&["run", &scene, "--out", out_arg, "--progress-every", "0"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // At 0 s, a line after every step.
+    let steps = summary(Path::new(out_arg))["steps"]
+        .as_u64()
+        .expect("steps");
+    assert_eq!(
+        stderr.matches("progress: ").count() as u64,
+        steps,
+        "{stderr}"
+    );
+    assert!(stderr.contains(&format!("step {steps},")), "{stderr}");
+    let quiet = loam(&["run", &scene, "--out", out_arg, "--quiet"]);
+    assert!(!String::from_utf8_lossy(&quiet.stderr).contains("progress: "));
+    let bad = loam(&["run", &scene, "--out", out_arg, "--progress-every", "inf"]);
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+#[test]
+fn frames_carry_the_particle_ids() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = workspace().join("crates/scene/tests/fixtures/good/box_2d.toml");
+    let out = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        dir.path().to_str().expect("path"),
+        "--quiet",
+    ]);
+    assert!(out.status.success());
+    let frame = std::fs::read_to_string(dir.path().join("frame_0000.vtu")).expect("frame");
+    assert!(frame.contains(r#"type="UInt64" Name="id""#), "no id array");
+}
+
+#[test]
+fn too_many_threads_are_refused() {
+    let scene = workspace().join("examples/disk_collision.toml");
+    let out = loam(&["--threads", "20000", "check", scene.to_str().expect("path")]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--threads 20000: at most 1024"), "{stderr}");
+}
+
+/// Ctrl-C: a real SIGINT to the running process ends the run after a step, with the summary
+/// written (`interrupted`), a valid series, and the exit code 130.
+#[cfg(unix)]
+#[test]
+fn sigint_ends_a_run_cleanly() {
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().expect("tempdir");
+    // 1000 s at 1e-3 s a step: a run of minutes, with a frame every 10 steps.
+    let scene = scene_file(
+        dir.path(),
+        "long.toml",
+        &readme_scene(1.0e6, 1000.0, 100_000),
+    );
+    let out_dir = dir.path().join("out");
+    let child = Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args([
+            "run",
+            &scene,
+            "--quiet",
+            "--out",
+            out_dir.to_str().expect("path"),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the loam binary starts");
+    // Wait for a few frames, then interrupt.
+    let start = Instant::now();
+    while !out_dir.join("frame_0003.vtu").exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no frames after 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("the run ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted after"), "{stderr}");
+    let s = summary(&out_dir);
+    assert_eq!(s["status"], "interrupted");
+    assert!(s["steps"].as_u64().expect("steps") >= 30);
+    assert_valid_series(&out_dir);
+}
+
+/// The `.pvd` times of `dir`, in order.
+fn listed_times(dir: &Path) -> Vec<f64> {
+    let pvd = std::fs::read_to_string(dir.join("particles.pvd")).expect("pvd");
+    pvd.split("timestep=\"")
+        .skip(1)
+        .map(|rest| {
+            let t = rest.split('"').next().expect("closing quote");
+            t.parse().expect("a time")
+        })
+        .collect()
+}
+
+/// Starts `loam run ARGS` in the background.
+#[cfg(unix)]
+fn spawn_loam(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the loam binary starts")
+}
+
+/// Sends SIGINT to `child` once `ready()` holds (within 60 s) and returns its exit code and
+/// stderr.
+#[cfg(unix)]
+fn interrupt_when(child: std::process::Child, ready: impl Fn() -> bool) -> (Option<i32>, String) {
+    use std::time::{Duration, Instant};
+    let start = Instant::now();
+    while !ready() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "not ready after 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("the run ends");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Ctrl-C with checkpoints: the interrupted run keeps its latest checkpoint and names the
+/// command that continues it; the continued run (interrupted in turn) keeps the frames up to
+/// the checkpoint, writes the later ones again with the same bytes and numbers on, so the
+/// series lists every frame once, in time order.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_keeps_its_checkpoint_and_continues_without_duplicate_frames() {
+    use loam_scene::checkpoint::CheckpointHeader;
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A fixed step of 1e-4 s (a fifth of the initial h / c) to 100 s: 10⁶ steps, a frame
+    // every 10 steps, a checkpoint every 20.
+    let text = readme_scene(1.0e6, 100.0, 100_000).replace(
+        "{ type = \"adaptive\", cfl = 0.4, max_dt = 1e-3 }",
+        "{ type = \"fixed\", dt = 1e-4 }",
+    );
+    let scene = scene_file(dir.path(), "long.toml", &text);
+    let out_dir = dir.path().join("out");
+    let out_arg = out_dir.to_str().expect("path");
+    let state = out_dir.join("checkpoint/state.ckpt");
+    let saved_step = || CheckpointHeader::peek(&state).map_or(0, |h| h.step);
+    let child = spawn_loam(&[
+        "run",
+        &scene,
+        "--quiet",
+        "--out",
+        out_arg,
+        "--checkpoint-every",
+        "20",
+    ]);
+    let (code, stderr) = interrupt_when(child, || saved_step() >= 40);
+    assert_eq!(code, Some(130), "{stderr}");
+    assert!(
+        stderr.contains(&format!("loam run --resume {out_arg}")),
+        "{stderr}"
+    );
+    let first = summary(&out_dir);
+    assert_eq!(first["status"], "interrupted");
+    let saved = first["checkpoint"]["step"]
+        .as_u64()
+        .expect("checkpoint step");
+    let saved_time = first["checkpoint"]["time"]
+        .as_f64()
+        .expect("checkpoint time");
+    assert!(saved >= 40 && saved.is_multiple_of(20), "{saved}");
+    assert!(saved <= first["steps"].as_u64().expect("steps"));
+    assert_eq!(
+        saved_step(),
+        saved,
+        "the checkpoint the summary names is kept"
+    );
+    let before = listed_frames(&out_dir);
+    let kept = listed_times(&out_dir)
+        .iter()
+        .filter(|&&t| t <= saved_time)
+        .count();
+    // Frames at steps 0, 10, …, up to the checkpoint.
+    assert_eq!(kept as u64, saved / 10 + 1);
+    let rewritten = before.get(kept).map(|f| {
+        (
+            f.clone(),
+            std::fs::read(out_dir.join(f)).expect("a frame after the checkpoint"),
+        )
+    });
+
+    let child = spawn_loam(&[
+        "run",
+        "--resume",
+        out_arg,
+        "--quiet",
+        "--checkpoint-every",
+        "20",
+    ]);
+    let (code, stderr) = interrupt_when(child, || saved_step() >= saved + 40);
+    assert_eq!(code, Some(130), "{stderr}");
+    let second = summary(&out_dir);
+    assert_eq!(second["status"], "interrupted");
+    assert_eq!(second["resumed_from"]["step"].as_u64(), Some(saved));
+    assert!(second["steps"].as_u64().expect("steps") >= saved + 40);
+    let after = listed_frames(&out_dir);
+    let numbered: Vec<String> = (0..after.len())
+        .map(|k| format!("frame_{k:04}.vtu"))
+        .collect();
+    assert_eq!(after, numbered, "every frame once, numbered on");
+    assert!(after.len() > kept + 1, "{} frames", after.len());
+    assert_eq!(after[..kept], before[..kept]);
+    let times = listed_times(&out_dir);
+    assert!(times.windows(2).all(|w| w[0] < w[1]), "{times:?}");
+    if let Some((name, bytes)) = rewritten {
+        assert!(
+            std::fs::read(out_dir.join(&name)).expect("rewritten frame") == bytes,
+            "{name} differs from the first run's"
+        );
+    }
+    assert_valid_series(&out_dir);
 }
 
 #[test]

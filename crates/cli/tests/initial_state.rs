@@ -2,9 +2,6 @@
 //! from the frames, with the affine field), and columns with a geostatic or hydrostatic
 //! initial stress stay at rest under gravity.
 
-mod common;
-
-use common::config;
 use loam_core::Particles;
 use loam_explicit::Solver;
 use loam_scene::{Built, Scene};
@@ -138,7 +135,8 @@ fields = ["velocity", "mass", "affine"]
 /// particle speed seen.
 fn run(built: &Built<2>, steps: usize) -> (Particles<f64, 2>, f64) {
     let mut p = built.particles.clone();
-    let mut solver = Solver::new(config(built), &p).expect("a valid scene");
+    let mut solver = Solver::new(built.explicit_config().expect("an explicit scene"), &p)
+        .expect("a valid scene");
     let mut fastest = 0.0f64;
     for _ in 0..steps {
         solver.step(&mut p, f64::INFINITY).expect("a stable step");

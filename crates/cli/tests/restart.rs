@@ -4,9 +4,6 @@
 //! continued to step `n`, has the same bits at step `n` as the run that never stopped, with
 //! one thread and with two.
 
-mod common;
-
-use common::config;
 use loam_core::Particles;
 use loam_explicit::Solver;
 use loam_scene::Scene;
@@ -85,7 +82,7 @@ const END: usize = 60;
 fn uninterrupted(text: &str) -> Vec<u64> {
     let built = Scene::from_toml_str(text).unwrap().build::<2>().unwrap();
     let mut p = built.particles.clone();
-    let mut solver = Solver::new(config(&built), &p).unwrap();
+    let mut solver = Solver::new(built.explicit_config().expect("an explicit scene"), &p).unwrap();
     steps(&mut solver, &mut p, END);
     bits(&p, &solver)
 }
@@ -97,7 +94,8 @@ fn continued(text: &str, file: &Path) -> (Vec<u64>, bool, bool) {
     let hash = scene_hash(text.as_bytes());
     {
         let mut p = built.particles.clone();
-        let mut solver = Solver::new(config(&built), &p).unwrap();
+        let mut solver =
+            Solver::new(built.explicit_config().expect("an explicit scene"), &p).unwrap();
         steps(&mut solver, &mut p, STOP);
         let header = CheckpointHeader {
             dimension: 2,
@@ -115,7 +113,7 @@ fn continued(text: &str, file: &Path) -> (Vec<u64>, bool, bool) {
         .unwrap();
     let plastic = p.state.iter().any(|s| s.plastic_strain > 0.0);
     let affine = p.c.iter().any(|c| c.norm() > 0.0);
-    let mut solver = Solver::new(config(&built), &p).unwrap();
+    let mut solver = Solver::new(built.explicit_config().expect("an explicit scene"), &p).unwrap();
     solver.set_clock(header.time, header.step as usize);
     steps(&mut solver, &mut p, END - STOP);
     (bits(&p, &solver), plastic, affine)

@@ -15,13 +15,14 @@ pub mod scalar;
 pub mod shape;
 pub mod spectral;
 pub mod stencil;
+pub mod step;
 pub mod stepping;
 pub mod tensor;
 pub mod transfer;
 
 pub use boundary::{Boundary, NodeConstraint, PointLoad, Wall, WallKind};
 pub use constitutive::{Material, MaterialState, ModelKind};
-pub use contact::{Contact, FrictionSegment, Obstacle, ObstacleShape};
+pub use contact::{Contact, ContactSet, FrictionSegment, Obstacle, ObstacleShape, Touch};
 pub use energy::Energy;
 pub use grid::Grid;
 pub use particles::Particles;

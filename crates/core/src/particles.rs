@@ -116,3 +116,28 @@ impl<T: Scalar, const D: usize> Particles<T, D> {
         self.momentum() / self.total_mass()
     }
 }
+
+impl<const D: usize> Particles<f64, D> {
+    /// The same particles with every field as constants of another scalar type (position,
+    /// velocity, acceleration, `F`, affine matrix, stress, mass, volume, half-width and the
+    /// material state); seed the derivative parts of the result to differentiate with respect
+    /// to the initial state.
+    pub fn lift<T: Scalar>(&self) -> Particles<T, D> {
+        let vectors = |v: &[Vector<f64, D>]| v.iter().map(|x| x.map(T::cst)).collect();
+        let tensors = |v: &[Tensor<f64, D>]| v.iter().map(|x| x.map(T::cst)).collect();
+        let scalars = |v: &[f64]| v.iter().map(|&x| T::cst(x)).collect();
+        Particles {
+            x: vectors(&self.x),
+            v: vectors(&self.v),
+            a: vectors(&self.a),
+            f: tensors(&self.f),
+            c: tensors(&self.c),
+            stress: self.stress.iter().map(|s| s.map(T::cst)).collect(),
+            mass: scalars(&self.mass),
+            volume0: scalars(&self.volume0),
+            half_width0: vectors(&self.half_width0),
+            material: self.material.clone(),
+            state: self.state.iter().map(MaterialState::lift).collect(),
+        }
+    }
+}

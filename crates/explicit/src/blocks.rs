@@ -16,6 +16,7 @@
 //! is kept at zero: a row first clears the span it had in the previous step.
 
 use loam_core::stencil::Layout;
+use loam_core::step::NodeSums;
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Scalar};
 use rayon::prelude::*;
@@ -35,25 +36,6 @@ const MIN_BLOCKS_PER_TASK: usize = 4;
 
 /// Grid rows handed to one rayon task at least.
 pub(crate) const MIN_ROWS_PER_TASK: usize = 8;
-
-/// What a node accumulates: mass, momentum, force.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Accum<T: Scalar, const D: usize> {
-    pub m: T,
-    pub p: Vector<T, D>,
-    pub f: Vector<T, D>,
-}
-
-impl<T: Scalar, const D: usize> Accum<T, D> {
-    /// All zero.
-    pub fn zero() -> Self {
-        Self {
-            m: T::zero(),
-            p: Vector::zeros(),
-            f: Vector::zeros(),
-        }
-    }
-}
 
 /// A half-open range of node indices along axis 0 of one row.
 type Span = (usize, usize);
@@ -85,7 +67,7 @@ pub(crate) struct Blocks<T: Scalar, const D: usize> {
     /// Block → index into `occupied` / `buffers`, or `EMPTY`.
     slot: Vec<u32>,
     /// One buffer per occupied block (only the first `occupied.len()` are in use).
-    buffers: Vec<Vec<Accum<T, D>>>,
+    buffers: Vec<Vec<NodeSums<T, D>>>,
     /// Counting-sort histogram (block `k` holds positions `counts[k]..counts[k + 1]`).
     counts: Vec<u32>,
     /// Counting-sort insertion cursors.
@@ -227,7 +209,7 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
             self.buffers.resize_with(self.occupied.len(), Vec::new);
         }
         for b in &mut self.buffers[..self.occupied.len()] {
-            b.resize(len, Accum::zero());
+            b.resize(len, NodeSums::zero());
         }
         self.find_spans();
     }
@@ -316,7 +298,12 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
     /// Calls `f(entry)` for the buffer entries of node `i` of the row with block-row sources
     /// `sources`, in the fixed order (shift along x fastest, as the blocks' flat order).
     #[inline(always)]
-    fn each_entry(&self, sources: &[Option<Source>; 4], i: usize, mut f: impl FnMut(&Accum<T, D>)) {
+    fn each_entry(
+        &self,
+        sources: &[Option<Source>; 4],
+        i: usize,
+        mut f: impl FnMut(&NodeSums<T, D>),
+    ) {
         let (kx, off) = (i / BLOCK, i % BLOCK);
         // The block holding the node, and the one before it along x when its buffer reaches
         // this far (`off + BLOCK < width`).
@@ -375,7 +362,7 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
         f[lo..hi].fill(Vector::zeros());
         let sources = self.sources(r);
         self.for_each_visited(r, |i| {
-            let mut acc = Accum::zero();
+            let mut acc = NodeSums::zero();
             self.each_entry(&sources, i, |e| {
                 acc.m += e.m;
                 acc.p += e.p;
@@ -403,8 +390,8 @@ impl<T: Scalar, const D: usize> Blocks<T, D> {
     pub fn for_each_block<X: Send>(
         &mut self,
         scratch: &mut [X],
-        reset: impl Fn(&mut Accum<T, D>) + Sync,
-        contribute: impl Fn(usize, &Layout<D>, &mut [Accum<T, D>], &mut X) + Sync,
+        reset: impl Fn(&mut NodeSums<T, D>) + Sync,
+        contribute: impl Fn(usize, &Layout<D>, &mut [NodeSums<T, D>], &mut X) + Sync,
     ) {
         let mut pieces = Vec::with_capacity(self.occupied.len());
         let mut rest = scratch;
@@ -523,7 +510,7 @@ mod tests {
             let mut none = vec![(); bases.len()];
             blocks.for_each_block(
                 &mut none,
-                |e| *e = Accum::zero(),
+                |e| *e = NodeSums::zero(),
                 |p, layout, buf, _| {
                     for l in 0..b.pow(D as u32) {
                         let at = node(&bases[p], l);

@@ -98,3 +98,24 @@ impl<T: Scalar, const D: usize> Config<T, D> {
         }
     }
 }
+
+impl<const D: usize> Config<f64, D> {
+    /// The same configuration with every parameter a back-analysis may ask for as constants of
+    /// another scalar type: the materials ([`loam_core::Material::lift`]), friction
+    /// coefficients and obstacle velocities ([`Contact::lift`]) and gravity. Seed the
+    /// derivative part of one of them in the result to differentiate a run with respect to it;
+    /// lift the particles with [`loam_core::Particles::lift`].
+    pub fn lift<T: Scalar>(&self) -> Config<T, D> {
+        Config {
+            grid: self.grid.clone(),
+            shape: self.shape,
+            transfer: self.transfer,
+            scheme: self.scheme,
+            boundary: self.boundary,
+            contact: self.contact.lift(),
+            gravity: self.gravity.map(T::cst),
+            materials: self.materials.iter().map(Material::lift).collect(),
+            time_step: self.time_step,
+        }
+    }
+}

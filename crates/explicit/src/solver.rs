@@ -1,16 +1,16 @@
 //! The explicit USL / MUSL step.
 
-use crate::blocks::{Accum, Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
+use crate::blocks::{Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
 use crate::config::Config;
 use crate::error::{ConfigError, StepError};
-use loam_core::constitutive::Kinematics;
 use loam_core::energy::{Energy, energy};
-use loam_core::stencil::{Frame, Layout, particle_half_width};
-use loam_core::tensor::{Tensor, Vector, det, from3, to3};
-use loam_core::transfer::{g2p, mls_affine_momentum, p2g, p2g_momentum};
-use loam_core::{
-    Grid, Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep, Transfer, WallKind,
+use loam_core::stencil::Frame;
+use loam_core::step::{
+    EndOfStep, G2p, NodeLaw, NodeState, NodeSums, P2g, ParticleBranch, StepRecord,
+    momentum_to_grid, momentum_update, particle_end,
 };
+use loam_core::tensor::{Tensor, Vector, det};
+use loam_core::{Particles, Scalar, Scheme, ShapeFunction, Stencil, TimeStep};
 use rayon::prelude::*;
 
 /// What one completed step did.
@@ -35,9 +35,9 @@ pub struct Solver<T: Scalar, const D: usize> {
     mass: Vec<T>,
     velocity: Vec<Vector<T, D>>,
     velocity_old: Vec<Vector<T, D>>,
-    /// Per node, the unilateral constraints that acted in the grid update (see
-    /// [`NodeConditions::apply`]), which MUSL's second projection enforces again.
-    active: Vec<Active>,
+    /// Per node, the unilateral constraints that acted in the grid update
+    /// ([`NodeLaw::apply`]), which MUSL's second projection enforces again.
+    active: Vec<NodeState>,
     /// Per particle, by sorted position: its stencil of the step (computed once, in P2G) and,
     /// for MUSL, its new position, velocity and affine matrix until the stress update writes
     /// them back.
@@ -124,7 +124,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             mass: vec![T::zero(); n],
             velocity: vec![Vector::zeros(); n],
             velocity_old: vec![Vector::zeros(); n],
-            active: vec![Active::default(); n],
+            active: vec![NodeState::default(); n],
             kernels: Vec::new(),
             wave_speed,
             mass_floor: 0.0,
@@ -220,7 +220,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         Ok(dt.min(cap))
     }
 
-    /// Advances the particles by one step of at most `max_dt` (use `f64::INFINITY` for no cap).
+    /// Advances the particles by one step of the configured size, capped at `max_dt` (use
+    /// `f64::INFINITY` for no cap). The cap shortens a fixed step too: that is the explicit way
+    /// to land on a given time ([`Solver::advance_exactly_to`]); plain runs never cap a fixed
+    /// step ([`Solver::advance_to`]).
     ///
     /// The step runs on a thread of the current rayon pool (one hand-over per step), so its
     /// parallel phases do not each wake the pool from outside.
@@ -229,14 +232,30 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         particles: &mut Particles<T, D>,
         max_dt: f64,
     ) -> Result<StepInfo, StepError> {
-        rayon::scope(|_| self.step_in_pool(particles, max_dt))
+        let mut none = StepRecord::default();
+        rayon::scope(|_| self.step_in_pool::<false>(particles, max_dt, &mut none))
     }
 
-    /// [`Solver::step`], on a pool thread.
-    fn step_in_pool(
+    /// [`Solver::step`], recording into `record` the branches the step took (its `Δt`, the
+    /// nodes where a unilateral constraint acted, each particle's wall projection and stress
+    /// branch) for a reverse pass. The step itself is the same, bit for bit; a plain
+    /// [`Solver::step`] records nothing and pays nothing for it (the recording is chosen at
+    /// compile time).
+    pub fn step_recorded(
         &mut self,
         particles: &mut Particles<T, D>,
         max_dt: f64,
+        record: &mut StepRecord,
+    ) -> Result<StepInfo, StepError> {
+        rayon::scope(|_| self.step_in_pool::<true>(particles, max_dt, record))
+    }
+
+    /// [`Solver::step`], on a pool thread; fills `record` when `RECORD`.
+    fn step_in_pool<const RECORD: bool>(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        max_dt: f64,
+        record: &mut StepRecord,
     ) -> Result<StepInfo, StepError> {
         let located = self.locate(particles);
         let limit = self.config.grid.h / located.max_rate;
@@ -247,9 +266,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         self.blocks.sort(&self.keys);
         self.mass_floor = MASS_EPS * located.max_mass;
         self.transfer_to_grid(particles, dt);
+        if RECORD {
+            self.record_nodes(record, dt);
+        }
+        let branches = &mut record.particles;
         let flagged = match self.config.scheme {
-            Scheme::Usl => self.update_particles_usl(particles, dt),
-            Scheme::Musl => self.update_particles_musl(particles, dt),
+            Scheme::Usl => self.update_particles_usl::<RECORD>(particles, dt, branches),
+            Scheme::Musl => self.update_particles_musl::<RECORD>(particles, dt, branches),
         };
         self.steps += 1;
         self.time += dt;
@@ -264,18 +287,72 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         })
     }
 
-    /// Steps until the simulated time reaches `t_end` exactly (the last step is shortened),
-    /// calling `on_step` after every step.
+    /// Steps until the simulated time reaches `t_end`, calling `on_step` after every step.
+    ///
+    /// - Fixed step: every step keeps its size Δt; the run stops after the first step that
+    ///   reaches or passes `t_end`, so it may end up to one step past it (see
+    ///   [`Solver::next_step_cap`] for the round-off allowance).
+    /// - Adaptive step: the last step is shortened to end on `t_end`.
+    ///
+    /// [`Solver::advance_exactly_to`] shortens the last fixed step too, for a caller that must
+    /// sample the state at `t_end` itself.
     pub fn advance_to(
         &mut self,
         particles: &mut Particles<T, D>,
         t_end: f64,
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+    ) -> Result<(), StepError> {
+        self.advance_while(particles, |s| s.next_step_cap(t_end), on_step)
+    }
+
+    /// Steps until the simulated time is `t_end` exactly, shortening the last step (fixed or
+    /// adaptive) to end on it, and calling `on_step` after every step.
+    pub fn advance_exactly_to(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        t_end: f64,
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+    ) -> Result<(), StepError> {
+        self.advance_while(particles, |s| s.landing_cap(t_end), on_step)
+    }
+
+    /// The cap (`max_dt` of [`Solver::step`]) on the next step of [`Solver::advance_to`]
+    /// towards `t_end`, or `None` once `t_end` is reached. A front end that steps on its own
+    /// (to check for an interruption between steps, say) loops on it.
+    ///
+    /// - Fixed step Δt: `f64::INFINITY` (no shortening) while the time is short of `t_end`. A
+    ///   time short by at most `1e-9 · t_end` (and by less than Δt/2) counts as reached: the
+    ///   round-off of summing Δt over the steps, below `n ε t` after `n` steps, stays under
+    ///   that up to ten million steps.
+    /// - Adaptive step: `t_end − t`, so that the last step ends on `t_end`, while more than
+    ///   `1e-12 · t_end` remains (shorter steps would be the round-off of that last sum).
+    pub fn next_step_cap(&self, t_end: f64) -> Option<f64> {
+        match self.config.time_step {
+            TimeStep::Fixed { dt } => {
+                let allowance = (1e-9 * t_end.abs()).min(0.5 * dt);
+                (t_end - self.time > allowance).then_some(f64::INFINITY)
+            }
+            TimeStep::Adaptive { .. } => self.landing_cap(t_end),
+        }
+    }
+
+    /// The cap that makes the next step end on `t_end` (see [`Solver::next_step_cap`]), or
+    /// `None` when less than `1e-12 · t_end` remains.
+    fn landing_cap(&self, t_end: f64) -> Option<f64> {
+        let left = t_end - self.time;
+        (left > 1e-12 * t_end.abs().max(1e-300)).then_some(left)
+    }
+
+    /// Steps with the caps `cap(self)` until it gives `None`, calling `on_step` after every
+    /// step.
+    fn advance_while(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        cap: impl Fn(&Self) -> Option<f64>,
         mut on_step: impl FnMut(&StepInfo, &Particles<T, D>),
     ) -> Result<(), StepError> {
-        // Steps shorter than this fraction of the time are round-off from summing dt.
-        let tiny = 1e-12 * t_end.abs().max(1e-300);
-        while t_end - self.time > tiny {
-            let info = self.step(particles, t_end - self.time)?;
+        while let Some(max_dt) = cap(self) {
+            let info = self.step(particles, max_dt)?;
             on_step(&info, particles);
         }
         Ok(())
@@ -331,19 +408,30 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         }
     }
 
-    /// P2G of mass, momentum and internal force, then the grid momentum update with gravity
-    /// and walls: `v_i = p_i/m_i`, `v_i ← v_i + Δt (f_i/m_i + g)`.
+    /// The nodes where a unilateral constraint acted in this step's grid update, into
+    /// `record` with the step's time and `Δt`.
+    fn record_nodes(&self, record: &mut StepRecord, dt: f64) {
+        record.step = self.steps + 1;
+        record.time = self.time;
+        record.dt = dt;
+        record.nodes.clear();
+        let floor = self.mass_floor;
+        record.nodes.extend(
+            self.active
+                .iter()
+                .zip(&self.mass)
+                .enumerate()
+                .filter(|(_, (a, m))| m.re() > floor && !a.is_free())
+                .map(|(i, (&a, _))| (i, a)),
+        );
+    }
+
+    /// Stage 1, P2G of mass, momentum and internal force ([`P2g`]), then stage 2, the grid
+    /// update ([`momentum_update`], [`NodeLaw::apply`]): `v_i = p_i/m_i`,
+    /// `v_i ← v_i + Δt (f_i/m_i + g)`, contact and walls.
     fn transfer_to_grid(&mut self, p: &Particles<T, D>, dt: f64) {
         let cfg = &self.config;
-        let affine = cfg.transfer.is_affine();
-        // MLS-MPM's `1/κ` (validated: MLS needs a B-spline).
-        let mls = cfg.transfer.is_mls().then(|| {
-            cfg.shape
-                .apic_inverse_inertia()
-                .expect("MLS with a B-spline")
-        });
         let dtt = T::cst(dt);
-        let frame = Frame::new(&cfg.grid);
         if self.kernels.len() != p.len() {
             let (zero, grid) = (Vector::zeros(), &cfg.grid);
             let placeholder = Kernel {
@@ -354,62 +442,18 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             };
             self.kernels.resize(p.len(), placeholder);
         }
-        let h = cfg.grid.h;
+        let stage = P2g::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
         self.blocks.for_each_block(
             &mut self.kernels,
-            |e| *e = Accum::zero(),
+            |e| *e = NodeSums::zero(),
             #[inline(always)]
-            |i, layout, buf, kernel| {
-                let hw = particle_half_width(cfg.shape, h, &p.half_width0[i], &p.f[i]);
-                kernel.stencil.set_in(cfg.shape, &frame, &p.x[i], &hw);
-                let st = &kernel.stencil;
-                let volume = p.volume0[i] * det(&p.f[i]);
-                let sv = from3::<T, D>(&p.stress[i]) * volume;
-                if let Some(inverse_inertia) = mls {
-                    // Internal force and affine momentum in one term; `f` stays zero.
-                    let m = p.mass[i];
-                    let a = mls_affine_momentum(m, &p.c[i], &sv, dtt, inverse_inertia, h);
-                    p2g_momentum(
-                        st,
-                        layout,
-                        &p.v[i],
-                        &a,
-                        m,
-                        buf,
-                        #[inline(always)]
-                        |e, m, mom| {
-                            e.m += m;
-                            e.p += mom;
-                        },
-                    );
-                } else {
-                    p2g(
-                        st,
-                        layout,
-                        &p.v[i],
-                        affine.then_some(&p.c[i]),
-                        p.mass[i],
-                        &sv,
-                        buf,
-                        #[inline(always)]
-                        |e, m, mom, f| {
-                            e.m += m;
-                            e.p += mom;
-                            e.f += f;
-                        },
-                    );
-                }
-            },
+            |i, layout, buf, kernel| stage.particle(p, i, &mut kernel.stencil, layout, buf),
         );
         let floor = self.mass_floor;
-        let (grid, boundary, gravity) = (
-            &self.config.grid,
-            &self.config.boundary,
-            self.config.gravity,
-        );
+        let (grid, boundary, gravity) = (&cfg.grid, &cfg.boundary, cfg.gravity);
         // Contact acts at the end of the step, when the grid velocity is reached.
-        let conditions = NodeConditions::new(&self.config, self.time + dt);
-        let flip = self.config.transfer.needs_old_grid_velocity();
+        let law = NodeLaw::new(grid, boundary, &cfg.contact, self.time + dt);
+        let flip = cfg.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
         // One pass over the row groups (closed under the wall mirrors): gather the block
         // buffers (momentum into `velocity_old`, force into `velocity` until the velocities
@@ -439,10 +483,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     blocks.for_each_visited(r, |i| {
                         let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
                         if m.re() > floor {
-                            *v_old /= m;
-                            *v = *v_old + (*v / m + gravity) * dtt;
+                            // `v_old` holds the momentum and `v` the force until here.
+                            (*v_old, *v) = momentum_update(m, v_old, v, &gravity, dtt);
                             node[0] = i;
-                            active[i] = conditions.apply(node, v);
+                            active[i] = law.apply(node, v);
                         } else {
                             *v_old = Vector::zeros();
                             *v = Vector::zeros();
@@ -456,76 +500,71 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             });
     }
 
-    /// USL: G2P velocity, position, then `F ← (I + Δt L) F` and the stress update with the
-    /// velocity gradient of the updated grid velocity. Returns whether a particle needs a
-    /// closer look by the checks (see [`Checks`]).
-    fn update_particles_usl(&self, p: &mut Particles<T, D>, dt: f64) -> bool {
+    /// USL: stage 3, G2P ([`G2p::particle`]), then stage 4 with the velocity gradient of the
+    /// updated grid velocity ([`particle_end`]). Returns whether a particle needs a closer
+    /// look by the checks ([`EndOfStep::flag`]); records the particles' branches into
+    /// `branches` when `RECORD`.
+    fn update_particles_usl<const RECORD: bool>(
+        &self,
+        p: &mut Particles<T, D>,
+        dt: f64,
+        branches: &mut Vec<ParticleBranch>,
+    ) -> bool {
         let cfg = &self.config;
-        let dtt = T::cst(dt);
-        let layout = Layout::grid(&cfg.grid);
+        let stage = G2p::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
         let (vel, vel_old) = (&self.velocity, &self.velocity_old);
-        let checks = Checks::new(cfg, self.time + dt);
         let (blocks, kernels) = (&self.blocks, &self.kernels);
-        let mls = cfg.transfer.is_mls();
-        finish_particles(p, cfg, &checks, dtt, |i, x, v, c| {
-            let st = &kernels[blocks.rank(i)].stencil;
-            // MLS takes L = C and needs no gradient sums (a constant flag per call, so
-            // each inlines to only its own sums).
-            let (g, l) = if mls {
-                let g = gather(cfg, st, &layout, false, vel, vel_old);
-                (g, g.affine)
-            } else {
-                let g = gather(cfg, st, &layout, true, vel, vel_old);
-                (g, g.grad_v)
-            };
-            (*v, *c) = cfg.transfer.particle_velocity(v, &g);
-            *x += g.v * dtt;
-            l
-        })
+        // G2P in a function of its own: inlined into the particle pass, the stages of a
+        // particle need about 30 more instructions (register pressure).
+        finish_particles::<RECORD, T, D>(
+            p,
+            cfg,
+            self.time + dt,
+            dt,
+            branches,
+            #[inline(never)]
+            |i, x, v, c| {
+                let st = &kernels[blocks.rank(i)].stencil;
+                stage.particle(st, vel, vel_old, x, v, c)
+            },
+        )
     }
 
-    /// MUSL: G2P velocity and position; map the new particle momentum back to the grid (same
-    /// shape functions), apply the walls, and take `L` from that grid velocity. G2P and the
-    /// second P2G run in one pass over the blocks (the new state waits in `kernels`); the
-    /// stress update writes it back. Returns whether a particle needs a closer look by the checks.
-    fn update_particles_musl(&mut self, p: &mut Particles<T, D>, dt: f64) -> bool {
-        let dtt = T::cst(dt);
-        let layout = Layout::grid(&self.config.grid);
-        let affine = self.config.transfer.is_affine();
+    /// MUSL: G2P velocity and position ([`G2p::motion`]); map the new particle momentum back
+    /// to the grid with the same stencils ([`momentum_to_grid`]), enforce the first
+    /// projection's constraints ([`NodeLaw::enforce`]), and take `L` from that grid velocity
+    /// ([`G2p::velocity_gradient`]) for stage 4. G2P and the second P2G run in one pass over
+    /// the blocks (the new state waits in `kernels`); stage 4 writes it back. Returns whether
+    /// a particle needs a closer look by the checks; records the particles' branches into
+    /// `branches` when `RECORD`.
+    fn update_particles_musl<const RECORD: bool>(
+        &mut self,
+        p: &mut Particles<T, D>,
+        dt: f64,
+        branches: &mut Vec<ParticleBranch>,
+    ) -> bool {
+        let cfg = &self.config;
+        let stage = G2p::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
+        let affine = cfg.transfer.is_affine();
         {
-            let (cfg, pr) = (&self.config, &*p);
+            let pr = &*p;
             let (vel, vel_old) = (&self.velocity, &self.velocity_old);
             self.blocks.for_each_block(
                 &mut self.kernels,
                 |e| e.p = Vector::zeros(),
                 |i, block, buf, kernel| {
                     let st = &kernel.stencil;
-                    let g = gather(cfg, st, &layout, false, vel, vel_old);
-                    let (v, c) = cfg.transfer.particle_velocity(&pr.v[i], &g);
+                    let (x, v, c) = stage.motion(st, vel, vel_old, &pr.x[i], &pr.v[i]);
                     // Second P2G: momentum of the updated particle velocities at the
                     // start-of-step positions.
-                    let mc = if affine {
-                        c * pr.mass[i]
-                    } else {
-                        Tensor::zeros()
-                    };
-                    p2g_momentum(
-                        st,
-                        block,
-                        &v,
-                        &mc,
-                        pr.mass[i],
-                        buf,
-                        #[inline(always)]
-                        |e, _, mom| e.p += mom,
-                    );
-                    (kernel.x, kernel.v, kernel.c) = (pr.x[i] + g.v * dtt, v, c);
+                    momentum_to_grid(st, block, pr.mass[i], &v, &c, affine, buf);
+                    (kernel.x, kernel.v, kernel.c) = (x, v, c);
                 },
             );
         }
         {
-            let (grid, boundary, blocks) = (&self.config.grid, &self.config.boundary, &self.blocks);
-            let conditions = NodeConditions::new(&self.config, self.time + dt);
+            let (grid, boundary, blocks) = (&cfg.grid, &cfg.boundary, &self.blocks);
+            let law = NodeLaw::new(grid, boundary, &cfg.contact, self.time + dt);
             let (floor, n) = (self.mass_floor, blocks.row_len());
             let (mass, active) = (&self.mass, &self.active);
             // As in the first transfer: gather, fold, update and reflect, group by group.
@@ -550,7 +589,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                             if m[i].re() > floor {
                                 *v /= m[i];
                                 node[0] = i;
-                                conditions.enforce(node, v, active[i]);
+                                law.enforce(node, v, active[i]);
                             } else {
                                 *v = Vector::zeros();
                             }
@@ -559,40 +598,34 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     boundary.reflect_ghosts_in(grid, nodes, v);
                 });
         }
-        let (cfg, vel, blocks, kernels) =
-            (&self.config, &self.velocity, &self.blocks, &self.kernels);
-        let checks = Checks::new(cfg, self.time + dt);
-        let mls = cfg.transfer.is_mls();
-        finish_particles(p, cfg, &checks, dtt, |i, x, v, c| {
+        let (vel, blocks, kernels) = (&self.velocity, &self.blocks, &self.kernels);
+        finish_particles::<RECORD, T, D>(p, cfg, self.time + dt, dt, branches, |i, x, v, c| {
             let k = &kernels[blocks.rank(i)];
             (*x, *v, *c) = (k.x, k.v, k.c);
-            // L = Σ v_i ⊗ ∇w_ip, or MLS-MPM's C_p of the re-projected velocity (two calls
-            // with constant transfers, so each inlines to only its own sums).
-            let (st, grid, shape) = (&k.stencil, &cfg.grid, cfg.shape);
-            if mls {
-                g2p(st, &layout, grid, shape, Transfer::Mls, false, vel, &[]).affine
-            } else {
-                g2p(st, &layout, grid, shape, Transfer::Pic, true, vel, &[]).grad_v
-            }
+            stage.velocity_gradient(&k.stencil, vel)
         })
     }
 }
 
 /// The end of a step for every particle, in parallel: `motion(i, x, v, c)` sets particle `i`'s
-/// new position, velocity and affine matrix and returns its velocity gradient `L`; then the
-/// projection of shallow wall crossings ([`Checks::project`]), `F ← (I + Δt L) F` with the
-/// stress update ([`update_stress`]) and the per-particle checks. Returns whether a particle
-/// needs a closer look by the checks ([`Checks::flag`]).
+/// new position, velocity and affine matrix and returns its velocity gradient `L`; then stage
+/// 4 ([`particle_end`]: wall projection, `F ← (I + Δt L) F`, stress update, check flag) at the
+/// end-of-step time `time`. Returns whether a particle needs a closer look by the checks
+/// ([`EndOfStep::flag`]). With `RECORD`, `branches` receives every particle's branches, by
+/// id; without, nothing of them is kept (the choice is made at compile time).
 #[inline(always)]
-fn finish_particles<T: Scalar, const D: usize>(
+fn finish_particles<const RECORD: bool, T: Scalar, const D: usize>(
     p: &mut Particles<T, D>,
     cfg: &Config<T, D>,
-    checks: &Checks<'_, T, D>,
-    dt: T,
+    time: f64,
+    dt: f64,
+    branches: &mut Vec<ParticleBranch>,
     motion: impl Fn(usize, &mut Vector<T, D>, &mut Vector<T, D>, &mut Tensor<T, D>) -> Tensor<T, D>
     + Sync
     + Send,
 ) -> bool {
+    let end = EndOfStep::new(&cfg.grid, &cfg.boundary, &cfg.contact, time);
+    let dt = T::cst(dt);
     let Particles {
         x,
         v,
@@ -603,7 +636,7 @@ fn finish_particles<T: Scalar, const D: usize>(
         state,
         ..
     } = p;
-    (x, v, f, c, stress, state)
+    let each = (x, v, f, c, stress, state)
         .into_par_iter()
         .zip(material.par_iter())
         .enumerate()
@@ -612,244 +645,17 @@ fn finish_particles<T: Scalar, const D: usize>(
             #[inline(always)]
             |(i, ((x, v, f, c, stress, state), &mat))| {
                 let l = motion(i, x, v, c);
-                checks.project(x, v);
-                update_stress(&cfg.materials[mat as usize], &l, dt, f, stress, state);
-                checks.flag(x, v, f, stress)
+                let material = &cfg.materials[mat as usize];
+                particle_end(&end, material, &l, dt, x, v, f, stress, state)
             },
-        )
-        .reduce(|| false, |a, b| a || b)
-}
-
-/// G2P of the updated grid velocity `vel` (and `old`, for FLIP) at the particle with stencil
-/// `st`, with the configuration's transfer; the velocity gradient when `gradient` is set (see
-/// [`g2p`]).
-#[inline(always)]
-fn gather<T: Scalar, const D: usize>(
-    cfg: &Config<T, D>,
-    st: &Stencil<T, D>,
-    layout: &Layout<D>,
-    gradient: bool,
-    vel: &[Vector<T, D>],
-    old: &[Vector<T, D>],
-) -> loam_core::transfer::Gathered<T, D> {
-    g2p(
-        st,
-        layout,
-        &cfg.grid,
-        cfg.shape,
-        cfg.transfer,
-        gradient,
-        vel,
-        old,
-    )
-}
-
-/// The unilateral constraints that acted on a node in the grid update: contact
-/// ([`loam_core::Contact::apply`]) and separable walls ([`loam_core::Boundary::apply`]).
-#[derive(Clone, Copy, Debug, Default)]
-struct Active {
-    contact: u64,
-    walls: u8,
-}
-
-/// The conditions on a nodal velocity after the momentum update: contact (friction segments
-/// and obstacles, [`loam_core::Contact::apply`]) at the end-of-step time, then the plain walls
-/// ([`loam_core::Boundary::apply`]).
-struct NodeConditions<'a, T: Scalar, const D: usize> {
-    grid: &'a Grid<D>,
-    boundary: &'a loam_core::Boundary<D>,
-    contact: &'a loam_core::Contact<T, D>,
-    /// Whether there are friction segments (they act on face nodes only) and obstacles
-    /// (anywhere).
-    segments: bool,
-    obstacles: bool,
-    time: f64,
-}
-
-impl<'a, T: Scalar, const D: usize> NodeConditions<'a, T, D> {
-    fn new(cfg: &'a Config<T, D>, time: f64) -> Self {
-        Self {
-            grid: &cfg.grid,
-            boundary: &cfg.boundary,
-            contact: &cfg.contact,
-            segments: !cfg.contact.segments.is_empty(),
-            obstacles: !cfg.contact.obstacles.is_empty(),
-            time,
-        }
+        );
+    if RECORD {
+        let mut flags = Vec::new();
+        each.unzip_into_vecs(&mut flags, branches);
+        flags.contains(&true)
+    } else {
+        each.map(|(flag, _)| flag).reduce(|| false, |a, b| a || b)
     }
-
-    /// Applies contact and the walls to the trial velocity `v` of `node`; returns the
-    /// unilateral constraints that acted.
-    #[inline(always)]
-    fn apply(&self, node: [usize; D], v: &mut Vector<T, D>) -> Active {
-        let face = on_a_face(self.grid, node);
-        let mut active = Active::default();
-        if face && self.segments || self.obstacles {
-            active.contact = self.contact.apply(self.grid, node, self.time, v);
-        }
-        if face {
-            active.walls = self.boundary.apply(self.grid, node, v);
-        }
-        active
-    }
-
-    /// MUSL's second projection: non-penetration on the velocity `v` of `node` for the
-    /// constraints that acted in [`NodeConditions::apply`], and the bilateral walls.
-    #[inline(always)]
-    fn enforce(&self, node: [usize; D], v: &mut Vector<T, D>, active: Active) {
-        self.contact
-            .enforce(self.grid, node, self.time, v, active.contact);
-        if on_a_face(self.grid, node) {
-            self.boundary.enforce(self.grid, node, v, active.walls);
-        }
-    }
-}
-
-/// Whether a node lies on (or beyond) a face of the domain, where walls and friction segments
-/// act; elsewhere [`loam_core::Boundary::apply`] and the segments of
-/// [`loam_core::Contact::apply`] do nothing.
-#[inline(always)]
-fn on_a_face<const D: usize>(grid: &Grid<D>, node: [usize; D]) -> bool {
-    (0..D).any(|a| node[a] <= grid.pad || node[a] >= grid.pad + grid.cells[a])
-}
-
-/// How far beyond a unilateral (separable) wall, in cells, a particle centre is still put
-/// back onto the face by [`Checks::project`]; a centre deeper than that has escaped.
-///
-/// A unilateral condition is nodal: it stops the face nodes from moving into the wall, but a
-/// particle also interpolates interior nodes, so where a flowing layer thins below about half
-/// a particle spacing (the front of a granular or fluid surge) a centre can drift a fraction
-/// of a spacing past the face (measured: up to 0.16 spacings in the granular collapses of
-/// `docs/verification.md`). Half a cell is a whole particle spacing at 2 particles per cell.
-const PROJECTION_DEPTH: f64 = 0.5;
-
-/// The per-particle part of the end-of-step checks, run inside the last particle pass: a
-/// particle is flagged when [`check_particles`] or [`check_containment`] would report it, and
-/// those (which build the error with every offending id) run only when one is flagged.
-struct Checks<'a, T: Scalar, const D: usize> {
-    /// Per axis, the positions below / above which a particle has crossed a wall
-    /// (±∞ for free faces).
-    bounds: [(f64, f64); D],
-    /// Per axis and side, whether the wall is unilateral (`separable`, and not free), so that
-    /// [`Checks::project`] puts shallow crossings back onto the face.
-    unilateral: [[bool; 2]; D],
-    /// [`PROJECTION_DEPTH`] in metres.
-    depth: f64,
-    contact: &'a loam_core::Contact<T, D>,
-    time: f64,
-}
-
-impl<'a, T: Scalar, const D: usize> Checks<'a, T, D> {
-    fn new(cfg: &'a Config<T, D>, time: f64) -> Self {
-        let (lo, hi) = (cfg.grid.lo, cfg.grid.hi());
-        let walled = |a: usize, side: usize| cfg.boundary.walls[a][side].kind != WallKind::Free;
-        Self {
-            bounds: std::array::from_fn(|a| {
-                (
-                    if walled(a, 0) {
-                        lo[a]
-                    } else {
-                        f64::NEG_INFINITY
-                    },
-                    if walled(a, 1) { hi[a] } else { f64::INFINITY },
-                )
-            }),
-            unilateral: std::array::from_fn(|a| {
-                std::array::from_fn(|side| walled(a, side) && cfg.boundary.walls[a][side].separable)
-            }),
-            depth: PROJECTION_DEPTH * cfg.grid.h,
-            contact: &cfg.contact,
-            time,
-        }
-    }
-
-    /// Puts a particle centre that ended the step less than [`PROJECTION_DEPTH`] cells beyond
-    /// a unilateral wall back onto the face, `x_a ← lo_a` (or `hi_a`), and removes its
-    /// velocity component into the wall, `v_a ← max(v_a, 0)` (or `min`): the position
-    /// counterpart of the nodal condition. A deeper centre is left where it is, for
-    /// [`check_containment`] to report. Comparisons on real parts; a projected coordinate is
-    /// a constant (its sensitivity is zero).
-    #[inline(always)]
-    fn project(&self, x: &mut Vector<T, D>, v: &mut Vector<T, D>) {
-        for a in 0..D {
-            let (lo, hi) = self.bounds[a];
-            let xa = x[a].re();
-            if self.unilateral[a][0] && xa < lo && xa >= lo - self.depth {
-                x[a] = T::cst(lo);
-                if v[a].re() < 0.0 {
-                    v[a] = T::zero();
-                }
-            } else if self.unilateral[a][1] && xa > hi && xa <= hi + self.depth {
-                x[a] = T::cst(hi);
-                if v[a].re() > 0.0 {
-                    v[a] = T::zero();
-                }
-            }
-        }
-    }
-
-    /// Whether the particle has a non-finite field, is inverted, has crossed a wall or lies
-    /// in an obstacle.
-    #[inline(always)]
-    fn flag(
-        &self,
-        x: &Vector<T, D>,
-        v: &Vector<T, D>,
-        f: &Tensor<T, D>,
-        stress: &nalgebra::Matrix3<T>,
-    ) -> bool {
-        // One finiteness test of a sum instead of one per entry: a NaN or an infinity in any
-        // entry makes the sum non-finite; a finite sum that overflows only flags the particle
-        // for the exact checks. Two partial sums and plain indexed loops keep it short.
-        let (mut s0, mut s1) = (T::zero(), T::zero());
-        for a in 0..D {
-            s0 += x[a];
-            s1 += v[a];
-            for b in 0..D {
-                s0 += f[(a, b)];
-            }
-        }
-        for a in 0..3 {
-            for b in 0..3 {
-                s1 += stress[(a, b)];
-            }
-        }
-        if !(s0 + s1).is_finite_all() || det(f).re() <= 0.0 {
-            return true;
-        }
-        let mut xr = [0.0; D];
-        let mut out = false;
-        for a in 0..D {
-            xr[a] = x[a].re();
-            out |= xr[a] < self.bounds[a].0 || xr[a] > self.bounds[a].1;
-        }
-        out || (!self.contact.is_empty() && self.contact.penetrated(&xr, self.time).is_some())
-    }
-}
-
-/// `F ← (I + Δt L) F`, then the constitutive update on the 3×3 embedding.
-#[inline(always)]
-fn update_stress<T: Scalar, const D: usize>(
-    material: &loam_core::Material<T>,
-    l: &Tensor<T, D>,
-    dt: T,
-    f: &mut Tensor<T, D>,
-    stress: &mut nalgebra::Matrix3<T>,
-    state: &mut loam_core::MaterialState<T>,
-) {
-    let delta_f = Tensor::<T, D>::identity() + l * dt;
-    *f = delta_f * *f;
-    let f3 = to3(f, T::one());
-    let df3 = to3(&delta_f, T::one());
-    let l3 = to3(l, T::zero());
-    let kin = Kinematics {
-        f: &f3,
-        delta_f: &df3,
-        velocity_gradient: &l3,
-        dt,
-        stress,
-    };
-    *stress = material.update(&kin, state);
 }
 
 /// Stops the run on NaN/Inf in any particle field or an inverted particle.

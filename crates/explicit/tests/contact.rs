@@ -152,7 +152,7 @@ fn a_moving_box_pushes_a_block() {
             lo: [0.05, 0.1],
             hi: [0.15, 0.5],
         },
-        velocity: [1.0, 0.0],
+        velocity: Vector::from([1.0, 0.0]),
         mu: 0.0,
     };
     // The block spans x ∈ [0.25, 0.35]: the plate (right face at 0.15 m) reaches it at 0.1 s.

@@ -67,8 +67,21 @@ pub struct ExplicitPlan {
     pub transfer: Transfer,
     /// Time-step control.
     pub time_step: TimeStep,
-    /// Simulated time at which the run stops (s).
+    /// Simulated time at which the run stops (s); with a fixed step, see
+    /// [`ExplicitPlan::fixed_steps`].
     pub end_time: f64,
+}
+
+impl ExplicitPlan {
+    /// With a fixed step Δt, the number of steps the run makes: `round(end_time / Δt)` (halves
+    /// round up), so the run ends within half a step of `end_time` and no step is ever
+    /// shortened; `None` with an adaptive step.
+    pub fn fixed_steps(&self) -> Option<usize> {
+        match self.time_step {
+            TimeStep::Fixed { dt } => Some((self.end_time / dt).round() as usize),
+            TimeStep::Adaptive { .. } => None,
+        }
+    }
 }
 
 /// The implicit solver's settings.
@@ -165,11 +178,20 @@ pub struct OutputPlan {
 impl<const D: usize> Built<D> {
     /// When to write frames, as times from 0 (the initial state).
     ///
-    /// Explicit: the simulated times `end_time · k / frames`, `k = 0..=frames`. Implicit:
-    /// the load factors `step / load_steps` (a pseudo-time from 0 to 1) of the
-    /// [frame steps](Built::frame_steps).
+    /// Explicit with an adaptive step: the simulated times `end_time · k / frames`,
+    /// `k = 0..=frames` (the step before each is shortened to end on it). Explicit with a
+    /// fixed step Δt: `step · Δt` for the [frame steps](Built::frame_steps). Implicit: the
+    /// load factors `step / load_steps` (a pseudo-time from 0 to 1) of the frame steps.
     pub fn frame_times(&self) -> Vec<f64> {
         match self.plan {
+            SolverPlan::Explicit(ExplicitPlan {
+                time_step: TimeStep::Fixed { dt },
+                ..
+            }) => self
+                .frame_steps()
+                .into_iter()
+                .map(|s| s as f64 * dt)
+                .collect(),
             SolverPlan::Explicit(p) => {
                 let n = self.output.frames.max(1);
                 (0..=n).map(|k| p.end_time * k as f64 / n as f64).collect()
@@ -182,26 +204,66 @@ impl<const D: usize> Built<D> {
         }
     }
 
-    /// Implicit: the load steps after which frames are written, from 0 (the initial state):
-    /// `round(k · load_steps / frames)` for `k = 0..=frames` (halves round up), repeats
-    /// dropped, so `frames + 1` steps when `frames ≤ load_steps` and every step otherwise;
-    /// the last is `load_steps`. Empty for the explicit solver.
+    /// The explicit solver's configuration of this scene (`None` for an implicit scene): the
+    /// one way from a scene to `loam_explicit::Solver`, used by the command line, the
+    /// verification cases, the benches and the tests alike.
+    pub fn explicit_config(&self) -> Option<loam_explicit::Config<f64, D>> {
+        let SolverPlan::Explicit(plan) = self.plan else {
+            return None;
+        };
+        Some(loam_explicit::Config {
+            grid: self.grid.clone(),
+            shape: self.shape,
+            transfer: plan.transfer,
+            scheme: plan.scheme,
+            boundary: self.boundary,
+            contact: self.contact.clone(),
+            gravity: self.gravity,
+            materials: self.materials.clone(),
+            time_step: plan.time_step,
+        })
+    }
+
+    /// The steps after which frames are written, from 0 (the initial state), where frames
+    /// are tied to steps; the last is the final step, and repeats are dropped (a frame after
+    /// every step when there are more frames than steps).
+    ///
+    /// - Implicit: `round(k · load_steps / frames)`, `k = 0..=frames` (halves round up).
+    /// - Explicit with a fixed step: `⌈k · N / frames⌉` with `N` the
+    ///   [fixed step count](ExplicitPlan::fixed_steps): the first step that reaches or passes
+    ///   the frame time `k · N Δt / frames`.
+    /// - Explicit with an adaptive step: empty (frames are at [times](Built::frame_times)).
     pub fn frame_steps(&self) -> Vec<usize> {
+        let frames = self.output.frames;
         match self.plan {
-            SolverPlan::Explicit(_) => Vec::new(),
-            SolverPlan::Implicit(p) => frame_steps(p.load_steps, self.output.frames),
+            SolverPlan::Explicit(p) => p
+                .fixed_steps()
+                .map_or_else(Vec::new, |n| spread(n, frames, Rounding::Up)),
+            SolverPlan::Implicit(p) => spread(p.load_steps, frames, Rounding::Nearest),
         }
     }
 }
 
-/// `round(k · steps / frames)`, `k = 0..=frames`, without repeats (exact integer rounding).
-fn frame_steps(steps: usize, frames: usize) -> Vec<usize> {
+/// How [`spread`] rounds.
+#[derive(Clone, Copy)]
+enum Rounding {
+    /// To the nearest integer, halves up.
+    Nearest,
+    /// Up.
+    Up,
+}
+
+/// `k · steps / frames` rounded, `k = 0..=frames`, without repeats (exact integer rounding).
+fn spread(steps: usize, frames: usize, rounding: Rounding) -> Vec<usize> {
     let (n, f) = (steps as u128, frames.max(1) as u128);
     if f >= n {
         return (0..=steps).collect();
     }
     (0..=f)
-        .map(|k| ((2 * k * n + f) / (2 * f)) as usize)
+        .map(|k| match rounding {
+            Rounding::Nearest => (2 * k * n + f) / (2 * f),
+            Rounding::Up => (k * n).div_ceil(f),
+        } as usize)
         .collect()
 }
 
@@ -531,15 +593,24 @@ mod tests {
 
     #[test]
     fn frame_steps_round_and_drop_repeats() {
+        let nearest = |n, f| spread(n, f, Rounding::Nearest);
         assert_eq!(
-            frame_steps(50, 10),
+            nearest(50, 10),
             vec![0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 50]
         );
         // 7 · 1/4 = 1.75, 3.5, 5.25, 7: halves round up.
-        assert_eq!(frame_steps(7, 4), vec![0, 2, 4, 5, 7]);
-        assert_eq!(frame_steps(3, 20), vec![0, 1, 2, 3]);
-        assert_eq!(frame_steps(1, 1), vec![0, 1]);
-        assert_eq!(frame_steps(5, 5), vec![0, 1, 2, 3, 4, 5]);
+        assert_eq!(nearest(7, 4), vec![0, 2, 4, 5, 7]);
+        assert_eq!(nearest(3, 20), vec![0, 1, 2, 3]);
+        assert_eq!(nearest(1, 1), vec![0, 1]);
+        assert_eq!(nearest(5, 5), vec![0, 1, 2, 3, 4, 5]);
+        // Fixed explicit steps: the first step at or past each frame time.
+        let up = |n, f| spread(n, f, Rounding::Up);
+        assert_eq!(up(7, 4), vec![0, 2, 4, 6, 7]);
+        assert_eq!(up(3, 20), vec![0, 1, 2, 3]);
+        // The friction dam-break: 0.4 s at 3e-5 s in 20 frames, 13,333 steps; frame 1 at
+        // 0.02 s needs 666.65 steps, so step 667.
+        let s = up(13_333, 20);
+        assert_eq!((s[1], s[19], s[20], s.len()), (667, 12_667, 13_333, 21));
     }
 
     #[test]

@@ -30,7 +30,7 @@ impl ObstacleSpec {
         };
         Obstacle {
             shape,
-            velocity: arr(&self.velocity),
+            velocity: arr(&self.velocity).into(),
             mu: self.friction.unwrap_or(0.0),
         }
     }

@@ -33,6 +33,12 @@ const MAX_PARTICLES_PER_CELL: u32 = 8;
 const CONSTRAINT_TOLERANCE: f64 = 1e-9;
 
 impl Scene {
+    /// Checks every field, without generating particles (the first half of
+    /// [`Scene::validate`]).
+    pub fn check_fields(&self) -> Result<(), SceneError> {
+        self.issues_to_result(self.field_issues())
+    }
+
     /// Checks every field and the particle generation; the `from_*` loaders call it.
     pub fn validate(&self) -> Result<(), SceneError> {
         let mut issues = self.field_issues();
@@ -805,6 +811,20 @@ impl Scene {
             Some(t) => {
                 c.positive("solver.end_time", t);
             }
+        }
+        // A fixed-step run makes round(end_time / dt) steps: at least one.
+        if let (Some(TimeStep::Fixed { dt }), Some(t)) = (s.time_step, s.end_time)
+            && dt > 0.0
+            && t > 0.0
+            && (t / dt).round() < 1.0
+        {
+            c.issue(
+                "solver.time_step.dt",
+                format!(
+                    "{dt} s is more than twice solver.end_time = {t} s: a fixed-step run makes \
+                     round(end_time / dt) steps, here none"
+                ),
+            );
         }
     }
 

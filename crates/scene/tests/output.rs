@@ -93,6 +93,8 @@ fn frames_read_back_and_the_series_lists_them_all() {
     assert!((pressure[1] + 8.0 / 3.0).abs() < 1e-14);
     let ids: Vec<u32> = array(&last, "material_id").unwrap().into_vec().unwrap();
     assert_eq!(ids, [0, 1, 0]);
+    let ids: Vec<u64> = array(&last, "id").unwrap().into_vec().unwrap();
+    assert_eq!(ids, [0, 1, 2]);
     for field in Field::ALL {
         assert!(
             array(&last, field.name()).is_some(),
@@ -111,11 +113,22 @@ fn a_resumed_series_drops_the_frames_after_the_saved_time_and_continues_the_numb
     for k in 0..4 {
         writer.write_frame(0.25 * k as f64, &p, None).unwrap();
     }
-    // A state saved at t = 0.5 (the time of frame 2, which is kept): frame 3 goes.
+    // Left by a run killed while writing frame 4, and a file of the user's.
+    std::fs::write(out.join("frame_0004.vtu.tmp"), "partial").unwrap();
+    std::fs::write(out.join("frame_0009.vtu"), "unlisted").unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    // A state saved at t = 0.5 (the time of frame 2, which is kept): frame 3 goes, with the
+    // unlisted frame and the temporary.
     let mut resumed = FrameWriter::resume(&out, &[Field::Velocity], 0.5).unwrap();
     let kept: Vec<&str> = resumed.entries().iter().map(|e| e.file.as_str()).collect();
     assert_eq!(kept, ["frame_0000.vtu", "frame_0001.vtu", "frame_0002.vtu"]);
-    assert!(!out.join("frame_0003.vtu").exists());
+    for gone in ["frame_0003.vtu", "frame_0004.vtu.tmp", "frame_0009.vtu"] {
+        assert!(!out.join(gone).exists(), "{gone} left");
+    }
+    for name in &kept {
+        assert!(out.join(name).exists(), "{name} removed");
+    }
+    assert!(out.join("notes.txt").exists());
     let pvd = std::fs::read_to_string(resumed.pvd_path()).unwrap();
     assert_eq!(pvd.matches("<DataSet ").count(), 3);
     let next = resumed.write_frame(0.6, &p, None).unwrap();
@@ -171,6 +184,65 @@ fn a_3d_frame_keeps_the_z_components() {
     assert_eq!(v, [1.0, 2.0, 3.0]);
     let m: Vec<f64> = array(&piece, "mass").unwrap().into_vec().unwrap();
     assert_eq!(m, [1.0]);
+}
+
+#[test]
+fn a_non_finite_field_is_an_error_naming_it_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut writer = FrameWriter::create(&out, &Field::ALL).unwrap();
+    let mut p = particles();
+    writer.write_frame(0.0, &p, None).unwrap();
+    // A NaN stress at particle 1.
+    p.stress[1][(0, 1)] = f64::NAN;
+    let err = writer.write_frame(0.5, &p, None).unwrap_err();
+    match &err {
+        OutputError::NonFinite { field, ids, .. } => {
+            assert_eq!((field.as_str(), ids.as_slice()), ("stress", &[1][..]));
+        }
+        e => panic!("unexpected error {e}"),
+    }
+    // F = 0 at particle 2: F Fᵀ = 0, whose logarithm is −∞; the message gives det F.
+    p.stress[1] = Matrix3::zeros();
+    p.f[2] = Matrix2::zeros();
+    let err = writer.write_frame(0.5, &p, None).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("non-finite strain in 1 particle(s), first ids [2]")
+            && msg.contains("det F is down to 0.000e0"),
+        "{msg}"
+    );
+    // The failed frames were not written; the series still lists the first one only.
+    assert!(!out.join("frame_0001.vtu").exists() && !out.join("frame_0001.vtu.tmp").exists());
+    let pvd = std::fs::read_to_string(writer.pvd_path()).unwrap();
+    assert_eq!(pvd.matches("<DataSet ").count(), 1);
+}
+
+#[test]
+fn a_new_writer_removes_an_earlier_runs_files_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut writer = FrameWriter::create(&out, &[Field::Velocity]).unwrap();
+    let p = particles();
+    for k in 0..3 {
+        writer.write_frame(k as f64, &p, None).unwrap();
+    }
+    for name in [
+        "summary.json",
+        "frame_0007.vtu.tmp",
+        "notes.txt",
+        "frame_a.vtu",
+    ] {
+        std::fs::write(out.join(name), "x").unwrap();
+    }
+    let writer = FrameWriter::create(&out, &[Field::Velocity]).unwrap();
+    assert!(writer.entries().is_empty());
+    let mut left: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["frame_a.vtu", "notes.txt"]);
 }
 
 #[test]

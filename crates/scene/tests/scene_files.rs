@@ -85,6 +85,13 @@ const BAD: &[(&str, &[&str])] = &[
         &["solver.time_step.cfl: must be in (0, 1], got 1.5"],
     ),
     (
+        "fixed_dt_above_end_time.toml",
+        &[
+            "solver.time_step.dt: 0.001 s is more than twice solver.end_time = 0.0004 s",
+            "round(end_time / dt) steps, here none",
+        ],
+    ),
+    (
         "zero_frames.toml",
         &["output.frames: must be at least 1, got 0"],
     ),
@@ -469,12 +476,14 @@ fn box_fixture_builds_400_particles_with_the_expected_state() {
         })
     );
     assert!(built.constraints.is_empty() && built.point_loads.is_empty());
-    assert!(built.frame_steps().is_empty());
+    // A fixed step: 0.5 s / 1e-4 s = 5000 steps, a frame every 250.
+    let frame_steps: Vec<usize> = (0..=20).map(|k| 250 * k).collect();
+    assert_eq!(built.frame_steps(), frame_steps);
     assert_eq!(built.output.dir, Path::new("out/box_2d"));
     assert_eq!(built.output.frames, 20);
     assert_eq!(built.output.fields, loam_scene::output::Field::ALL);
     assert_eq!(built.frame_times().len(), 21);
-    assert_eq!(built.frame_times()[20], 0.5);
+    assert!((built.frame_times()[20] - 0.5).abs() < 1e-15);
 }
 
 #[test]
@@ -1350,12 +1359,12 @@ fn contact_fixture_builds_segments_and_obstacles_and_clips_particles() {
                     lo: [0.4, 0.1],
                     hi: [0.6, 0.3]
                 },
-                velocity: [0.0, 0.0],
+                velocity: [0.0, 0.0].into(),
                 mu: 0.3
             },
             Obstacle {
                 shape: ObstacleShape::disk([1.5, 0.3], 0.1),
-                velocity: [-1.0, 0.0],
+                velocity: [-1.0, 0.0].into(),
                 mu: 0.0
             },
         ]
@@ -1393,7 +1402,10 @@ fn cylinder_fixture_builds_3d_obstacles() {
         c.obstacles[0].shape,
         ObstacleShape::cylinder([0.6, 0.2, 0.1], 0.05, 1, 0.4)
     );
-    assert_eq!(c.obstacles[1].velocity, [0.0, 0.0, 0.1]);
+    assert_eq!(
+        c.obstacles[1].velocity,
+        loam_core::tensor::Vector::<f64, 3>::new(0.0, 0.0, 0.1)
+    );
     // Without obstacles in the way the column holds 6 × 4 × 8 cells × 8 particles.
     assert_eq!(built.particles.len(), 1536);
 }

@@ -46,7 +46,6 @@ pub struct Checkpointer {
     every: usize,
     hash: u64,
     source: PathBuf,
-    failure: Option<String>,
     /// The last checkpoint written.
     pub last: Option<CheckpointNote>,
 }
@@ -65,21 +64,20 @@ impl Checkpointer {
             every,
             hash: scene_hash(text.as_bytes()),
             source: source.to_path_buf(),
-            failure: None,
             last: None,
         })
     }
 
     /// After step `step` at `time`: writes the state when `step` is a multiple of the
-    /// interval. A failure is kept for [`Checkpointer::failure`] and stops further writes.
+    /// interval (replacing the previous one only once the new one is complete).
     pub fn after_step<const D: usize>(
         &mut self,
         step: usize,
         time: f64,
         particles: &Particles<f64, D>,
-    ) {
-        if !step.is_multiple_of(self.every) || self.failure.is_some() {
-            return;
+    ) -> Result<(), String> {
+        if !step.is_multiple_of(self.every) {
+            return Ok(());
         }
         let header = CheckpointHeader {
             dimension: D,
@@ -89,21 +87,13 @@ impl Checkpointer {
             scene_hash: self.hash,
             source: self.source.clone(),
         };
-        match write_checkpoint(&self.state, &header, particles) {
-            Ok(()) => {
-                self.last = Some(CheckpointNote {
-                    path: self.state.display().to_string(),
-                    step: step as u64,
-                    time,
-                })
-            }
-            Err(e) => self.failure = Some(e.to_string()),
-        }
-    }
-
-    /// Why writing a checkpoint failed, if it did.
-    pub fn failure(&self) -> Option<&str> {
-        self.failure.as_deref()
+        write_checkpoint(&self.state, &header, particles).map_err(|e| e.to_string())?;
+        self.last = Some(CheckpointNote {
+            path: self.state.display().to_string(),
+            step: step as u64,
+            time,
+        });
+        Ok(())
     }
 }
 
@@ -120,7 +110,8 @@ pub struct Resume {
 impl Resume {
     /// Opens the checkpoint in the output folder `dir` and the scene recorded beside it; the
     /// scene is parsed as the file it was copied from (relative paths in it resolve as they
-    /// did). The scene must be the one the state was saved from (same hash).
+    /// did) and its fields checked (the run validates it as a fresh run does). The scene
+    /// must be the one the state was saved from (same hash).
     pub fn open(dir: &Path) -> Result<(Self, Scene), String> {
         let folder = dir.join(FOLDER);
         let state = folder.join(STATE);
@@ -149,7 +140,7 @@ impl Resume {
                 header.scene_hash
             ));
         }
-        let scene = Scene::from_text_of(&header.source, &text).map_err(|e| e.to_string())?;
+        let scene = Scene::read_text_of(&header.source, &text).map_err(|e| e.to_string())?;
         Ok((
             Self {
                 state,

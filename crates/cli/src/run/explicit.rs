@@ -1,141 +1,190 @@
-//! Explicit runs: step to each frame time with a progress bar.
+//! Explicit runs: step to each frame, with a progress display.
+//!
+//! With a fixed step the frames are tied to steps ([`Built::frame_steps`]): the run makes
+//! `round(end_time / dt)` steps, none of them shortened. With an adaptive step the frames are
+//! at their times ([`Built::frame_times`]), the step before each shortened to end on it.
+//!
+//! A resumed run starts from the saved particles and clock and goes through the same loop,
+//! from the first frame point after the frames it kept.
 
-use super::Recorder;
 use super::checkpoint::Checkpointer;
+use super::progress::Progress;
+use super::{Options, Start, Stop, Target, interrupt};
 use crate::Outcome;
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::preflight;
 use loam_core::Particles;
-use loam_explicit::{Config, Solver};
+use loam_explicit::Solver;
+use loam_scene::output::RunSummary;
 use loam_scene::{Built, ExplicitPlan};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-/// The saved state a resumed run starts from.
-pub struct Restart<const D: usize> {
-    /// The particles.
-    pub particles: Particles<f64, D>,
-    /// Simulated time.
-    pub time: f64,
-    /// Steps completed.
-    pub steps: usize,
+/// Where a frame is written: after a step (fixed step) or at a time (adaptive step).
+#[derive(Clone, Copy)]
+enum FrameAt {
+    Step(usize),
+    Time(f64),
 }
 
-/// Runs an explicit scene, from its initial state or from `restart`, saving the state with
-/// `checkpoints` if given.
+/// When the run started, the step and simulated time it started from (`(0, 0)` unless
+/// resumed) and the simulated time it ends at, for the progress display.
+#[derive(Clone, Copy)]
+struct Clock {
+    start: Instant,
+    from: (usize, f64),
+    end: f64,
+}
+
+/// Steps until the frame point `at` is reached, recording the step sizes in `summary` and
+/// saving the state with `checkpoints`; stops on an error (a failed checkpoint included) or a
+/// signal (checked before every step).
+fn step_to<const D: usize>(
+    solver: &mut Solver<f64, D>,
+    particles: &mut Particles<f64, D>,
+    at: FrameAt,
+    summary: &mut RunSummary,
+    mut checkpoints: Option<&mut Checkpointer>,
+    progress: &mut Progress,
+    clock: Clock,
+) -> Result<(), Stop> {
+    loop {
+        if interrupt::requested() {
+            return Err(Stop::Interrupted);
+        }
+        let cap = match at {
+            FrameAt::Step(s) => (solver.steps() < s).then_some(f64::INFINITY),
+            FrameAt::Time(t) => solver.next_step_cap(t),
+        };
+        let Some(cap) = cap else { return Ok(()) };
+        let info = solver
+            .step(particles, cap)
+            .map_err(|e| Stop::Failed(e.to_string()))?;
+        summary.dt_min = summary.dt_min.min(info.dt);
+        summary.dt_max = summary.dt_max.max(info.dt);
+        if let Some(c) = checkpoints.as_deref_mut() {
+            c.after_step(info.step, info.time, particles)
+                .map_err(Stop::Failed)?;
+        }
+        let wall = clock.start.elapsed().as_secs_f64();
+        progress.update(info.step, info.time, clock.end, wall, clock.from);
+    }
+}
+
+/// Runs an explicit scene, from its initial state or from the checkpoint in `start`, saving
+/// its state as `start` asks. The checks before the run are those of the initial state, so a
+/// resumed run is refused or warned about exactly when the fresh run was.
 pub fn run<const D: usize>(
     built: Built<D>,
     plan: ExplicitPlan,
-    mut rec: Recorder<D>,
-    quiet: bool,
-    mut checkpoints: Option<Checkpointer>,
-    restart: Option<Restart<D>>,
+    target: Target,
+    options: &Options,
+    start: Start,
 ) -> Outcome {
-    let frame_times = built.frame_times();
-    let config = Config {
-        grid: built.grid.clone(),
-        shape: built.shape,
-        transfer: plan.transfer,
-        scheme: plan.scheme,
-        boundary: built.boundary,
-        contact: built.contact.clone(),
-        gravity: built.gravity,
-        materials: built.materials.clone(),
-        time_step: plan.time_step,
+    let frames: Vec<FrameAt> = match plan.fixed_steps() {
+        Some(_) => built.frame_steps().into_iter().map(FrameAt::Step).collect(),
+        None => built.frame_times().into_iter().map(FrameAt::Time).collect(),
     };
-    let (mut particles, clock) = match restart {
-        None => (built.particles, None),
-        Some(r) => (r.particles, Some((r.time, r.steps))),
+    let restart = match &start.resume {
+        None => None,
+        Some(r) => match r.particles::<D>(built.particles.len()) {
+            Ok(p) => Some((p, r.header.time, r.header.step as usize)),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Outcome::BadInput;
+            }
+        },
     };
-    let mut solver = match Solver::new(config, &particles) {
+    let config = built.explicit_config().expect("an explicit plan");
+    let solver = Solver::new(config, restart.as_ref().map_or(&built.particles, |r| &r.0));
+    let mut solver = match solver {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
             return Outcome::BadInput;
         }
     };
-    if let Some((time, steps)) = clock {
-        solver.set_clock(time, steps);
+    let warnings = match preflight::explicit(&built, &plan, &solver, &built.particles) {
+        Ok(w) => w,
+        Err(msg) => {
+            eprintln!("error: {}: {msg}", target.scene.display());
+            return Outcome::BadInput;
+        }
+    };
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", target.scene.display());
     }
+    let rec = match &start.resume {
+        None => target.recorder(&built),
+        Some(r) => target.resumed_recorder(&built, r),
+    };
+    let mut rec = match rec {
+        Ok(r) => r,
+        Err(outcome) => return outcome,
+    };
+    rec.summary.warnings.extend(warnings);
     rec.summary.end_time = plan.end_time;
-    let bar = progress_bar(quiet);
-    let start = Instant::now();
-    let mut last_draw = Instant::now();
-    let mut failure = None;
+    let mut checkpoints = match start.checkpoints {
+        None => None,
+        Some((text, every)) => {
+            match Checkpointer::create(&target.dir, target.scene, &text, every) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return Outcome::Failed;
+                }
+            }
+        }
+    };
+    let (mut particles, from) = match restart {
+        None => (built.particles, (0, 0.0)),
+        Some((particles, time, steps)) => {
+            solver.set_clock(time, steps);
+            (particles, (steps, time))
+        }
+    };
+    let mut progress = Progress::new(options.quiet, options.progress_every);
+    let clock = Clock {
+        start: Instant::now(),
+        from,
+        end: plan.end_time,
+    };
+    let mut stop = None;
     // A resumed run continues after the frames it kept.
     let first = rec.frames_written();
-    for (k, &t) in frame_times.iter().enumerate().skip(first) {
+    for (k, &at) in frames.iter().enumerate().skip(first) {
         if k > 0 {
-            let summary = &mut rec.summary;
-            let result = solver.advance_to(&mut particles, t, |info, p| {
-                summary.dt_min = summary.dt_min.min(info.dt);
-                summary.dt_max = summary.dt_max.max(info.dt);
-                if let Some(c) = checkpoints.as_mut() {
-                    c.after_step(info.step, info.time, p);
-                }
-                if last_draw.elapsed() > Duration::from_millis(100) {
-                    last_draw = Instant::now();
-                    draw(
-                        &bar,
-                        info.step,
-                        info.time,
-                        plan.end_time,
-                        start.elapsed().as_secs_f64(),
-                    );
-                }
-            });
-            if let Err(e) = result {
-                failure = Some(e.to_string());
-                break;
-            }
-            if let Some(e) = checkpoints.as_ref().and_then(Checkpointer::failure) {
-                failure = Some(e.to_owned());
+            let stepped = step_to(
+                &mut solver,
+                &mut particles,
+                at,
+                &mut rec.summary,
+                checkpoints.as_mut(),
+                &mut progress,
+                clock,
+            );
+            if let Err(e) = stepped {
+                stop = Some(e);
                 break;
             }
         }
         if let Err(e) = rec.frame(solver.steps(), solver.time(), &particles) {
-            failure = Some(e);
+            stop = Some(e);
             break;
         }
     }
-    bar.finish_and_clear();
+    progress.finish();
     rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
-    let wall = start.elapsed().as_secs_f64();
+    let wall = clock.start.elapsed().as_secs_f64();
     let steps = solver.steps();
-    let (first_step, resumed) = match clock {
-        Some((time, step)) => (step, format!("resumed at step {step} (t = {time:.4} s), ")),
-        None => (0, String::new()),
+    let resumed = match start.resume {
+        Some(_) => format!("resumed at step {} (t = {:.4} s), ", from.0, from.1),
+        None => String::new(),
     };
     let done = format!(
         "{resumed}{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} \
          particles)",
         solver.time(),
-        (steps - first_step) as f64 * particles.len() as f64 / wall.max(1e-9),
+        (steps - from.0) as f64 * particles.len() as f64 / wall.max(1e-9),
         particles.len()
     );
-    rec.finish(steps, solver.time(), wall, failure, &done)
-}
-
-fn progress_bar(quiet: bool) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(1000);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40.cyan/blue} {percent:>3}% {msg}")
-            .expect("static template is valid"),
-    );
-    bar
-}
-
-fn draw(bar: &ProgressBar, step: usize, time: f64, end: f64, wall: f64) {
-    let frac = (time / end).clamp(0.0, 1.0);
-    bar.set_position((frac * 1000.0) as u64);
-    let rate = step as f64 / wall.max(1e-9);
-    let eta = if frac > 0.0 {
-        wall * (1.0 - frac) / frac
-    } else {
-        f64::NAN
-    };
-    bar.set_message(format!(
-        "t = {time:.4e} / {end:.4e} s, step {step}, {rate:.0} steps/s, ETA {eta:.0} s"
-    ));
+    rec.finish(steps, solver.time(), wall, stop, &done)
 }

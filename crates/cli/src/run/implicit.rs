@@ -1,6 +1,6 @@
 //! Implicit runs: load steps with a per-step Newton table.
 
-use super::Recorder;
+use super::{Options, Stop, Target, interrupt};
 use crate::Outcome;
 use loam_implicit::linear::{LinearSolverKind, Preconditioner};
 use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings, TangentMethod};
@@ -69,9 +69,10 @@ fn settings(plan: &ImplicitPlan) -> NewtonSettings {
 pub fn run<const D: usize>(
     built: Built<D>,
     plan: ImplicitPlan,
-    mut rec: Recorder<D>,
-    quiet: bool,
+    target: Target,
+    options: &Options,
 ) -> Outcome {
+    let quiet = options.quiet;
     let frame_steps = built.frame_steps();
     let config = ImplicitConfig {
         grid: built.grid.clone(),
@@ -86,14 +87,18 @@ pub fn run<const D: usize>(
         dynamics: plan.newmark_dt,
         min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
     };
-    let mut particles = built.particles;
-    let mut solver = match ImplicitSolver::new(config, &particles) {
+    let mut solver = match ImplicitSolver::new(config, &built.particles) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
             return Outcome::BadInput;
         }
     };
+    let mut rec = match target.recorder(&built) {
+        Ok(r) => r,
+        Err(outcome) => return outcome,
+    };
+    let mut particles = built.particles;
     // Frames and the summary use simulated time in dynamics, the load factor otherwise.
     let time_scale = plan
         .newmark_dt
@@ -106,18 +111,22 @@ pub fn run<const D: usize>(
         );
     }
     let start = Instant::now();
-    let mut failure = None;
+    let mut stop = None;
     if frame_steps.first() == Some(&0)
         && let Err(e) = rec.frame(0, 0.0, &particles)
     {
-        failure = Some(e);
+        stop = Some(e);
     }
-    while failure.is_none() && !solver.finished() {
+    while stop.is_none() && !solver.finished() {
+        if interrupt::requested() {
+            stop = Some(Stop::Interrupted);
+            break;
+        }
         let t = Instant::now();
         let report = match solver.step(&mut particles) {
             Ok(r) => r,
             Err(e) => {
-                failure = Some(e.to_string());
+                stop = Some(Stop::Failed(e.to_string()));
                 break;
             }
         };
@@ -165,7 +174,7 @@ pub fn run<const D: usize>(
         if frame_steps.contains(&report.step)
             && let Err(e) = rec.frame(report.step, report.load_factor * time_scale, &particles)
         {
-            failure = Some(e);
+            stop = Some(e);
         }
     }
     let wall = start.elapsed().as_secs_f64();
@@ -183,7 +192,7 @@ pub fn run<const D: usize>(
         solver.steps(),
         solver.load_factor() * time_scale,
         wall,
-        failure,
+        stop,
         &done,
     )
 }

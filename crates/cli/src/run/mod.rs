@@ -1,28 +1,51 @@
-//! `loam run`: simulate a scene, writing frames, a progress bar or a Newton table, and a run
-//! summary.
+//! `loam run`: simulate a scene, writing frames, a progress display or a Newton table, and a
+//! run summary.
+//!
+//! Before anything is built the scene's size is estimated and checked against the memory
+//! limit ([`crate::preflight`]); an explicit run also checks its fixed time step against the
+//! initial state's stability limit before it writes anything. A signal (Ctrl-C) stops the run
+//! after the step in progress ([`interrupt`]).
+//!
+//! An explicit run can save its state every `N` steps and be continued from it
+//! (`--checkpoint-every N`, `--resume DIR`; [`checkpoint`]). A resumed run goes through the
+//! same checks and the same stepping loop as a fresh one; it keeps the frames up to the
+//! checkpoint and writes the later ones again.
 
 mod checkpoint;
 mod explicit;
 mod implicit;
+pub mod interrupt;
+mod progress;
 
 use crate::Outcome;
-use checkpoint::{Checkpointer, Resume};
+use crate::preflight::{self, MemoryLimit};
+use checkpoint::Resume;
 use loam_core::Particles;
 use loam_core::energy::energy;
 use loam_core::tensor::Vector;
-use loam_scene::output::{EnergySample, FrameWriter, RunStatus, RunSummary, write_summary};
-use loam_scene::{Built, Scene, SolverPlan};
+use loam_scene::output::{
+    EnergySample, FrameWriter, OutputError, RunStatus, RunSummary, write_summary,
+};
+use loam_scene::{Built, Scene, SolverKind, SolverPlan};
 use std::path::{Path, PathBuf};
 
-/// Loads `scene`, runs it and reports; with `checkpoint_every`, an explicit run saves its
-/// state every that many steps. See the module docs of `main` for exit codes.
-pub fn run(
-    path: &Path,
-    out: Option<&Path>,
-    quiet: bool,
-    checkpoint_every: Option<usize>,
-) -> Outcome {
-    let (scene, text) = match Scene::from_path_with_text(path) {
+/// The options of `loam run`.
+pub struct Options<'a> {
+    /// Output folder instead of the scene's.
+    pub out: Option<&'a Path>,
+    /// No progress display and no Newton table.
+    pub quiet: bool,
+    /// Seconds between plain progress lines (when stderr is not a terminal).
+    pub progress_every: f64,
+    /// The memory the run may use.
+    pub memory_limit: Option<MemoryLimit>,
+    /// Explicit runs: save the state every this many steps (`--checkpoint-every`).
+    pub checkpoint_every: Option<usize>,
+}
+
+/// Loads `scene`, runs it and reports; see the module docs of `main` for exit codes.
+pub fn run(path: &Path, options: &Options) -> Outcome {
+    let (scene, text) = match Scene::read_path_with_text(path) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -30,18 +53,16 @@ pub fn run(
         }
     };
     let start = Start {
-        checkpoints: checkpoint_every.map(|n| (text, n)),
+        checkpoints: options.checkpoint_every.map(|n| (text, n)),
         resume: None,
     };
-    match scene.dim() {
-        2 => run_dim::<2>(&scene, path, out, quiet, start),
-        _ => run_dim::<3>(&scene, path, out, quiet, start),
-    }
+    start_run(&scene, path, options, start)
 }
 
 /// Continues the explicit run in `dir` from its checkpoint (`loam run --resume DIR`), with
-/// the scene recorded there; with `checkpoint_every` it keeps saving its state.
-pub fn resume(dir: &Path, quiet: bool, checkpoint_every: Option<usize>) -> Outcome {
+/// the scene recorded there; `options.out` is replaced by `dir`. With
+/// `options.checkpoint_every` it keeps saving its state.
+pub fn resume(dir: &Path, options: &Options) -> Outcome {
     let (resume, scene) = match Resume::open(dir) {
         Ok(r) => r,
         Err(e) => {
@@ -51,29 +72,54 @@ pub fn resume(dir: &Path, quiet: bool, checkpoint_every: Option<usize>) -> Outco
     };
     let path = resume.header.source.clone();
     let start = Start {
-        checkpoints: checkpoint_every.map(|n| (resume.text.clone(), n)),
+        checkpoints: options.checkpoint_every.map(|n| (resume.text.clone(), n)),
         resume: Some(resume),
     };
-    match scene.dim() {
-        2 => run_dim::<2>(&scene, &path, Some(dir), quiet, start),
-        _ => run_dim::<3>(&scene, &path, Some(dir), quiet, start),
-    }
+    let options = Options {
+        out: Some(dir),
+        ..*options
+    };
+    start_run(&scene, &path, &options, start)
 }
 
-/// How a run starts: whether it writes checkpoints (the scene text to record and the
-/// interval) and whether it continues from one.
-struct Start {
+/// How a run starts: whether it writes checkpoints (the scene text to record beside them
+/// and the interval in steps) and whether it continues from one.
+pub struct Start {
     checkpoints: Option<(String, usize)>,
     resume: Option<Resume>,
 }
 
-fn run_dim<const D: usize>(
-    scene: &Scene,
-    path: &Path,
-    out: Option<&Path>,
-    quiet: bool,
-    start: Start,
-) -> Outcome {
+/// The checks before a run (solver kind, size, validation), then the run.
+fn start_run(scene: &Scene, path: &Path, options: &Options, start: Start) -> Outcome {
+    if scene.solver.kind == SolverKind::Implicit
+        && (start.checkpoints.is_some() || start.resume.is_some())
+    {
+        eprintln!(
+            "error: {}: checkpoints and --resume are for explicit runs; this scene runs the \
+             implicit solver",
+            path.display()
+        );
+        return Outcome::BadInput;
+    }
+    if let Err(msg) = preflight::size(scene, options.memory_limit) {
+        eprintln!("error: {}: {msg}", path.display());
+        return Outcome::BadInput;
+    }
+    if let Err(e) = scene.validate() {
+        eprintln!("error: {e}");
+        return Outcome::BadInput;
+    }
+    if let Err(e) = interrupt::install() {
+        eprintln!("error: {e}");
+        return Outcome::Failed;
+    }
+    match scene.dim() {
+        2 => run_dim::<2>(scene, path, options, start),
+        _ => run_dim::<3>(scene, path, options, start),
+    }
+}
+
+fn run_dim<const D: usize>(scene: &Scene, path: &Path, options: &Options, start: Start) -> Outcome {
     let built: Built<D> = match scene.build() {
         Ok(b) => b,
         Err(e) => {
@@ -81,65 +127,58 @@ fn run_dim<const D: usize>(
             return Outcome::BadInput;
         }
     };
-    let dir = out.map_or_else(|| built.output.dir.clone(), Path::to_path_buf);
-    let plan = match built.plan {
-        SolverPlan::Explicit(plan) => plan,
-        SolverPlan::Implicit(plan) => {
-            if start.checkpoints.is_some() || start.resume.is_some() {
-                eprintln!(
-                    "error: {}: checkpoints and --resume are for explicit runs; this scene \
-                     runs the implicit solver",
-                    path.display()
-                );
-                return Outcome::BadInput;
-            }
-            return match Recorder::new(path, &dir, &built) {
-                Ok(rec) => implicit::run(built, plan, rec, quiet),
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    Outcome::Failed
-                }
-            };
-        }
-    };
-    let restart = match &start.resume {
-        None => None,
-        Some(r) => match r.particles::<D>(built.particles.len()) {
-            Ok(p) => Some((r, p)),
-            Err(e) => {
+    let dir = options
+        .out
+        .map_or_else(|| built.output.dir.clone(), Path::to_path_buf);
+    let target = Target { scene: path, dir };
+    match built.plan {
+        SolverPlan::Explicit(plan) => explicit::run(built, plan, target, options, start),
+        SolverPlan::Implicit(plan) => implicit::run(built, plan, target, options),
+    }
+}
+
+/// Where a run writes: the scene file it came from and the output folder.
+pub struct Target<'a> {
+    scene: &'a Path,
+    dir: PathBuf,
+}
+
+impl Target<'_> {
+    /// Opens the output folder (removing an earlier run's files: frames, collection, summary
+    /// and checkpoint) and starts the summary.
+    fn recorder<const D: usize>(&self, built: &Built<D>) -> Result<Recorder<D>, Outcome> {
+        checkpoint::clear(&self.dir)
+            .and_then(|()| {
+                let writer = FrameWriter::create(&self.dir, &built.output.fields)
+                    .map_err(|e| e.to_string())?;
+                Ok(Recorder::new(self.scene, writer, built))
+            })
+            .map_err(|e| {
                 eprintln!("error: {e}");
-                return Outcome::BadInput;
-            }
-        },
-    };
-    let rec = match &restart {
-        None => checkpoint::clear(&dir)
-            .and_then(|()| Recorder::new(path, &dir, &built).map_err(|e| e.to_string())),
-        Some((r, _)) => Recorder::resume(path, &dir, &built, r),
-    };
-    let rec = match rec {
-        Ok(r) => r,
-        Err(e) => {
+                Outcome::Failed
+            })
+    }
+
+    /// Opens the output folder of the run to continue from the checkpoint `from`, keeping
+    /// its frames up to the checkpoint ([`Recorder::resume`]).
+    fn resumed_recorder<const D: usize>(
+        &self,
+        built: &Built<D>,
+        from: &Resume,
+    ) -> Result<Recorder<D>, Outcome> {
+        Recorder::resume(self.scene, &self.dir, built, from).map_err(|e| {
             eprintln!("error: {e}");
-            return Outcome::Failed;
-        }
-    };
-    let checkpoints = match start.checkpoints {
-        None => None,
-        Some((text, every)) => match Checkpointer::create(&dir, path, &text, every) {
-            Ok(c) => Some(c),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return Outcome::Failed;
-            }
-        },
-    };
-    let restart = restart.map(|(r, particles)| explicit::Restart {
-        particles,
-        time: r.header.time,
-        steps: r.header.step as usize,
-    });
-    explicit::run(built, plan, rec, quiet, checkpoints, restart)
+            Outcome::Failed
+        })
+    }
+}
+
+/// Why a run stopped before its end.
+pub enum Stop {
+    /// An error (the message).
+    Failed(String),
+    /// A signal.
+    Interrupted,
 }
 
 /// Writes frames and the summary of a run, whichever solver drives it.
@@ -156,14 +195,11 @@ pub struct Recorder<const D: usize> {
 }
 
 impl<const D: usize> Recorder<D> {
-    fn new(
-        scene: &Path,
-        dir: &Path,
-        built: &Built<D>,
-    ) -> Result<Self, loam_scene::output::OutputError> {
-        Ok(Self {
+    /// A recorder of a run of `scene` that writes its frames with `writer`.
+    fn new(scene: &Path, writer: FrameWriter, built: &Built<D>) -> Self {
+        Self {
             scene: scene.to_path_buf(),
-            writer: FrameWriter::create(dir, &built.output.fields)?,
+            writer,
             initial: built.particles.x.clone(),
             gravity: built.gravity,
             materials: built.materials.clone(),
@@ -189,18 +225,21 @@ impl<const D: usize> Recorder<D> {
                 resumed_from: None,
                 checkpoint: None,
             },
-        })
+        }
     }
 
     /// A recorder that continues the run in `dir` from the checkpoint `from`: the frames
-    /// after its time are dropped ([`FrameWriter::resume`]), and the earlier run's energy
-    /// history up to it is kept when its summary can be read. Displacements stay relative to
-    /// the scene's initial positions.
+    /// after its time are dropped ([`FrameWriter::resume`]), those up to it are kept, and the
+    /// earlier run's energy history up to it is kept when its summary can be read.
+    /// Displacements stay relative to the scene's initial positions.
     fn resume(scene: &Path, dir: &Path, built: &Built<D>, from: &Resume) -> Result<Self, String> {
-        let mut rec = Self::new(scene, dir, built).map_err(|e| e.to_string())?;
         let time = from.header.time;
-        rec.writer = FrameWriter::resume(dir, &built.output.fields, time)
+        let writer = FrameWriter::resume(dir, &built.output.fields, time)
             .map_err(|e| format!("cannot continue the frame series: {e}"))?;
+        let earlier = std::fs::read_to_string(dir.join(FrameWriter::SUMMARY_NAME))
+            .ok()
+            .and_then(|text| serde_json::from_str::<RunSummary>(&text).ok());
+        let mut rec = Self::new(scene, writer, built);
         let s = &mut rec.summary;
         s.frames = rec
             .writer
@@ -208,9 +247,6 @@ impl<const D: usize> Recorder<D> {
             .iter()
             .map(|e| dir.join(&e.file).display().to_string())
             .collect();
-        let earlier = std::fs::read_to_string(dir.join("summary.json"))
-            .ok()
-            .and_then(|text| serde_json::from_str::<RunSummary>(&text).ok());
         if let Some(earlier) = earlier {
             s.energy = earlier
                 .energy
@@ -229,13 +265,14 @@ impl<const D: usize> Recorder<D> {
     }
 
     /// Writes a frame at `time` (simulated time, or load factor for implicit runs) and records
-    /// the energy.
+    /// the energy. A non-finite value in a field is an error naming the step, the field and
+    /// the particles, and the frame is not written.
     pub fn frame(
         &mut self,
         step: usize,
         time: f64,
         particles: &Particles<f64, D>,
-    ) -> Result<(), String> {
+    ) -> Result<(), Stop> {
         let e = energy(particles, &self.materials, &self.gravity);
         self.summary.energy.push(EnergySample {
             step: step as u64,
@@ -248,19 +285,24 @@ impl<const D: usize> Recorder<D> {
         let p = self
             .writer
             .write_frame(time, particles, Some(&self.initial))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| match e {
+                OutputError::NonFinite { .. } => {
+                    Stop::Failed(format!("step {step} (t = {time:.6e} s): {e}"))
+                }
+                e => Stop::Failed(e.to_string()),
+            })?;
         self.summary.frames.push(p.display().to_string());
         Ok(())
     }
 
     /// Completes the summary, writes it and prints the outcome: `done` on success, the error
-    /// and what was kept otherwise.
+    /// or the interruption and what was kept otherwise.
     pub fn finish(
         mut self,
         steps: usize,
         reached: f64,
         wall: f64,
-        failure: Option<String>,
+        stop: Option<Stop>,
         done: &str,
     ) -> Outcome {
         let s = &mut self.summary;
@@ -272,16 +314,38 @@ impl<const D: usize> Recorder<D> {
         if steps == 0 || !s.dt_min.is_finite() {
             s.dt_min = 0.0;
         }
-        if let Some(msg) = &failure {
-            s.status = RunStatus::Failed;
-            s.error = Some(msg.clone());
+        match &stop {
+            None => {}
+            Some(Stop::Failed(msg)) => {
+                s.status = RunStatus::Failed;
+                s.error = Some(msg.clone());
+            }
+            Some(Stop::Interrupted) => s.status = RunStatus::Interrupted,
         }
-        let summary_path = self.writer.dir().join("summary.json");
+        let summary_path = self.writer.dir().join(FrameWriter::SUMMARY_NAME);
         if let Err(e) = write_summary(&summary_path, &self.summary) {
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
-        match failure {
+        let mut kept = format!(
+            "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",
+            self.summary.frames.len(),
+            self.writer.pvd_path().display(),
+            summary_path.display()
+        );
+        // The checkpoint in the folder: the one this run wrote last, else the one it resumed
+        // from (left in place when it wrote none).
+        let s = &self.summary;
+        if let Some(c) = s.checkpoint.as_ref().or(s.resumed_from.as_ref()) {
+            kept.push_str(&format!(
+                "; the checkpoint at step {} (t = {:.4} s) is kept: `loam run --resume {}` \
+                 continues the run",
+                c.step,
+                c.time,
+                self.writer.dir().display()
+            ));
+        }
+        match stop {
             None => {
                 println!(
                     "{}: {done}; wrote {} frames to {} ({})",
@@ -292,15 +356,17 @@ impl<const D: usize> Recorder<D> {
                 );
                 Outcome::Ok
             }
-            Some(msg) => {
+            Some(Stop::Failed(msg)) => {
                 eprintln!("error: {}: {msg}", self.scene.display());
-                eprintln!(
-                    "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",
-                    self.summary.frames.len(),
-                    self.writer.pvd_path().display(),
-                    summary_path.display()
-                );
+                eprintln!("{kept}");
                 Outcome::Failed
+            }
+            Some(Stop::Interrupted) => {
+                eprintln!(
+                    "{}: interrupted after {steps} steps; {kept}",
+                    self.scene.display()
+                );
+                Outcome::Interrupted
             }
         }
     }

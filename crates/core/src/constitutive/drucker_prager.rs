@@ -108,23 +108,10 @@
 //! `c`, `σ_t`) are `T`, so running with a dual `φ` gives `∂σ/∂φ` of the branch taken (exact:
 //! the return is closed form).
 
-use super::{Constitutive, Kinematics, Lame, MaterialState};
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region};
 use crate::scalar::Scalar;
 use crate::tensor::det;
 use nalgebra::Matrix3;
-
-/// Which return a [`DruckerPrager`] stress update took (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DpRegion {
-    /// Inside the elastic domain: `σ = σᵗʳ`.
-    Elastic,
-    /// Return to the cone along the plastic potential.
-    Shear,
-    /// Return to the tension cutoff plane `p = σ_t` (deviator unchanged).
-    Tension,
-    /// Return to the corner where the cone meets the cutoff (the apex when `σ_t = c cot φ`).
-    Corner,
-}
 
 /// Non-associated Drucker–Prager elastoplasticity with a tension cutoff, hypoelastic with the
 /// Jaumann rate: `f = √J₂ + α I₁ − k`, `g = √J₂ + α_ψ I₁`, `p = I₁/3 ≤ σ_t`, perfectly
@@ -264,7 +251,7 @@ impl<T: Scalar> DruckerPrager<T> {
         &self,
         sigma_trial: &Matrix3<T>,
         state: &MaterialState<T>,
-    ) -> (Matrix3<T>, MaterialState<T>, DpRegion) {
+    ) -> (Matrix3<T>, MaterialState<T>, Region) {
         let three = T::cst(3.0);
         let id = Matrix3::identity();
         let (p_tr, s_tr) = split(sigma_trial);
@@ -280,7 +267,7 @@ impl<T: Scalar> DruckerPrager<T> {
                 plastic_strain: state.plastic_strain,
                 tensor: id + self.compliance(sigma_trial) * T::cst(2.0),
             };
-            return (*sigma_trial, state, DpRegion::Elastic);
+            return (*sigma_trial, state, Region::Elastic);
         }
         let mu = self.lame.mu;
         let bulk = self.bulk_modulus();
@@ -291,14 +278,14 @@ impl<T: Scalar> DruckerPrager<T> {
             let q = q_tr - mu * dgamma;
             if q.re() >= q_c.re() {
                 let p = p_tr - bulk * alpha_psi * dgamma * three;
-                result = Some((s_tr * (q / q_tr) + id * p, DpRegion::Shear));
+                result = Some((s_tr * (q / q_tr) + id * p, Region::Shear));
             }
         }
         let (sigma, region) = result.unwrap_or_else(|| {
             if q_tr.re() <= q_c.re() {
-                (s_tr + id * sigma_t, DpRegion::Tension)
+                (s_tr + id * sigma_t, Region::Tension)
             } else {
-                (s_tr * (q_c / q_tr) + id * sigma_t, DpRegion::Corner)
+                (s_tr * (q_c / q_tr) + id * sigma_t, Region::Corner)
             }
         });
         let eps_e = self.compliance(&sigma);
@@ -317,7 +304,7 @@ impl<T: Scalar> DruckerPrager<T> {
         sigma_n: &Matrix3<T>,
         dl: &Matrix3<T>,
         state: &MaterialState<T>,
-    ) -> (Matrix3<T>, MaterialState<T>, DpRegion) {
+    ) -> (Matrix3<T>, MaterialState<T>, Region) {
         self.return_map(&self.trial_stress(sigma_n, dl), state)
     }
 
@@ -338,6 +325,19 @@ impl<T: Scalar> DruckerPrager<T> {
         let dl = delta_f - Matrix3::identity();
         let (sigma, state, _) = self.stress_update(&sigma_n, &dl, state);
         (sigma * det::<T, 3>(f), state)
+    }
+
+    /// The explicit stress update: [`DruckerPrager::stress_update`] from `kin.stress` with
+    /// `ΔL = kin.dt · L`; commits the new state and returns the region taken.
+    pub fn update_region(
+        &self,
+        kin: &Kinematics<'_, T>,
+        state: &mut MaterialState<T>,
+    ) -> (Matrix3<T>, Region) {
+        let dl = kin.velocity_gradient * kin.dt;
+        let (sigma, new_state, region) = self.stress_update(kin.stress, &dl, state);
+        *state = new_state;
+        (sigma, region)
     }
 
     /// Stored elastic energy per unit reference volume,
@@ -371,10 +371,7 @@ impl<T: Scalar> Constitutive<T> for DruckerPrager<T> {
     /// [`DruckerPrager::stress_update`] from `kin.stress` with `ΔL = kin.dt · L`; commits the
     /// new state.
     fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
-        let dl = kin.velocity_gradient * kin.dt;
-        let (sigma, new_state, _) = self.stress_update(kin.stress, &dl, state);
-        *state = new_state;
-        sigma
+        self.update_region(kin, state).0
     }
 
     /// `λ + 2μ`: the elastic constrained modulus bounds the wave speed (plastic flow only

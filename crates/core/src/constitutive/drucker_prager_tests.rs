@@ -78,7 +78,7 @@ fn small_strains_follow_the_linear_law() {
         let eps = (dl + dl.transpose()) * 0.5;
         let expected = m.lame.stress(&eps);
         let (sigma, state, region) = m.stress_update(&Matrix3::zeros(), &dl, &Default::default());
-        assert_eq!(region, DpRegion::Elastic);
+        assert_eq!(region, Region::Elastic);
         assert!(
             (sigma - expected).norm() < 1e-12 * expected.norm(),
             "{dim}D"
@@ -106,7 +106,7 @@ fn small_strains_follow_the_linear_law() {
         let mut st = MaterialState::default();
         for _ in 0..10 {
             let (s1, st1, r) = m.stress_update(&s, &d, &st);
-            assert_eq!(r, DpRegion::Elastic);
+            assert_eq!(r, Region::Elastic);
             (s, st) = (s1, st1);
         }
         let expected = m.lame.stress(&(d * 10.0));
@@ -145,7 +145,7 @@ fn check_step(
     sigma_n: &Matrix3<f64>,
     dl: &Matrix3<f64>,
     state: &MaterialState<f64>,
-) -> (Matrix3<f64>, MaterialState<f64>, DpRegion) {
+) -> (Matrix3<f64>, MaterialState<f64>, Region) {
     let (sigma, new_state, region) = m.stress_update(sigma_n, dl, state);
     let trial = m.trial_stress(sigma_n, dl);
     let (alpha, k) = (m.alpha(), m.k());
@@ -162,18 +162,18 @@ fn check_step(
         "{region:?}: p = {p:e} > σ_t = {sigma_t:e}"
     );
     match region {
-        DpRegion::Elastic => {
+        Region::Elastic => {
             assert_eq!(sigma, trial);
             assert_eq!(new_state.plastic_strain, state.plastic_strain);
         }
-        DpRegion::Shear => assert!(f.abs() <= tol, "shear: |f| = {f:e}"),
-        DpRegion::Tension => assert!((p - sigma_t).abs() <= tol, "tension: p − σ_t"),
-        DpRegion::Corner => {
+        Region::Shear => assert!(f.abs() <= tol, "shear: |f| = {f:e}"),
+        Region::Tension => assert!((p - sigma_t).abs() <= tol, "tension: p − σ_t"),
+        Region::Corner => {
             assert!(f.abs() <= tol, "corner: |f| = {f:e}");
             assert!((p - sigma_t).abs() <= tol, "corner: p − σ_t");
         }
     }
-    if region != DpRegion::Elastic {
+    if region != Region::Elastic {
         // The trial was outside: f(σᵗʳ) > 0 or pᵗʳ > σ_t.
         assert!(m.yield_function(&trial) > 0.0 || mean(&trial) > sigma_t);
         let deps_p = m.compliance(&(trial - sigma));
@@ -237,7 +237,7 @@ fn return_is_continuous_across_regions() {
     let n = matrix![1.0, 0.3, 0.0; 0.3, -0.5, 0.2; 0.0, 0.2, -0.5];
     let n = deviator(&n) / deviator(&n).norm();
     for q_scale in [1.0e3, 5.0e3, 2.0e4] {
-        let mut last: Option<(Matrix3<f64>, DpRegion)> = None;
+        let mut last: Option<(Matrix3<f64>, Region)> = None;
         let mut seen = Vec::new();
         for i in 0..=4000 {
             let p = -8.0e4 + 40.0 * i as f64;
@@ -287,7 +287,7 @@ fn plastic_flow_follows_the_potential() {
                     let deps = m.compliance(&(trial - s));
                     let norm = deps.norm();
                     match region {
-                        DpRegion::Shear => {
+                        Region::Shear => {
                             shear_steps += 1;
                             let dev = deviator(&deps);
                             let ratio = deps.trace() / dev.norm();
@@ -307,7 +307,7 @@ fn plastic_flow_follows_the_potential() {
                                 assert!(gap < 1e-9, "associated: {gap:e}");
                             }
                         }
-                        DpRegion::Tension => {
+                        Region::Tension => {
                             tension_steps += 1;
                             assert!(deviator(&deps).norm() < 1e-10 * norm, "volumetric");
                             assert!(deps.trace() > 0.0, "the cutoff flow expands");
@@ -391,7 +391,7 @@ fn controlled_step(
     d_axial: f64,
     lateral: &[usize],
     target: f64,
-) -> (Matrix3<f64>, MaterialState<f64>, DpRegion) {
+) -> (Matrix3<f64>, MaterialState<f64>, Region) {
     let run = |x: f64| {
         let mut dl = Matrix3::zeros();
         dl[(0, 0)] = d_axial;
@@ -445,7 +445,7 @@ fn triaxial_compression_reaches_the_closed_form_peak() {
                 q <= q_peak * (1.0 + 1e-9),
                 "q = {q} above the peak {q_peak}"
             );
-            if region == DpRegion::Shear && first_plastic.is_none() {
+            if region == Region::Shear && first_plastic.is_none() {
                 first_plastic = Some(step);
             }
             q_last = q;
@@ -658,12 +658,12 @@ fn friction_angle_derivative_matches_central_differences() {
                 assert_eq!(rp, r0);
                 assert_eq!(rm, r0);
                 assert_eq!(regions, r0);
-                let plastic = r0.iter().filter(|&&r| r != DpRegion::Elastic).count();
+                let plastic = r0.iter().filter(|&&r| r != Region::Elastic).count();
                 assert!(plastic > 10, "{r0:?}");
                 let fd = (sp - sm) / (2.0 * h);
                 let dual = sigma.map(|x| x.eps);
                 assert!((sigma.map(|x| x.re) - s0).norm() < 1e-9 * s0.norm());
-                let shear = r0.iter().filter(|&&r| r == DpRegion::Shear).count();
+                let shear = r0.iter().filter(|&&r| r == Region::Shear).count();
                 // Corner and tension returns do not depend on ψ: its derivative vanishes on
                 // the extension path, which has a single shear step at its start.
                 if which != 1 || shear > 10 {
@@ -706,7 +706,7 @@ fn material_dispatch_matches_the_direct_calls() {
         stress: &sigma_n,
     };
     let (direct, direct_state, region) = m.stress_update(&sigma_n, &(l * dt), &state);
-    assert_ne!(region, DpRegion::Elastic, "a plastic step");
+    assert_ne!(region, Region::Elastic, "a plastic step");
     let mut s1 = state;
     assert_eq!(mat.update(&kin, &mut s1), direct);
     assert_eq!(s1, direct_state);
@@ -752,7 +752,7 @@ fn elastic_drucker_prager_never_yields() {
         for _ in 0..20 {
             let dl = random_dl(&mut seed, 3, 1e-2, bias);
             let (s, st, region) = m.stress_update(&sigma, &dl, &state);
-            assert_eq!(region, DpRegion::Elastic);
+            assert_eq!(region, Region::Elastic);
             assert!(s.iter().all(|x| x.is_finite()));
             (sigma, state) = (s, st);
         }
@@ -769,7 +769,7 @@ fn isotropic_extension_returns_to_the_apex_without_nan() {
         let m = dp(30.0, 10.0, c, None);
         let dl = Matrix3::identity() * 1e-3;
         let (s, st, region) = m.stress_update(&Matrix3::zeros(), &dl, &MaterialState::default());
-        assert_eq!(region, DpRegion::Tension);
+        assert_eq!(region, Region::Tension);
         assert!((s - Matrix3::identity() * m.apex()).norm() <= 1e-12 * COHESION);
         assert!(st.plastic_strain > 0.0);
         let mut md = m.lift::<Dual64>();

@@ -20,7 +20,7 @@
 //! logarithm / exponential go through [`symmetric_fn`], so a dual-number evaluation gives the
 //! exact consistent (algorithmic) tangent, also at repeated principal stretches.
 
-use super::{Constitutive, Kinematics, Lame, MaterialState};
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region};
 use crate::scalar::Scalar;
 use crate::spectral::{Exp, Log, symmetric_fn};
 use crate::tensor::det;
@@ -77,6 +77,17 @@ impl<T: Scalar> J2<T> {
         delta_f: &Matrix3<T>,
         state: &MaterialState<T>,
     ) -> (Matrix3<T>, MaterialState<T>) {
+        let (tau, state, _) = self.return_map(delta_f, state);
+        (tau, state)
+    }
+
+    /// [`J2::kirchhoff_update`] with the branch it took: [`Region::Elastic`] or
+    /// [`Region::Shear`] (the radial return).
+    pub fn return_map(
+        &self,
+        delta_f: &Matrix3<T>,
+        state: &MaterialState<T>,
+    ) -> (Matrix3<T>, MaterialState<T>, Region) {
         let half = T::cst(0.5);
         let b = delta_f * state.tensor * delta_f.transpose();
         // Symmetrised so that round-off asymmetry does not accumulate over many steps.
@@ -92,7 +103,7 @@ impl<T: Scalar> J2<T> {
                 plastic_strain: state.plastic_strain,
                 tensor: b_trial,
             };
-            return (tau_trial, elastic);
+            return (tau_trial, elastic, Region::Elastic);
         }
         let two_mu = self.lame.mu * T::cst(2.0);
         let dgamma = f / (two_mu + self.hardening * T::cst(2.0 / 3.0));
@@ -103,7 +114,19 @@ impl<T: Scalar> J2<T> {
             plastic_strain: state.plastic_strain + dgamma * T::cst(2.0 / 3.0).sqrt(),
             tensor: symmetric_fn(&(eps * T::cst(2.0)), &Exp),
         };
-        (tau, plastic)
+        (tau, plastic, Region::Shear)
+    }
+
+    /// The explicit stress update: `σ = τ / det F` with `τ` from [`J2::return_map`] on
+    /// `kin.delta_f`; commits the new state and returns the branch taken.
+    pub fn update_region(
+        &self,
+        kin: &Kinematics<'_, T>,
+        state: &mut MaterialState<T>,
+    ) -> (Matrix3<T>, Region) {
+        let (tau, new_state, region) = self.return_map(kin.delta_f, state);
+        *state = new_state;
+        (tau / det::<T, 3>(kin.f), region)
     }
 
     /// Elastic stored energy per unit reference volume of a state,
@@ -118,9 +141,7 @@ impl<T: Scalar> Constitutive<T> for J2<T> {
     /// `σ = τ / det F` with `τ` from [`J2::kirchhoff_update`] on `kin.delta_f`; commits the new
     /// state.
     fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
-        let (tau, new_state) = self.kirchhoff_update(kin.delta_f, state);
-        *state = new_state;
-        tau / det::<T, 3>(kin.f)
+        self.update_region(kin, state).0
     }
 
     /// `λ + 2μ`: the elastic constrained modulus bounds the wave speed.

@@ -12,7 +12,7 @@ mod j2;
 mod linear_elastic;
 mod neo_hookean;
 
-pub use drucker_prager::{DpRegion, DruckerPrager};
+pub use drucker_prager::DruckerPrager;
 pub use fluid::Fluid;
 pub use hencky::Hencky;
 pub use j2::J2;
@@ -81,6 +81,16 @@ pub struct MaterialState<T> {
     pub tensor: Matrix3<T>,
 }
 
+impl MaterialState<f64> {
+    /// The same state as constants of another scalar type.
+    pub fn lift<T: Scalar>(&self) -> MaterialState<T> {
+        MaterialState {
+            plastic_strain: T::cst(self.plastic_strain),
+            tensor: self.tensor.map(T::cst),
+        }
+    }
+}
+
 impl<T: Scalar> Default for MaterialState<T> {
     fn default() -> Self {
         Self {
@@ -103,6 +113,24 @@ pub struct Kinematics<'a, T> {
     pub dt: T,
     /// Cauchy stress at the start of the step (rate models integrate from it).
     pub stress: &'a Matrix3<T>,
+}
+
+/// Which branch a stress update took: what a reverse pass replays. Branches are decided on
+/// real parts; the dual parts follow the branch taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Region {
+    /// No return mapping: elastic models, the fluid, and a trial state inside the yield
+    /// surface.
+    #[default]
+    Elastic,
+    /// Return to the yield surface along the flow direction: [`J2`]'s radial return, or
+    /// [`DruckerPrager`]'s return to the cone along its plastic potential.
+    Shear,
+    /// [`DruckerPrager`]: return to the tension cutoff plane `p = σ_t` (deviator unchanged).
+    Tension,
+    /// [`DruckerPrager`]: return to the corner where the cone meets the cutoff (the apex when
+    /// `σ_t = c cot φ`).
+    Corner,
 }
 
 /// A constitutive model: kinematics and history in, Cauchy stress and new history out.
@@ -199,8 +227,9 @@ impl ModelKind {
 /// once per particle.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material<T> {
-    /// Reference mass density `ρ₀`.
-    pub density: f64,
+    /// Reference mass density `ρ₀` (a `T`: a derivative with respect to it reaches the run
+    /// through the particle masses `m_p = ρ₀ V_p⁰` built from it).
+    pub density: T,
     /// The constitutive model and its parameters.
     pub model: Model<T>,
 }
@@ -236,7 +265,7 @@ impl<T: Scalar> Material<T> {
     ///
     /// On [`ModelKind::Fluid`]: a fluid has no Young's modulus or Poisson's ratio (and no
     /// shear stiffness), so there is no elastic fluid to build; use [`Material::fluid`].
-    pub fn elastic(kind: ModelKind, young: T, poisson: T, density: f64) -> Self {
+    pub fn elastic(kind: ModelKind, young: T, poisson: T, density: T) -> Self {
         let lame = Lame::from_young_poisson(young, poisson);
         let model = match kind {
             ModelKind::LinearElastic => Model::LinearElastic(LinearElastic { lame }),
@@ -264,7 +293,7 @@ impl<T: Scalar> Material<T> {
 
     /// A [`J2`] elastoplastic material from `E`, `ν`, the uniaxial yield stress `σ_y`, the
     /// linear hardening modulus `H` (`0` for perfect plasticity) and `ρ₀`.
-    pub fn j2(young: T, poisson: T, yield_stress: T, hardening: T, density: f64) -> Self {
+    pub fn j2(young: T, poisson: T, yield_stress: T, hardening: T, density: T) -> Self {
         Self {
             density,
             model: Model::J2(J2 {
@@ -278,7 +307,7 @@ impl<T: Scalar> Material<T> {
     /// A weakly compressible Newtonian [`Fluid`] from its bulk modulus `K` (Pa), Tait exponent
     /// `γ ≥ 1`, dynamic viscosity `η ≥ 0` (Pa·s) and `ρ₀`. (From a sound speed `c`:
     /// `K = ρ₀ c²`, see [`Fluid::from_sound_speed`].)
-    pub fn fluid(bulk_modulus: T, gamma: T, viscosity: T, density: f64) -> Self {
+    pub fn fluid(bulk_modulus: T, gamma: T, viscosity: T, density: T) -> Self {
         Self {
             density,
             model: Model::Fluid(Fluid {
@@ -301,7 +330,7 @@ impl<T: Scalar> Material<T> {
         dilation_angle: T,
         cohesion: T,
         tension_cutoff: Option<T>,
-        density: f64,
+        density: T,
     ) -> Self {
         Self {
             density,
@@ -318,7 +347,7 @@ impl<T: Scalar> Material<T> {
     /// Elastic P-wave speed `c = √(M/ρ₀)` (real part); the sound speed `√(K/ρ₀)` of a
     /// [`Fluid`].
     pub fn wave_speed(&self) -> f64 {
-        (self.constitutive().p_wave_modulus() / self.density).sqrt()
+        (self.constitutive().p_wave_modulus() / self.density.re()).sqrt()
     }
 
     /// The model as a trait object (for code that does not need static dispatch).
@@ -380,13 +409,24 @@ impl<T: Scalar> Material<T> {
     /// Stress update by static dispatch on the model.
     #[inline]
     pub fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
+        self.update_region(kin, state).0
+    }
+
+    /// [`Material::update`] with the branch the update took ([`Region::Elastic`] for the
+    /// models without a return mapping), for a step record.
+    #[inline]
+    pub fn update_region(
+        &self,
+        kin: &Kinematics<'_, T>,
+        state: &mut MaterialState<T>,
+    ) -> (Matrix3<T>, Region) {
         match &self.model {
-            Model::LinearElastic(m) => m.update(kin, state),
-            Model::NeoHookean(m) => m.update(kin, state),
-            Model::Hencky(m) => m.update(kin, state),
-            Model::J2(m) => m.update(kin, state),
-            Model::Fluid(m) => m.update(kin, state),
-            Model::DruckerPrager(m) => m.update(kin, state),
+            Model::LinearElastic(m) => (m.update(kin, state), Region::Elastic),
+            Model::NeoHookean(m) => (m.update(kin, state), Region::Elastic),
+            Model::Hencky(m) => (m.update(kin, state), Region::Elastic),
+            Model::J2(m) => m.update_region(kin, state),
+            Model::Fluid(m) => (m.update(kin, state), Region::Elastic),
+            Model::DruckerPrager(m) => m.update_region(kin, state),
         }
     }
 }
@@ -414,7 +454,7 @@ impl Material<f64> {
             Model::DruckerPrager(m) => Model::DruckerPrager(m.lift()),
         };
         Material {
-            density: self.density,
+            density: T::cst(self.density),
             model,
         }
     }

@@ -122,14 +122,14 @@ impl<T: Scalar, const D: usize> FrictionSegment<T, D> {
 /// The nodal Coulomb contact law: `v` is the velocity relative to the rigid surface, `n` the
 /// unit normal pointing into the rigid body. If `Δv_n = v·n > 0` (approaching), removes the
 /// normal part and reduces the tangential part `v_t` by `min(μ Δv_n, |v_t|)` along `v_t`;
-/// returns whether the node was in contact.
+/// returns which branch it took ([`Touch`]).
 /// A separating node is untouched. Branches are taken on real parts; `μ` may be a dual
 /// number (the slide branch is differentiable in `μ`, the stick branch has `v_t ≡ 0`).
 #[inline]
-pub fn coulomb<T: Scalar, const D: usize>(v: &mut Vector<T, D>, n: &Vector<T, D>, mu: T) -> bool {
+pub fn coulomb<T: Scalar, const D: usize>(v: &mut Vector<T, D>, n: &Vector<T, D>, mu: T) -> Touch {
     let vn = v.dot(n);
     if vn.re() <= 0.0 {
-        return false;
+        return Touch::Separate;
     }
     *v -= n * vn;
     let vt = v.norm();
@@ -138,11 +138,36 @@ pub fn coulomb<T: Scalar, const D: usize>(v: &mut Vector<T, D>, n: &Vector<T, D>
         if vt.re() > 0.0 || mu.re() > 0.0 {
             *v = Vector::zeros();
         }
+        Touch::Stick
     } else {
         let scale = slip / vt;
         *v -= *v * scale;
+        Touch::Slip
     }
-    true
+}
+
+/// The branch [`coulomb`] took at a node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Touch {
+    /// Separating (`Δv_n ≤ 0`): the velocity is untouched.
+    Separate,
+    /// Approaching within the friction cone (`|v_t| ≤ μ Δv_n`): the relative velocity is
+    /// removed.
+    Stick,
+    /// Approaching outside the cone: the normal part is removed and `|v_t|` reduced by
+    /// `μ Δv_n`.
+    Slip,
+}
+
+/// The constraints of [`Contact`] that acted on a node: bit `2·axis + side` for a face, bit
+/// `2·D + k` for obstacle `k` (at most [`Contact::MAX_OBSTACLES`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ContactSet {
+    /// The constraints the node approached (stick or slip): the active set that
+    /// [`Contact::enforce`] applies again.
+    pub active: u64,
+    /// Those of `active` on which the node slid ([`Touch::Slip`]); the others stuck.
+    pub slip: u64,
 }
 
 /// Coulomb friction segments on grid walls and rigid obstacles (see the [module](self)
@@ -189,9 +214,16 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
     /// the node), then every obstacle whose contact layer holds the node, each by [`coulomb`]
     /// on the velocity relative to the surface. Returns the active set, the constraints that
     /// acted (the node approached): bit `2·axis + side` for a face, bit `2·D + k` for
-    /// obstacle `k` (at most [`Contact::MAX_OBSTACLES`]), for [`Contact::enforce`].
+    /// obstacle `k` (at most [`Contact::MAX_OBSTACLES`]), for [`Contact::enforce`], and which
+    /// of them slid.
     #[inline]
-    pub fn apply(&self, grid: &Grid<D>, node: [usize; D], time: f64, v: &mut Vector<T, D>) -> u64 {
+    pub fn apply(
+        &self,
+        grid: &Grid<D>,
+        node: [usize; D],
+        time: f64,
+        v: &mut Vector<T, D>,
+    ) -> ContactSet {
         self.act(grid, node, time, v, None)
     }
 
@@ -223,21 +255,30 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         time: f64,
         v: &mut Vector<T, D>,
         given: Option<u64>,
-    ) -> u64 {
+    ) -> ContactSet {
+        let mut acted = ContactSet::default();
         if self.is_empty() {
-            return 0;
+            return acted;
         }
         // The law on the velocity `w` relative to a surface with inward normal `n`: Coulomb
-        // for `apply`, removal of the normal part on the given constraints for `enforce`.
+        // for `apply`, removal of the normal part on the given constraints for `enforce`
+        // (reported as a stick: `enforce` keeps no set).
         let law = |w: &mut Vector<T, D>, n: &Vector<T, D>, mu: T, bit: u64| match given {
             None => coulomb(w, n, mu),
             Some(active) if active & bit != 0 => {
                 *w -= n * w.dot(n);
-                true
+                Touch::Stick
             }
-            Some(_) => false,
+            Some(_) => Touch::Separate,
         };
-        let mut acted = 0;
+        let mut record = |touch: Touch, bit: u64| {
+            if touch != Touch::Separate {
+                acted.active |= bit;
+            }
+            if touch == Touch::Slip {
+                acted.slip |= bit;
+            }
+        };
         let mut faces_done = [[false; 2]; D];
         for s in &self.segments {
             if faces_done[s.axis][s.side] || !s.contains(grid, node) {
@@ -245,9 +286,7 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
             }
             faces_done[s.axis][s.side] = true;
             let bit = 1 << (2 * s.axis + s.side);
-            if law(v, &s.normal(), s.mu, bit) {
-                acted |= bit;
-            }
+            record(law(v, &s.normal(), s.mu, bit), bit);
         }
         if self.obstacles.is_empty() {
             return acted;
@@ -262,13 +301,14 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
                 continue;
             }
             let bit = 1 << (2 * D + k);
-            let vo = Vector::<T, D>::from_fn(|a, _| T::cst(ob.velocity[a]));
+            let vo = ob.velocity;
             let n_in = Vector::<T, D>::from_fn(|a, _| T::cst(-n_out[a]));
             let mut vr = *v - vo;
-            if law(&mut vr, &n_in, ob.mu, bit) {
+            let touch = law(&mut vr, &n_in, ob.mu, bit);
+            if touch != Touch::Separate {
                 *v = vr + vo;
-                acted |= bit;
             }
+            record(touch, bit);
         }
         acted
     }
@@ -281,6 +321,37 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         self.obstacles
             .iter()
             .position(|ob| ob.distance(x, time).0 < -1e-9 * ob.shape.size())
+    }
+}
+
+impl<const D: usize> Contact<f64, D> {
+    /// The same contact with its parameters (each segment's and obstacle's `μ`, each
+    /// obstacle's velocity) as constants of another scalar type; seed the derivative parts of
+    /// the result to differentiate with respect to one of them.
+    pub fn lift<T: Scalar>(&self) -> Contact<T, D> {
+        Contact {
+            segments: self
+                .segments
+                .iter()
+                .map(|s| FrictionSegment {
+                    axis: s.axis,
+                    side: s.side,
+                    from: s.from,
+                    to: s.to,
+                    mu: T::cst(s.mu),
+                })
+                .collect(),
+            obstacles: self
+                .obstacles
+                .iter()
+                .map(|o| Obstacle {
+                    shape: o.shape.clone(),
+                    velocity: o.velocity.map(T::cst),
+                    mu: T::cst(o.mu),
+                })
+                .collect(),
+            support: self.support,
+        }
     }
 }
 
@@ -299,7 +370,7 @@ mod tests {
     fn sticks_when_the_tangential_speed_is_within_the_cone() {
         // Δv_n = 1, |v_t| = 0.4 ≤ μ Δv_n = 0.5: stops.
         let mut v = V2::new(0.4, -1.0);
-        assert!(coulomb(&mut v, &floor(), 0.5));
+        assert_eq!(coulomb(&mut v, &floor(), 0.5), Touch::Stick);
         assert_eq!(v, V2::zeros());
     }
 
@@ -307,7 +378,7 @@ mod tests {
     fn slides_with_the_tangential_speed_reduced_by_mu_dvn() {
         // Δv_n = 2, μ = 0.25: |v_t| goes from 3 to 3 − 0.5 along v_t.
         let mut v = V2::new(-3.0, -2.0);
-        coulomb(&mut v, &floor(), 0.25);
+        assert_eq!(coulomb(&mut v, &floor(), 0.25), Touch::Slip);
         assert_eq!(v, V2::new(-2.5, 0.0));
         // In 3D the reduction is along v_t.
         let mut v = Vector::<f64, 3>::new(3.0, -1.0, 4.0);
@@ -320,7 +391,7 @@ mod tests {
     fn separating_nodes_are_untouched() {
         for v0 in [V2::new(1.0, 0.5), V2::new(-2.0, 0.0)] {
             let mut v = v0;
-            assert!(!coulomb(&mut v, &floor(), 0.7));
+            assert_eq!(coulomb(&mut v, &floor(), 0.7), Touch::Separate);
             assert_eq!(v, v0);
         }
     }
@@ -358,8 +429,10 @@ mod tests {
         c.segments.push(FrictionSegment::whole_face(1, 0, 0.5));
         let floor_node = [4, 2];
         let mut v = V2::new(1.0, -0.5);
-        let active = c.apply(&g, floor_node, 0.0, &mut v);
-        assert_eq!(active, 1 << 2, "the y_min face (bit 2·1 + 0) acted");
+        let set = c.apply(&g, floor_node, 0.0, &mut v);
+        assert_eq!(set.active, 1 << 2, "the y_min face (bit 2·1 + 0) acted");
+        assert_eq!(set.slip, 1 << 2, "|v_t| = 1 > μ Δv_n = 0.25: it slid");
+        let active = set.active;
         assert_eq!(
             v,
             V2::new(0.75, 0.0),
@@ -444,7 +517,7 @@ mod tests {
         // centre is at (0.5, 1.2).
         c.obstacles.push(Obstacle {
             shape: ObstacleShape::disk([0.5, 1.0], 0.3),
-            velocity: [0.0, 1.0],
+            velocity: Vector::from([0.0, 1.0]),
             mu: 0.5,
         });
         // Node at (0.5, 1.6): φ = 0.1 at t = 0.2 (n = +y); a resting node is approached by

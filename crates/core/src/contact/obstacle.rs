@@ -5,6 +5,7 @@
 //! scalar `T`.
 
 use crate::scalar::Scalar;
+use crate::tensor::Vector;
 
 /// The shape of a rigid obstacle at time 0.
 #[derive(Clone, Debug, PartialEq)]
@@ -182,8 +183,9 @@ impl<const D: usize> ObstacleShape<D> {
 pub struct Obstacle<T: Scalar, const D: usize> {
     /// The shape at time 0.
     pub shape: ObstacleShape<D>,
-    /// Constant velocity `v_o` (m/s); zero for a static obstacle.
-    pub velocity: [f64; D],
+    /// Constant velocity `v_o` (m/s); zero for a static obstacle. A `T`, so that the contact
+    /// law is differentiable in it; the geometry moves with its real part (geometry is `f64`).
+    pub velocity: Vector<T, D>,
     /// Coulomb friction coefficient `μ ≥ 0` (0: frictionless).
     pub mu: T,
 }
@@ -193,7 +195,7 @@ impl<T: Scalar, const D: usize> Obstacle<T, D> {
     pub fn fixed(shape: ObstacleShape<D>, mu: T) -> Self {
         Self {
             shape,
-            velocity: [0.0; D],
+            velocity: Vector::zeros(),
             mu,
         }
     }
@@ -202,7 +204,7 @@ impl<T: Scalar, const D: usize> Obstacle<T, D> {
     /// at `x − v_o t`.
     #[inline]
     pub fn distance(&self, x: &[f64; D], time: f64) -> (f64, [f64; D]) {
-        let x0: [f64; D] = std::array::from_fn(|a| x[a] - self.velocity[a] * time);
+        let x0: [f64; D] = std::array::from_fn(|a| x[a] - self.velocity[a].re() * time);
         self.shape.distance(&x0)
     }
 }
@@ -295,7 +297,7 @@ mod tests {
                 lo: [0.0, 0.0],
                 hi: [1.0, 1.0],
             },
-            velocity: [2.0, 0.0],
+            velocity: [2.0, 0.0].into(),
             mu: 0.0,
         };
         assert!((o.distance(&[2.5, 0.5], 0.0).0 - 1.5).abs() < 1e-15);

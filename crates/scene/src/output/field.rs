@@ -36,11 +36,14 @@ pub enum Field {
     /// of the particles, `L = Σ m (x × v) + Σ m ε:(C D)` (`D = κh² I`), can be audited
     /// from the frames (`docs/scene-format.md`).
     Affine,
+    /// The particle's id: its index in the particle arrays (bodies in file order), the number
+    /// that run errors quote.
+    Id,
 }
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 11] = [
+    pub const ALL: [Field; 12] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
@@ -52,6 +55,7 @@ impl Field {
         Field::Mass,
         Field::MaterialId,
         Field::Affine,
+        Field::Id,
     ];
 
     /// The field's name, in scene files and as the `.vtu` array name.
@@ -68,6 +72,7 @@ impl Field {
             Field::Mass => "mass",
             Field::MaterialId => "material_id",
             Field::Affine => "affine",
+            Field::Id => "id",
         }
     }
 }

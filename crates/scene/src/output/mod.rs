@@ -2,11 +2,15 @@
 //!
 //! - [`FrameWriter`] writes one `.vtu` file per frame ([`write_vtu`]) into an output folder
 //!   and, after every frame, rewrites the `.pvd` collection ([`write_pvd`]) that lists them
-//!   with their times, so a run that stops early still leaves a valid series.
+//!   with their times, so a run that stops early still leaves a valid series. It first
+//!   removes the files of an earlier run in that folder, so the folder never mixes two runs;
+//!   a writer that [resumes](FrameWriter::resume) a run keeps that run's frames up to the
+//!   saved state and removes only the later ones.
 //! - [`write_summary`] writes a [`RunSummary`] as JSON.
 //!
-//! Files that are rewritten (the `.pvd`, the summary) are written to a temporary file in the
-//! same folder and renamed over the old one, so readers never see a half-written file.
+//! Every file (frames, the `.pvd`, the summary) is written to a temporary file in the same
+//! folder (its name with `.tmp` appended) and renamed, so readers never see a half-written
+//! file, and a run killed while writing leaves at most a `.tmp` file behind.
 
 mod field;
 mod pvd;
@@ -58,6 +62,19 @@ pub enum OutputError {
         /// What is wrong with it.
         message: String,
     },
+    /// A frame would hold a NaN or an infinity; nothing was written.
+    #[error(
+        "non-finite {field} in {} particle(s), first ids {:?}{hint}",
+        ids.len(), &ids[..ids.len().min(8)]
+    )]
+    NonFinite {
+        /// The field (`position` or a [`Field`] name).
+        field: String,
+        /// The particles, by id.
+        ids: Vec<usize>,
+        /// What it may mean (empty when nothing more is known).
+        hint: String,
+    },
     /// The initial positions passed for the displacement field do not match the particles.
     #[error("{given} initial positions were given for {particles} particles")]
     InitialPositions {
@@ -99,13 +116,28 @@ impl FrameWriter {
     /// File name of the collection in the output folder.
     pub const PVD_NAME: &'static str = "particles.pvd";
 
+    /// File name of the run summary in the output folder.
+    pub const SUMMARY_NAME: &'static str = "summary.json";
+
     /// A writer into `dir` (created if missing) that writes the given point-data fields.
+    ///
+    /// The files of an earlier run in `dir` are removed first ([`FrameWriter::is_run_file`]:
+    /// its frames, collection and summary, and temporaries of them); other files are left
+    /// alone.
     pub fn create(dir: impl Into<PathBuf>, fields: &[Field]) -> Result<Self, OutputError> {
         let dir = dir.into();
-        std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io {
-            path: dir.clone(),
-            source,
-        })?;
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| OutputError::Io { path, source }
+        };
+        std::fs::create_dir_all(&dir).map_err(io(&dir))?;
+        for entry in std::fs::read_dir(&dir).map_err(io(&dir))? {
+            let entry = entry.map_err(io(&dir))?;
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if is_file && entry.file_name().to_str().is_some_and(Self::is_run_file) {
+                std::fs::remove_file(entry.path()).map_err(io(&entry.path()))?;
+            }
+        }
         Ok(Self {
             dir,
             fields: fields.to_vec(),
@@ -114,30 +146,35 @@ impl FrameWriter {
     }
 
     /// A writer that continues the series in `dir` from simulated time `until` on: the frames
-    /// its collection lists after `until` are dropped from it and their files removed, and
-    /// the next frame takes the next number. For a run resumed from a state saved at
-    /// `until`, so the series has no duplicates.
+    /// its collection lists up to `until` are kept, every other frame file of a run in `dir`
+    /// (those listed after `until`, and any not listed) and temporaries are removed, and the
+    /// next frame takes the next number. For a run resumed from a state saved at `until`, so
+    /// the series has no duplicates. The summary is left for the resumed run to read and
+    /// replace.
     pub fn resume(
         dir: impl Into<PathBuf>,
         fields: &[Field],
         until: f64,
     ) -> Result<Self, OutputError> {
         let dir = dir.into();
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| OutputError::Io { path, source }
+        };
         let pvd = dir.join(Self::PVD_NAME);
         let mut entries = read_pvd(&pvd)?;
         let keep = entries.iter().take_while(|e| e.time <= until).count();
-        for dropped in entries.drain(keep..) {
-            // Only plain names in this folder, as the writer makes them.
-            let name = Path::new(&dropped.file);
-            if name.file_name() != Some(name.as_os_str()) {
-                continue;
-            }
-            let path = dir.join(name);
-            match std::fs::remove_file(&path) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                    return Err(OutputError::Io { path, source: e });
-                }
-                _ => {}
+        entries.truncate(keep);
+        for entry in std::fs::read_dir(&dir).map_err(io(&dir))? {
+            let entry = entry.map_err(io(&dir))?;
+            let name = entry.file_name();
+            let Some(name) = name.to_str() else { continue };
+            let kept = name == Self::PVD_NAME
+                || name == Self::SUMMARY_NAME
+                || entries.iter().any(|e| e.file == name);
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if is_file && Self::is_run_file(name) && !kept {
+                std::fs::remove_file(entry.path()).map_err(io(&entry.path()))?;
             }
         }
         write_pvd(&pvd, &entries)?;
@@ -164,6 +201,18 @@ impl FrameWriter {
         Ok(path)
     }
 
+    /// Whether a file name is one a run writes: `frame_<digits>.vtu`, the collection
+    /// [`FrameWriter::PVD_NAME`], the summary [`FrameWriter::SUMMARY_NAME`], or one of these
+    /// with `.tmp` appended.
+    pub fn is_run_file(name: &str) -> bool {
+        let name = name.strip_suffix(".tmp").unwrap_or(name);
+        let frame = name
+            .strip_prefix("frame_")
+            .and_then(|rest| rest.strip_suffix(".vtu"))
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
+        frame || name == Self::PVD_NAME || name == Self::SUMMARY_NAME
+    }
+
     /// The output folder.
     pub fn dir(&self) -> &Path {
         &self.dir
@@ -183,6 +232,29 @@ impl FrameWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn run_files_are_recognised_by_name() {
+        for name in [
+            "frame_0000.vtu",
+            "frame_12345.vtu",
+            "frame_0003.vtu.tmp",
+            "particles.pvd",
+            "particles.pvd.tmp",
+            "summary.json",
+            "summary.json.tmp",
+        ] {
+            assert!(FrameWriter::is_run_file(name), "{name}");
+        }
+        for name in [
+            "frame_.vtu",
+            "frame_00a1.vtu",
+            "notes.txt",
+            "my_frame_0001.vtu",
+        ] {
+            assert!(!FrameWriter::is_run_file(name), "{name}");
+        }
+    }
 
     #[test]
     fn output_errors_can_cross_threads() {

@@ -12,6 +12,9 @@ pub enum RunStatus {
     Completed,
     /// The run stopped early with an error (see [`RunSummary::error`]).
     Failed,
+    /// The run was interrupted (SIGINT / Ctrl-C, or SIGTERM) and stopped after a complete
+    /// step; the frames written so far are a valid series.
+    Interrupted,
 }
 
 /// The energies of the particle system at one step (J; J per metre of depth in 2D).
@@ -64,7 +67,8 @@ pub struct RunSummary {
     pub steps: u64,
     /// The scene's end time (s).
     pub end_time: f64,
-    /// Simulated time reached (s); `end_time` unless the run failed.
+    /// Simulated time reached (s): `end_time` unless the run stopped early (with a fixed
+    /// step Δt, `steps · Δt`, within half a step of `end_time`).
     pub time_reached: f64,
     /// Smallest time step taken (s).
     pub dt_min: f64,

@@ -2,9 +2,14 @@
 //!
 //! Every particle is a `VTK_VERTEX` cell; points and vectors are padded to 3D (`z = 0` in
 //! 2D) and tensors are full 3×3 arrays (row-major), so ParaView shows them as tensors.
+//!
+//! A frame is checked before it is written: a NaN or an infinity in the positions or in any
+//! requested field is an error ([`OutputError::NonFinite`]) naming the field and the
+//! particles, and nothing is written. The file is written to a temporary name and renamed, so
+//! a run killed while writing never leaves a truncated frame.
 
-use super::OutputError;
 use super::field::{Field, hencky_strain, pressure, von_mises};
+use super::{OutputError, write_atomically};
 use loam_core::Particles;
 use loam_core::tensor::{det, to3};
 use nalgebra::{Matrix3, SVector};
@@ -14,9 +19,10 @@ use vtkio::model::{
     UnstructuredGridPiece, Version, VertexNumbers, Vtk,
 };
 
-/// Writes the particles to `path` (which must end in `.vtu`) with the requested point-data
-/// `fields`. `initial` holds the initial positions (one per particle) for the
-/// `displacement` field, which is left out without them.
+/// Writes the particles to `path` (a `.vtu` file) with the requested point-data `fields`.
+/// `initial` holds the initial positions (one per particle) for the `displacement` field,
+/// which is left out without them. A non-finite value in the positions or a field is an
+/// error, and nothing is written.
 pub fn write_vtu<const D: usize>(
     path: &Path,
     particles: &Particles<f64, D>,
@@ -30,12 +36,30 @@ pub fn write_vtu<const D: usize>(
             particles: n,
         });
     }
-    let point = fields
+    let points = padded(&particles.x);
+    check_finite("position", &points, 3, particles)?;
+    let point: Vec<Attribute> = fields
         .iter()
         .filter_map(|&field| point_data(field, particles, initial))
         .collect();
+    for attribute in &point {
+        if let Attribute::DataArray(DataArray {
+            name,
+            elem,
+            data: IOBuffer::F64(values),
+        }) = attribute
+        {
+            let components = match elem {
+                ElementType::Vectors => 3,
+                ElementType::Tensors => 9,
+                ElementType::Scalars { num_comp, .. } => *num_comp as usize,
+                _ => 1,
+            };
+            check_finite(name, values, components, particles)?;
+        }
+    }
     let piece = UnstructuredGridPiece {
-        points: IOBuffer::F64(padded(&particles.x)),
+        points: IOBuffer::F64(points),
         cells: Cells {
             cell_verts: VertexNumbers::XML {
                 connectivity: (0..n as u64).collect(),
@@ -48,6 +72,7 @@ pub fn write_vtu<const D: usize>(
             cell: Vec::new(),
         },
     };
+    let mut xml = Vec::new();
     Vtk {
         version: Version::new((1, 0)),
         title: String::from("loam particles"),
@@ -55,10 +80,50 @@ pub fn write_vtu<const D: usize>(
         data: DataSet::inline(piece),
         file_path: None,
     }
-    .export(path)
+    .write_xml(&mut xml)
     .map_err(|source| OutputError::Vtk {
         path: path.to_path_buf(),
         source,
+    })?;
+    write_atomically(path, &xml)
+}
+
+/// The error for the particles whose values in `values` (`components` per particle) hold a
+/// NaN or an infinity, if any. For the strain it adds the smallest `det F` among them: the
+/// strain `½ ln(F Fᵀ)` stops being computable in `f64` when a particle is crushed (its
+/// smallest stretch lost in the round-off of the largest), while the solver's checks of F
+/// (finite, `det F > 0`) still pass.
+fn check_finite<const D: usize>(
+    field: &str,
+    values: &[f64],
+    components: usize,
+    particles: &Particles<f64, D>,
+) -> Result<(), OutputError> {
+    let ids: Vec<usize> = values
+        .chunks(components.max(1))
+        .enumerate()
+        .filter(|(_, v)| !v.iter().all(|x| x.is_finite()))
+        .map(|(i, _)| i)
+        .collect();
+    if ids.is_empty() {
+        return Ok(());
+    }
+    let hint = if field == Field::Strain.name() {
+        let smallest = ids
+            .iter()
+            .map(|&i| det(&particles.f[i]))
+            .fold(f64::INFINITY, f64::min);
+        format!(
+            "; det F is down to {smallest:.3e} there: the particles are crushed (a material too \
+             soft for its load, or a step too large)"
+        )
+    } else {
+        String::new()
+    };
+    Err(OutputError::NonFinite {
+        field: field.to_owned(),
+        ids,
+        hint,
     })
 }
 
@@ -90,6 +155,7 @@ fn point_data<const D: usize>(
         Field::Mass => scalars(p.mass.clone()),
         Field::MaterialId => scalar_array(name, IOBuffer::U32(p.material.clone())),
         Field::Affine => tensor_array(name, p.c.iter().map(|c| to3(c, 0.0))),
+        Field::Id => scalar_array(name, IOBuffer::U64((0..p.len() as u64).collect())),
     })
 }
 
