@@ -34,10 +34,11 @@ struct Cli {
 enum Command {
     /// Run a scene and write ParaView output (.vtu frames + .pvd) and a JSON summary.
     Run {
-        /// Scene file (.toml or .json).
-        scene: PathBuf,
+        /// Scene file (.toml or .json); not with --resume.
+        #[arg(required_unless_present = "resume")]
+        scene: Option<PathBuf>,
         /// Output folder (overrides the scene's `output.dir`).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "resume")]
         out: Option<PathBuf>,
         /// No progress display and no Newton table.
         #[arg(long)]
@@ -46,6 +47,14 @@ enum Command {
         /// when it is).
         #[arg(long, default_value_t = 5.0, value_name = "SECONDS")]
         progress_every: f64,
+        /// Explicit runs: save the state every N steps in OUT/checkpoint/ (the latest only),
+        /// so the run can be continued with --resume.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        checkpoint_every: Option<u64>,
+        /// Continue the run whose output folder is DIR from its checkpoint, with the scene
+        /// recorded there.
+        #[arg(long, value_name = "DIR", conflicts_with = "scene")]
+        resume: Option<PathBuf>,
     },
     /// Validate a scene file and estimate its size, memory and steps: exit 0 if it can run,
     /// 2 with the problems otherwise.
@@ -141,15 +150,24 @@ fn main() -> ExitCode {
             out,
             quiet,
             progress_every,
-        } => run::run(
-            &scene,
-            &run::Options {
+            checkpoint_every,
+            resume,
+        } => {
+            let options = run::Options {
                 out: out.as_deref(),
                 quiet,
                 progress_every,
                 memory_limit,
-            },
-        ),
+                checkpoint_every: checkpoint_every
+                    .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
+            };
+            match (resume, scene) {
+                (Some(dir), _) => run::resume(&dir, &options),
+                (None, Some(scene)) => run::run(&scene, &options),
+                // clap requires one of the two.
+                (None, None) => Outcome::BadInput,
+            }
+        }
         Command::Check { scene } => check::check(&scene, memory_limit),
         Command::Verify {
             cases,

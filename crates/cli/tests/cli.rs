@@ -562,6 +562,150 @@ fn sigint_ends_a_run_cleanly() {
     assert_valid_series(&out_dir);
 }
 
+/// The `.pvd` times of `dir`, in order.
+fn listed_times(dir: &Path) -> Vec<f64> {
+    let pvd = std::fs::read_to_string(dir.join("particles.pvd")).expect("pvd");
+    pvd.split("timestep=\"")
+        .skip(1)
+        .map(|rest| {
+            let t = rest.split('"').next().expect("closing quote");
+            t.parse().expect("a time")
+        })
+        .collect()
+}
+
+/// Starts `loam run ARGS` in the background.
+#[cfg(unix)]
+fn spawn_loam(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the loam binary starts")
+}
+
+/// Sends SIGINT to `child` once `ready()` holds (within 60 s) and returns its exit code and
+/// stderr.
+#[cfg(unix)]
+fn interrupt_when(child: std::process::Child, ready: impl Fn() -> bool) -> (Option<i32>, String) {
+    use std::time::{Duration, Instant};
+    let start = Instant::now();
+    while !ready() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "not ready after 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("the run ends");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Ctrl-C with checkpoints: the interrupted run keeps its latest checkpoint and names the
+/// command that continues it; the continued run (interrupted in turn) keeps the frames up to
+/// the checkpoint, writes the later ones again with the same bytes and numbers on, so the
+/// series lists every frame once, in time order.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_keeps_its_checkpoint_and_continues_without_duplicate_frames() {
+    use loam_scene::checkpoint::CheckpointHeader;
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A fixed step of 1e-4 s (a fifth of the initial h / c) to 100 s: 10⁶ steps, a frame
+    // every 10 steps, a checkpoint every 20.
+    let text = readme_scene(1.0e6, 100.0, 100_000).replace(
+        "{ type = \"adaptive\", cfl = 0.4, max_dt = 1e-3 }",
+        "{ type = \"fixed\", dt = 1e-4 }",
+    );
+    let scene = scene_file(dir.path(), "long.toml", &text);
+    let out_dir = dir.path().join("out");
+    let out_arg = out_dir.to_str().expect("path");
+    let state = out_dir.join("checkpoint/state.ckpt");
+    let saved_step = || CheckpointHeader::peek(&state).map_or(0, |h| h.step);
+    let child = spawn_loam(&[
+        "run",
+        &scene,
+        "--quiet",
+        "--out",
+        out_arg,
+        "--checkpoint-every",
+        "20",
+    ]);
+    let (code, stderr) = interrupt_when(child, || saved_step() >= 40);
+    assert_eq!(code, Some(130), "{stderr}");
+    assert!(
+        stderr.contains(&format!("loam run --resume {out_arg}")),
+        "{stderr}"
+    );
+    let first = summary(&out_dir);
+    assert_eq!(first["status"], "interrupted");
+    let saved = first["checkpoint"]["step"]
+        .as_u64()
+        .expect("checkpoint step");
+    let saved_time = first["checkpoint"]["time"]
+        .as_f64()
+        .expect("checkpoint time");
+    assert!(saved >= 40 && saved.is_multiple_of(20), "{saved}");
+    assert!(saved <= first["steps"].as_u64().expect("steps"));
+    assert_eq!(
+        saved_step(),
+        saved,
+        "the checkpoint the summary names is kept"
+    );
+    let before = listed_frames(&out_dir);
+    let kept = listed_times(&out_dir)
+        .iter()
+        .filter(|&&t| t <= saved_time)
+        .count();
+    // Frames at steps 0, 10, …, up to the checkpoint.
+    assert_eq!(kept as u64, saved / 10 + 1);
+    let rewritten = before.get(kept).map(|f| {
+        (
+            f.clone(),
+            std::fs::read(out_dir.join(f)).expect("a frame after the checkpoint"),
+        )
+    });
+
+    let child = spawn_loam(&[
+        "run",
+        "--resume",
+        out_arg,
+        "--quiet",
+        "--checkpoint-every",
+        "20",
+    ]);
+    let (code, stderr) = interrupt_when(child, || saved_step() >= saved + 40);
+    assert_eq!(code, Some(130), "{stderr}");
+    let second = summary(&out_dir);
+    assert_eq!(second["status"], "interrupted");
+    assert_eq!(second["resumed_from"]["step"].as_u64(), Some(saved));
+    assert!(second["steps"].as_u64().expect("steps") >= saved + 40);
+    let after = listed_frames(&out_dir);
+    let numbered: Vec<String> = (0..after.len())
+        .map(|k| format!("frame_{k:04}.vtu"))
+        .collect();
+    assert_eq!(after, numbered, "every frame once, numbered on");
+    assert!(after.len() > kept + 1, "{} frames", after.len());
+    assert_eq!(after[..kept], before[..kept]);
+    let times = listed_times(&out_dir);
+    assert!(times.windows(2).all(|w| w[0] < w[1]), "{times:?}");
+    if let Some((name, bytes)) = rewritten {
+        assert!(
+            std::fs::read(out_dir.join(&name)).expect("rewritten frame") == bytes,
+            "{name} differs from the first run's"
+        );
+    }
+    assert_valid_series(&out_dir);
+}
+
 #[test]
 fn verify_lists_cases_and_writes_json() {
     let out = loam(&["verify", "--list"]);
@@ -644,4 +788,161 @@ fn bench_times_the_dam_break_and_writes_json() {
         row["particle_steps_per_s"].as_f64().expect("rate"),
     );
     assert!(wall > 0.0 && (rate * wall - 18_000.0).abs() < 1e-6 * 18_000.0);
+}
+
+/// A small explicit scene with plastic flow on a friction floor (see `tests/restart.rs`),
+/// fixed Δt = 2e-4 s to 0.012 s: about 60 steps, 4 frames after the initial one.
+const SAND: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.6, 0.3]
+cell_size = 0.02
+
+[[materials]]
+name = "sand"
+model = "drucker_prager"
+density = 1800.0
+youngs_modulus = 2.0e6
+poisson_ratio = 0.3
+friction_angle = 30.0
+
+[[bodies]]
+material = "sand"
+shape = { type = "box", lo = [0.04, 0.0], hi = [0.24, 0.12] }
+velocity = [1.5, 0.0]
+
+[boundaries]
+x_min = "fixed"
+y_min = { kind = "slip", separable = true }
+
+[[friction]]
+wall = "y_min"
+mu = 0.4
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+transfer = "mls"
+time_step = { type = "fixed", dt = 2.0e-4 }
+end_time = 0.012
+
+[output]
+frames = 4
+"#;
+
+#[test]
+fn a_run_resumed_from_its_checkpoint_rewrites_the_later_frames_with_the_same_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("sand.toml");
+    std::fs::write(&scene, SAND).expect("write scene");
+    let out = dir.path().join("out");
+    let run = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        out.to_str().expect("path"),
+        "--checkpoint-every",
+        "25",
+        "--quiet",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).expect("summary"))
+            .expect("json")
+    };
+    let first = summary(&out);
+    let steps = first["steps"].as_u64().expect("steps");
+    let saved = first["checkpoint"]["step"]
+        .as_u64()
+        .expect("checkpoint step");
+    assert_eq!(saved, steps / 25 * 25, "the latest multiple of 25 steps");
+    assert!(out.join("checkpoint/state.ckpt").exists());
+    assert_eq!(
+        std::fs::read_to_string(out.join("checkpoint/scene.toml")).expect("scene copy"),
+        SAND
+    );
+    let pvd = std::fs::read_to_string(out.join("particles.pvd")).expect("pvd");
+    let last = std::fs::read(out.join("frame_0004.vtu")).expect("last frame");
+
+    // Continue from the checkpoint: the frames after it are written again, identically,
+    // and the series lists every frame once.
+    let resumed = loam(&["run", "--resume", out.to_str().expect("path"), "--quiet"]);
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("particles.pvd")).expect("pvd"),
+        pvd
+    );
+    assert!(std::fs::read(out.join("frame_0004.vtu")).expect("last frame") == last);
+    let second = summary(&out);
+    assert_eq!(second["status"], "completed");
+    assert_eq!(second["steps"].as_u64(), Some(steps));
+    assert_eq!(second["resumed_from"]["step"].as_u64(), Some(saved));
+    assert_eq!(second["frames"].as_array().expect("frames").len(), 5);
+    assert_eq!(second["energy"], first["energy"]);
+
+    // A damaged checkpoint, an edited scene copy and a folder without a checkpoint are
+    // input errors that name the problem.
+    let state = out.join("checkpoint/state.ckpt");
+    let bytes = std::fs::read(&state).expect("state");
+    let resume = || loam(&["run", "--resume", out.to_str().expect("path"), "--quiet"]);
+    let refused = |expected: &str| {
+        let r = resume();
+        let stderr = String::from_utf8_lossy(&r.stderr).into_owned();
+        assert_eq!(r.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
+    };
+    std::fs::write(&state, &bytes[..bytes.len() / 2]).expect("truncate");
+    refused("truncated");
+    let mut flipped = bytes.clone();
+    flipped[bytes.len() / 2] ^= 1;
+    std::fs::write(&state, &flipped).expect("flip a bit");
+    refused("checksum mismatch");
+    std::fs::write(&state, &bytes).expect("restore");
+    std::fs::write(
+        out.join("checkpoint/scene.toml"),
+        SAND.replace("mu = 0.4", "mu = 0.5"),
+    )
+    .expect("edit the copy");
+    refused("has changed since the state was saved");
+    let empty = dir.path().join("empty");
+    let r = loam(&["run", "--resume", empty.to_str().expect("path")]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("no checkpoint to resume"));
+
+    // A fresh run into the folder removes the old checkpoint with the old frames' run.
+    let again = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        out.to_str().expect("path"),
+        "--quiet",
+    ]);
+    assert!(again.status.success());
+    assert!(!state.exists());
+}
+
+#[test]
+fn checkpoints_are_refused_for_implicit_scenes() {
+    let scene = workspace().join("crates/scene/tests/fixtures/good/implicit_2d.toml");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = loam(&[
+        "run",
+        scene.to_str().expect("path"),
+        "--out",
+        dir.path().to_str().expect("path"),
+        "--checkpoint-every",
+        "5",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("for explicit runs"));
 }

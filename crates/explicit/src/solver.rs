@@ -149,6 +149,16 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         self.steps
     }
 
+    /// Sets the simulated time and the count of steps completed, to continue a run from a
+    /// saved state. A step reads nothing else from earlier steps (the grid and block buffers
+    /// are scratch, an adaptive `Δt` depends on the particles only), so the particles, the
+    /// time and the step count are the whole state: a solver built for the saved particles and
+    /// set to the saved clock takes the same steps, bit for bit, as the run that saved them.
+    pub fn set_clock(&mut self, time: f64, steps: usize) {
+        self.time = time;
+        self.steps = steps;
+    }
+
     /// Nodal masses of the last step (scratch, for inspection and tests).
     pub fn grid_mass(&self) -> &[T] {
         &self.mass

@@ -1,6 +1,7 @@
 //! Turning a scene into the plain `loam-core` structs a solver runs on.
 
 use crate::error::{Issue, SceneError};
+use crate::initial::BodyContext;
 use crate::output::Field;
 use crate::schema::{
     DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind,
@@ -299,7 +300,10 @@ impl Scene {
     /// are `x₀ + (k + ½) h / ppc`, `k = 0..ppc` per axis, kept when inside the body's shape
     /// and not inside an earlier body's (the first body listed owns an overlap). Each gets
     /// the volume `(h / ppc)^D`, the half-width `h / (2 ppc)` per axis, the mass
-    /// `density · volume` and the body's velocity.
+    /// `density · volume` and the body's velocity. Then each body's initial state is set:
+    /// its `initial_stress` (with the deformation gradient, history, reference volume and mass
+    /// that carry it), its `rotation` (and, for an affine transfer, `C` = the rotation's
+    /// velocity gradient) or its `velocity_file`.
     pub fn build<const D: usize>(&self) -> Result<Built<D>, SceneError> {
         if self.dim() != D {
             return Err(SceneError::Dimension {
@@ -309,7 +313,7 @@ impl Scene {
         }
         self.issues_to_result(self.field_issues())?;
 
-        let materials = self
+        let materials: Vec<Material<f64>> = self
             .materials
             .iter()
             .map(|m| {
@@ -362,9 +366,11 @@ impl Scene {
             .collect();
 
         let mut particles = Particles::default();
+        let mut counts = vec![0usize; self.bodies.len()];
         let mut issues = self.seed::<D>(|body, x| {
             let (id, density, v, hw) = body_data[body];
             particles.push(SVector::from(x), v, density, hw, id);
+            counts[body] += 1;
         });
         issues.extend(self.placement_issues::<D>(particles.len()));
         self.issues_to_result(issues)?;
@@ -372,6 +378,25 @@ impl Scene {
             // Unreachable on a validated scene; kept as an error rather than a panic.
             SceneError::invalid(vec![Issue::new("solver", "a required setting is missing")])
         })?;
+        let gravity = vector_or_zero(self.loads.gravity.as_deref());
+        let affine = self.affine_transfer();
+        let mut issues = Vec::new();
+        let mut start = 0;
+        for (b, body) in self.bodies.iter().enumerate() {
+            let range = start..start + counts[b];
+            start = range.end;
+            let context = BodyContext {
+                index: b,
+                range,
+                spacing: self.grid.cell_size / body.particles_per_cell as f64,
+                origin: SVector::from_column_slice(&self.grid.lo),
+                material: &materials[body_data[b].0 as usize],
+                gravity,
+                affine,
+            };
+            issues.extend(self.initial_state(&context, &mut particles));
+        }
+        self.issues_to_result(issues)?;
 
         let mut boundary = Boundary::all(Default::default());
         for (_, axis, side, wall) in self.boundaries.faces() {
@@ -383,7 +408,7 @@ impl Scene {
             grid: self.grid::<D>(),
             shape: self.grid.shape_function,
             boundary,
-            gravity: vector_or_zero(self.loads.gravity.as_deref()),
+            gravity,
             materials,
             material_names,
             constraints: self.node_constraints(),
@@ -439,6 +464,7 @@ impl Scene {
         )
     }
 
+    /// The output settings; `affine` is left out unless the explicit transfer carries `C`.
     fn output_plan(&self) -> OutputPlan {
         let stem = self
             .source
@@ -452,8 +478,20 @@ impl Scene {
                 .clone()
                 .unwrap_or_else(|| PathBuf::from("out").join(stem)),
             frames: self.output.frames,
-            fields: self.output.fields.clone(),
+            fields: self
+                .output
+                .fields
+                .iter()
+                .copied()
+                .filter(|&f| f != Field::Affine || self.affine_transfer())
+                .collect(),
         }
+    }
+
+    /// Whether the scene runs the explicit solver with a transfer that carries the affine
+    /// matrix `C` (APIC, TPIC, MLS-MPM).
+    fn affine_transfer(&self) -> bool {
+        matches!(self.solver.plan(), Some(SolverPlan::Explicit(p)) if p.transfer.is_affine())
     }
 
     /// Generates the particle positions body by body, calling `visit(body index, x)` for

@@ -45,18 +45,23 @@
 //! - [`Scene::build`] returns a [`Built`] of plain `loam-core` structs (grid, boundary,
 //!   materials, particles, node constraints, point loads) and the solver settings with their
 //!   defaults ([`SolverPlan`]) for a solver; dispatch on [`Scene::dim`] to pick `D`.
-//! - [`Scene::read_path`] and [`Scene::parse_str`] check the fields only, so that
+//! - [`Scene::read_path`], [`Scene::read_path_with_text`] (which also returns the file's
+//!   text), [`Scene::read_text_of`] and [`Scene::parse_str`] check the fields only, so that
 //!   [`Scene::estimate`] can size a scene (particles, grid nodes) before a single particle
 //!   is generated; [`Scene::validate`] then checks the particle generation.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
+//! - [`checkpoint`] writes and reads the restartable state of an explicit run.
 //!
-//! This crate depends on `loam-core` only: solvers take the plain structs it builds.
+//! This crate depends on `loam-core`, and on `loam-explicit` for
+//! [`Built::explicit_config`] only: solvers take the plain structs it builds.
 
 mod build;
+pub mod checkpoint;
 mod contact;
 mod error;
 mod estimate;
 mod geometry;
+mod initial;
 mod load;
 pub mod output;
 mod schema;
@@ -68,6 +73,7 @@ pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
-    FrictionSpec, GridSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec,
-    ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, Scene, SolverKind, SolverSpec,
+    FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec,
+    NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, RotationSpec, Scene,
+    SolverKind, SolverSpec,
 };

@@ -1,4 +1,5 @@
-//! Reading scenes from TOML or JSON text; every loader validates what it read.
+//! Reading scenes from TOML or JSON text: the `from_*` loaders validate what they read, the
+//! `read_*` loaders and [`Scene::parse_str`] check the fields only.
 //!
 //! Parsing goes through `serde_path_to_error`, so a field that is missing, unknown or of the
 //! wrong type is reported with its path (`solver.sheme: unknown field ...`) and, where the
@@ -21,15 +22,35 @@ impl Scene {
     /// generating particles: for a front end that [estimates](Scene::estimate) the size of a
     /// scene before it validates ([`Scene::validate`]) and builds it.
     pub fn read_path(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        Self::read_path_with_text(path).map(|(scene, _)| scene)
+    }
+
+    /// [`Scene::read_path`], also returning the file's text (what a run that keeps a copy
+    /// of its scene, such as one writing checkpoints, records).
+    pub fn read_path_with_text(path: impl AsRef<Path>) -> Result<(Self, String), SceneError> {
         let path = path.as_ref();
-        let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
+        // The extension first, so a wrong one is reported before the file is read.
+        SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
             path: path.to_path_buf(),
         })?;
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        let mut scene = parse(&text, format).map_err(|e| e.in_file(path))?;
+        Self::read_text_of(path, &text).map(|scene| (scene, text))
+    }
+
+    /// Parses `text` as the contents of the scene file `path` and checks its fields, as
+    /// [`Scene::read_path`] does, without reading the file (the format follows its
+    /// extension; errors name it, and relative paths in the scene resolve against its
+    /// folder): for a scene kept elsewhere, such as the copy a checkpoint keeps beside the
+    /// state.
+    pub fn read_text_of(path: impl AsRef<Path>, text: &str) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
+            path: path.to_path_buf(),
+        })?;
+        let mut scene = parse(text, format).map_err(|e| e.in_file(path))?;
         scene.source = Some(path.to_path_buf());
         scene.check_fields()?;
         Ok(scene)

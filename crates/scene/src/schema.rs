@@ -167,9 +167,77 @@ pub struct BodySpec {
     /// Particles per cell along each axis, 1 to 8 (default 2).
     #[serde(default = "default_particles_per_cell")]
     pub particles_per_cell: u32,
-    /// Initial velocity (m/s), one component per axis (default zero).
+    /// Initial velocity (m/s), one component per axis (default zero); added to `rotation`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity: Option<Vec<f64>>,
+    /// Initial rigid rotation, `v = ω × (x − x₀)` (added to `velocity`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<RotationSpec>,
+    /// A CSV file giving every particle of the body its initial velocity (instead of
+    /// `velocity` and `rotation`); a relative path is relative to the scene file's folder.
+    /// See `docs/scene-format.md` for the columns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_file: Option<PathBuf>,
+    /// Initial stress at rest under gravity (default: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_stress: Option<InitialStressSpec>,
+}
+
+/// A body's initial rigid rotation `v = ω × (x − x₀)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationSpec {
+    /// Angular velocity ω (rad/s): a number in 2D (counter-clockwise positive), three
+    /// components in 3D.
+    #[serde(with = "strict::angular_velocity")]
+    pub angular_velocity: Vec<f64>,
+    /// The point x₀ on the axis of rotation (default: the body's centre of mass).
+    #[serde(default, alias = "center", skip_serializing_if = "Option::is_none")]
+    pub centre: Option<Vec<f64>>,
+}
+
+/// A body's initial stress, at rest under the scene's gravity (which must act along one
+/// coordinate axis). The depth `d` of a particle is measured along gravity from the body's
+/// top surface above it (the top particle of its column plus half a particle spacing), or
+/// from the level `surface` when given.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum InitialStressSpec {
+    /// Soils and other solids: vertical stress `σ_v = −ρ₀ g d`, horizontal `σ_h = K0 σ_v`.
+    Geostatic {
+        /// Lateral earth-pressure coefficient `K0 > 0` (default: `1 − sin φ` for
+        /// `drucker_prager`, raised to the cone's bound where that lies outside it;
+        /// `ν/(1 − ν)` for the elastic models and `j2`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        k0: Option<f64>,
+        /// The level (coordinate along the vertical axis) depths are measured from.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        surface: Option<f64>,
+    },
+    /// Fluids (and isotropic solid states): the pressure of a column at rest, `dp/dd = ρ g`
+    /// with the fluid's own density `ρ(p)` (`p ≈ ρ₀ g d`), the same in every direction.
+    Hydrostatic {
+        /// The level (coordinate along the vertical axis) depths are measured from.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        surface: Option<f64>,
+    },
+}
+
+impl InitialStressSpec {
+    /// The name written after `type =`.
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Self::Geostatic { .. } => "geostatic",
+            Self::Hydrostatic { .. } => "hydrostatic",
+        }
+    }
+
+    /// The level depths are measured from, if given.
+    pub fn surface(&self) -> Option<f64> {
+        match *self {
+            Self::Geostatic { surface, .. } | Self::Hydrostatic { surface } => surface,
+        }
+    }
 }
 
 fn default_particles_per_cell() -> u32 {

@@ -150,6 +150,48 @@ pub(crate) mod displacement {
     }
 }
 
+/// An angular velocity: a number (2D, written back as a number) or a list of numbers (3D).
+pub(crate) mod angular_velocity {
+    use super::*;
+
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        struct NumberOrList;
+
+        impl<'de> Visitor<'de> for NumberOrList {
+            type Value = Vec<f64>;
+
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number (rad/s, in 2D) or a list of three numbers (3D)")
+            }
+
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<Vec<f64>, E> {
+                Ok(vec![x])
+            }
+
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<Vec<f64>, E> {
+                Ok(vec![x as f64])
+            }
+
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<Vec<f64>, E> {
+                Ok(vec![x as f64])
+            }
+
+            fn visit_seq<A: de::SeqAccess<'de>>(self, seq: A) -> Result<Vec<f64>, A::Error> {
+                Vec::<f64>::deserialize(de::value::SeqAccessDeserializer::new(seq))
+            }
+        }
+
+        d.deserialize_any(NumberOrList)
+    }
+
+    pub(crate) fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        match v {
+            [w] => s.serialize_f64(*w),
+            v => s.collect_seq(v),
+        }
+    }
+}
+
 /// A face of `[boundaries]`: `"slip"` or `{ kind = "slip", separable = true }`.
 pub(crate) fn wall<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Wall>, D::Error> {
     name_or_table::<D, WallTable>(d, "kind").map(|w| Some(w.into()))

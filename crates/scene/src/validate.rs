@@ -9,7 +9,9 @@
 
 use crate::error::{Issue, SceneError};
 use crate::geometry::twice_signed_area;
-use crate::schema::{BodyShape, BodySpec, MaterialSpec, Scene, SolverKind};
+use crate::schema::{
+    BodyShape, BodySpec, InitialStressSpec, MaterialSpec, RotationSpec, Scene, SolverKind,
+};
 use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
 use std::collections::HashSet;
 
@@ -458,13 +460,38 @@ impl Scene {
                 format!("must be between 1 and {MAX_PARTICLES_PER_CELL}, got {ppc}"),
             );
         }
-        if body.velocity.is_some()
-            && self.solver.kind == SolverKind::Implicit
-            && self.solver.newmark_dt.is_none()
-        {
+        let quasi_static =
+            self.solver.kind == SolverKind::Implicit && self.solver.newmark_dt.is_none();
+        for (key, given) in [
+            ("velocity", body.velocity.is_some()),
+            ("rotation", body.rotation.is_some()),
+            ("velocity_file", body.velocity_file.is_some()),
+        ] {
+            if given && quasi_static {
+                c.issue(
+                    format!("{path}.{key}"),
+                    "not used by a quasi-static implicit run (it has no inertia); remove it, or \
+                     set solver.newmark_dt for implicit dynamics",
+                );
+            }
+        }
+        if let Some(file) = &body.velocity_file {
+            if file.as_os_str().is_empty() {
+                c.issue(format!("{path}.velocity_file"), "must not be empty");
+            }
+            if body.velocity.is_some() || body.rotation.is_some() {
+                c.issue(
+                    format!("{path}.velocity_file"),
+                    "gives every particle its velocity, so `velocity` and `rotation` cannot be \
+                     added to it; remove them or the file",
+                );
+            }
+        }
+        if body.initial_stress.is_some() && quasi_static {
             c.issue(
-                format!("{path}.velocity"),
-                "not used by a quasi-static implicit run (it has no inertia); remove it, or set \
+                format!("{path}.initial_stress"),
+                "a quasi-static implicit run ramps gravity up from zero, so a stress in \
+                 equilibrium with full gravity would not be; remove it, or set \
                  solver.newmark_dt for implicit dynamics",
             );
         }
@@ -472,8 +499,98 @@ impl Scene {
         if let Some(v) = &body.velocity {
             c.coords(&format!("{path}.velocity"), v, dim);
         }
+        if let Some(r) = &body.rotation {
+            self.check_rotation(c, &format!("{path}.rotation"), r, dim);
+        }
+        if let Some(stress) = &body.initial_stress {
+            self.check_initial_stress(c, &format!("{path}.initial_stress"), body, stress, dim);
+        }
         if check_shape(c, &format!("{path}.shape"), &body.shape, dim) {
             self.check_inside_domain(c, path, &body.shape);
+        }
+    }
+
+    /// `rotation`: ω a number in 2D and three components in 3D, the centre a point.
+    fn check_rotation(&self, c: &mut Checker, path: &str, r: &RotationSpec, dim: usize) {
+        let wpath = format!("{path}.angular_velocity");
+        match (dim, r.angular_velocity.len()) {
+            (2, 1) | (3, 3) => {
+                for (a, &w) in r.angular_velocity.iter().enumerate() {
+                    let at = if dim == 2 {
+                        wpath.clone()
+                    } else {
+                        format!("{wpath}[{a}]")
+                    };
+                    c.finite(&at, w);
+                }
+            }
+            (2, n) => c.issue(
+                wpath,
+                format!(
+                    "expected a number in 2D (rad/s, counter-clockwise positive), got {n} \
+                     components"
+                ),
+            ),
+            (_, n) => c.issue(
+                wpath,
+                format!("expected three components [ωx, ωy, ωz] in 3D (rad/s), got {n}"),
+            ),
+        }
+        if let Some(centre) = &r.centre {
+            c.coords(&format!("{path}.centre"), centre, dim);
+        }
+    }
+
+    /// `initial_stress`: gravity along one axis, `geostatic` not on a fluid, `k0` positive,
+    /// `surface` finite.
+    fn check_initial_stress(
+        &self,
+        c: &mut Checker,
+        path: &str,
+        body: &BodySpec,
+        stress: &InitialStressSpec,
+        dim: usize,
+    ) {
+        let g = self.loads.gravity.as_deref().unwrap_or(&[]);
+        let along = g.iter().filter(|&&x| x != 0.0).count();
+        if g.len() == dim && along != 1 {
+            c.issue(
+                path,
+                format!(
+                    "needs gravity along one coordinate axis (depth is measured along it), got \
+                     loads.gravity = {}",
+                    if g.is_empty() {
+                        "none".to_owned()
+                    } else {
+                        Point(g).to_string()
+                    }
+                ),
+            );
+        } else if g.is_empty() {
+            c.issue(
+                path,
+                "needs gravity along one coordinate axis; set loads.gravity",
+            );
+        }
+        let fluid = self
+            .materials
+            .iter()
+            .find(|m| m.name == body.material)
+            .is_some_and(|m| m.model == ModelKind::Fluid);
+        if let InitialStressSpec::Geostatic { k0, .. } = stress {
+            if fluid {
+                c.issue(
+                    format!("{path}.type"),
+                    "a fluid carries no shear stress, so its stress at rest is the same in every \
+                     direction: use type = \"hydrostatic\"",
+                );
+            }
+            if let Some(k0) = k0 {
+                c.positive(&format!("{path}.k0"), *k0);
+            }
+        }
+        if let Some(level) = stress.surface() {
+            c.finite(&format!("{path}.surface"), level);
         }
     }
 

@@ -3,7 +3,8 @@
 
 use loam_core::Particles;
 use loam_scene::output::{
-    EnergySample, Field, FrameWriter, OutputError, RunStatus, RunSummary, write_summary, write_vtu,
+    CheckpointNote, EnergySample, Field, FrameWriter, OutputError, RunStatus, RunSummary,
+    write_summary, write_vtu,
 };
 use nalgebra::{Matrix2, Matrix3, SVector, vector};
 use vtkio::model::{Attribute, DataSet, IOBuffer, Piece, Vtk};
@@ -101,6 +102,43 @@ fn frames_read_back_and_the_series_lists_them_all() {
             field.name()
         );
     }
+}
+
+#[test]
+fn a_resumed_series_drops_the_frames_after_the_saved_time_and_continues_the_numbering() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let p = particles();
+    let mut writer = FrameWriter::create(&out, &[Field::Velocity]).unwrap();
+    for k in 0..4 {
+        writer.write_frame(0.25 * k as f64, &p, None).unwrap();
+    }
+    // Left by a run killed while writing frame 4, and a file of the user's.
+    std::fs::write(out.join("frame_0004.vtu.tmp"), "partial").unwrap();
+    std::fs::write(out.join("frame_0009.vtu"), "unlisted").unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    // A state saved at t = 0.5 (the time of frame 2, which is kept): frame 3 goes, with the
+    // unlisted frame and the temporary.
+    let mut resumed = FrameWriter::resume(&out, &[Field::Velocity], 0.5).unwrap();
+    let kept: Vec<&str> = resumed.entries().iter().map(|e| e.file.as_str()).collect();
+    assert_eq!(kept, ["frame_0000.vtu", "frame_0001.vtu", "frame_0002.vtu"]);
+    for gone in ["frame_0003.vtu", "frame_0004.vtu.tmp", "frame_0009.vtu"] {
+        assert!(!out.join(gone).exists(), "{gone} left");
+    }
+    for name in &kept {
+        assert!(out.join(name).exists(), "{name} removed");
+    }
+    assert!(out.join("notes.txt").exists());
+    let pvd = std::fs::read_to_string(resumed.pvd_path()).unwrap();
+    assert_eq!(pvd.matches("<DataSet ").count(), 3);
+    let next = resumed.write_frame(0.6, &p, None).unwrap();
+    assert!(next.ends_with("frame_0003.vtu"));
+    let pvd = std::fs::read_to_string(resumed.pvd_path()).unwrap();
+    assert!(pvd.contains("timestep=\"0.6\" group=\"\" part=\"0\" file=\"frame_0003.vtu\""));
+
+    // A folder without a series cannot be continued.
+    let err = FrameWriter::resume(dir.path().join("none"), &[Field::Velocity], 0.5).unwrap_err();
+    assert!(err.to_string().contains("particles.pvd"), "{err}");
 }
 
 #[test]
@@ -245,6 +283,12 @@ fn run_summary_is_written_as_json() {
         }],
         frames: vec!["frame_0000.vtu".into()],
         load_steps: vec![],
+        resumed_from: None,
+        checkpoint: Some(CheckpointNote {
+            path: "out/checkpoint/state.ckpt".into(),
+            step: 1500,
+            time: 1.5,
+        }),
     };
     write_summary(&path, &summary).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();

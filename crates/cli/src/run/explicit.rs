@@ -3,9 +3,13 @@
 //! With a fixed step the frames are tied to steps ([`Built::frame_steps`]): the run makes
 //! `round(end_time / dt)` steps, none of them shortened. With an adaptive step the frames are
 //! at their times ([`Built::frame_times`]), the step before each shortened to end on it.
+//!
+//! A resumed run starts from the saved particles and clock and goes through the same loop,
+//! from the first frame point after the frames it kept.
 
+use super::checkpoint::Checkpointer;
 use super::progress::Progress;
-use super::{Options, Stop, Target, interrupt};
+use super::{Options, Start, Stop, Target, interrupt};
 use crate::Outcome;
 use crate::preflight;
 use loam_core::Particles;
@@ -21,20 +25,24 @@ enum FrameAt {
     Time(f64),
 }
 
-/// When the run started and the simulated time it ends at, for the progress display.
+/// When the run started, the step and simulated time it started from (`(0, 0)` unless
+/// resumed) and the simulated time it ends at, for the progress display.
 #[derive(Clone, Copy)]
 struct Clock {
     start: Instant,
+    from: (usize, f64),
     end: f64,
 }
 
-/// Steps until the frame point `at` is reached, recording the step sizes in `summary`; stops
-/// on an error or a signal (checked before every step).
+/// Steps until the frame point `at` is reached, recording the step sizes in `summary` and
+/// saving the state with `checkpoints`; stops on an error (a failed checkpoint included) or a
+/// signal (checked before every step).
 fn step_to<const D: usize>(
     solver: &mut Solver<f64, D>,
     particles: &mut Particles<f64, D>,
     at: FrameAt,
     summary: &mut RunSummary,
+    mut checkpoints: Option<&mut Checkpointer>,
     progress: &mut Progress,
     clock: Clock,
 ) -> Result<(), Stop> {
@@ -52,26 +60,42 @@ fn step_to<const D: usize>(
             .map_err(|e| Stop::Failed(e.to_string()))?;
         summary.dt_min = summary.dt_min.min(info.dt);
         summary.dt_max = summary.dt_max.max(info.dt);
+        if let Some(c) = checkpoints.as_deref_mut() {
+            c.after_step(info.step, info.time, particles)
+                .map_err(Stop::Failed)?;
+        }
         let wall = clock.start.elapsed().as_secs_f64();
-        progress.update(info.step, info.time, clock.end, wall);
+        progress.update(info.step, info.time, clock.end, wall, clock.from);
     }
 }
 
-/// Runs an explicit scene.
+/// Runs an explicit scene, from its initial state or from the checkpoint in `start`, saving
+/// its state as `start` asks. The checks before the run are those of the initial state, so a
+/// resumed run is refused or warned about exactly when the fresh run was.
 pub fn run<const D: usize>(
     built: Built<D>,
     plan: ExplicitPlan,
     target: Target,
     options: &Options,
+    start: Start,
 ) -> Outcome {
     let frames: Vec<FrameAt> = match plan.fixed_steps() {
         Some(_) => built.frame_steps().into_iter().map(FrameAt::Step).collect(),
         None => built.frame_times().into_iter().map(FrameAt::Time).collect(),
     };
-    let mut solver = match Solver::new(
-        built.explicit_config().expect("an explicit plan"),
-        &built.particles,
-    ) {
+    let restart = match &start.resume {
+        None => None,
+        Some(r) => match r.particles::<D>(built.particles.len()) {
+            Ok(p) => Some((p, r.header.time, r.header.step as usize)),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Outcome::BadInput;
+            }
+        },
+    };
+    let config = built.explicit_config().expect("an explicit plan");
+    let solver = Solver::new(config, restart.as_ref().map_or(&built.particles, |r| &r.0));
+    let mut solver = match solver {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -88,27 +112,52 @@ pub fn run<const D: usize>(
     for w in &warnings {
         eprintln!("warning: {}: {w}", target.scene.display());
     }
-    let mut rec = match target.recorder(&built) {
+    let rec = match &start.resume {
+        None => target.recorder(&built),
+        Some(r) => target.resumed_recorder(&built, r),
+    };
+    let mut rec = match rec {
         Ok(r) => r,
         Err(outcome) => return outcome,
     };
     rec.summary.warnings.extend(warnings);
     rec.summary.end_time = plan.end_time;
-    let mut particles = built.particles;
+    let mut checkpoints = match start.checkpoints {
+        None => None,
+        Some((text, every)) => {
+            match Checkpointer::create(&target.dir, target.scene, &text, every) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return Outcome::Failed;
+                }
+            }
+        }
+    };
+    let (mut particles, from) = match restart {
+        None => (built.particles, (0, 0.0)),
+        Some((particles, time, steps)) => {
+            solver.set_clock(time, steps);
+            (particles, (steps, time))
+        }
+    };
     let mut progress = Progress::new(options.quiet, options.progress_every);
-    let start = Instant::now();
+    let clock = Clock {
+        start: Instant::now(),
+        from,
+        end: plan.end_time,
+    };
     let mut stop = None;
-    for (k, &at) in frames.iter().enumerate() {
+    // A resumed run continues after the frames it kept.
+    let first = rec.frames_written();
+    for (k, &at) in frames.iter().enumerate().skip(first) {
         if k > 0 {
-            let clock = Clock {
-                start,
-                end: plan.end_time,
-            };
             let stepped = step_to(
                 &mut solver,
                 &mut particles,
                 at,
                 &mut rec.summary,
+                checkpoints.as_mut(),
                 &mut progress,
                 clock,
             );
@@ -123,12 +172,18 @@ pub fn run<const D: usize>(
         }
     }
     progress.finish();
-    let wall = start.elapsed().as_secs_f64();
+    rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
+    let wall = clock.start.elapsed().as_secs_f64();
     let steps = solver.steps();
+    let resumed = match start.resume {
+        Some(_) => format!("resumed at step {} (t = {:.4} s), ", from.0, from.1),
+        None => String::new(),
+    };
     let done = format!(
-        "{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} particles)",
+        "{resumed}{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} \
+         particles)",
         solver.time(),
-        steps as f64 * particles.len() as f64 / wall.max(1e-9),
+        (steps - from.0) as f64 * particles.len() as f64 / wall.max(1e-9),
         particles.len()
     );
     rec.finish(steps, solver.time(), wall, stop, &done)

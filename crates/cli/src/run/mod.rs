@@ -5,7 +5,13 @@
 //! limit ([`crate::preflight`]); an explicit run also checks its fixed time step against the
 //! initial state's stability limit before it writes anything. A signal (Ctrl-C) stops the run
 //! after the step in progress ([`interrupt`]).
+//!
+//! An explicit run can save its state every `N` steps and be continued from it
+//! (`--checkpoint-every N`, `--resume DIR`; [`checkpoint`]). A resumed run goes through the
+//! same checks and the same stepping loop as a fresh one; it keeps the frames up to the
+//! checkpoint and writes the later ones again.
 
+mod checkpoint;
 mod explicit;
 mod implicit;
 pub mod interrupt;
@@ -13,13 +19,14 @@ mod progress;
 
 use crate::Outcome;
 use crate::preflight::{self, MemoryLimit};
+use checkpoint::Resume;
 use loam_core::Particles;
 use loam_core::energy::energy;
 use loam_core::tensor::Vector;
 use loam_scene::output::{
     EnergySample, FrameWriter, OutputError, RunStatus, RunSummary, write_summary,
 };
-use loam_scene::{Built, Scene, SolverPlan};
+use loam_scene::{Built, Scene, SolverKind, SolverPlan};
 use std::path::{Path, PathBuf};
 
 /// The options of `loam run`.
@@ -32,18 +39,69 @@ pub struct Options<'a> {
     pub progress_every: f64,
     /// The memory the run may use.
     pub memory_limit: Option<MemoryLimit>,
+    /// Explicit runs: save the state every this many steps (`--checkpoint-every`).
+    pub checkpoint_every: Option<usize>,
 }
 
 /// Loads `scene`, runs it and reports; see the module docs of `main` for exit codes.
 pub fn run(path: &Path, options: &Options) -> Outcome {
-    let scene = match Scene::read_path(path) {
+    let (scene, text) = match Scene::read_path_with_text(path) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
             return Outcome::BadInput;
         }
     };
-    if let Err(msg) = preflight::size(&scene, options.memory_limit) {
+    let start = Start {
+        checkpoints: options.checkpoint_every.map(|n| (text, n)),
+        resume: None,
+    };
+    start_run(&scene, path, options, start)
+}
+
+/// Continues the explicit run in `dir` from its checkpoint (`loam run --resume DIR`), with
+/// the scene recorded there; `options.out` is replaced by `dir`. With
+/// `options.checkpoint_every` it keeps saving its state.
+pub fn resume(dir: &Path, options: &Options) -> Outcome {
+    let (resume, scene) = match Resume::open(dir) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Outcome::BadInput;
+        }
+    };
+    let path = resume.header.source.clone();
+    let start = Start {
+        checkpoints: options.checkpoint_every.map(|n| (resume.text.clone(), n)),
+        resume: Some(resume),
+    };
+    let options = Options {
+        out: Some(dir),
+        ..*options
+    };
+    start_run(&scene, &path, &options, start)
+}
+
+/// How a run starts: whether it writes checkpoints (the scene text to record beside them
+/// and the interval in steps) and whether it continues from one.
+pub struct Start {
+    checkpoints: Option<(String, usize)>,
+    resume: Option<Resume>,
+}
+
+/// The checks before a run (solver kind, size, validation), then the run.
+fn start_run(scene: &Scene, path: &Path, options: &Options, start: Start) -> Outcome {
+    if scene.solver.kind == SolverKind::Implicit
+        && (start.checkpoints.is_some() || start.resume.is_some())
+    {
+        eprintln!(
+            "error: {}: checkpoints and --resume are for explicit runs; this scene runs the \
+             implicit solver",
+            path.display()
+        );
+        return Outcome::BadInput;
+    }
+    if let Err(msg) = preflight::size(scene, options.memory_limit) {
         eprintln!("error: {}: {msg}", path.display());
         return Outcome::BadInput;
     }
@@ -56,12 +114,12 @@ pub fn run(path: &Path, options: &Options) -> Outcome {
         return Outcome::Failed;
     }
     match scene.dim() {
-        2 => run_dim::<2>(&scene, path, options),
-        _ => run_dim::<3>(&scene, path, options),
+        2 => run_dim::<2>(scene, path, options, start),
+        _ => run_dim::<3>(scene, path, options, start),
     }
 }
 
-fn run_dim<const D: usize>(scene: &Scene, path: &Path, options: &Options) -> Outcome {
+fn run_dim<const D: usize>(scene: &Scene, path: &Path, options: &Options, start: Start) -> Outcome {
     let built: Built<D> = match scene.build() {
         Ok(b) => b,
         Err(e) => {
@@ -74,7 +132,7 @@ fn run_dim<const D: usize>(scene: &Scene, path: &Path, options: &Options) -> Out
         .map_or_else(|| built.output.dir.clone(), Path::to_path_buf);
     let target = Target { scene: path, dir };
     match built.plan {
-        SolverPlan::Explicit(plan) => explicit::run(built, plan, target, options),
+        SolverPlan::Explicit(plan) => explicit::run(built, plan, target, options, start),
         SolverPlan::Implicit(plan) => implicit::run(built, plan, target, options),
     }
 }
@@ -86,9 +144,29 @@ pub struct Target<'a> {
 }
 
 impl Target<'_> {
-    /// Opens the output folder (removing an earlier run's files) and starts the summary.
+    /// Opens the output folder (removing an earlier run's files: frames, collection, summary
+    /// and checkpoint) and starts the summary.
     fn recorder<const D: usize>(&self, built: &Built<D>) -> Result<Recorder<D>, Outcome> {
-        Recorder::new(self.scene, &self.dir, built).map_err(|e| {
+        checkpoint::clear(&self.dir)
+            .and_then(|()| {
+                let writer = FrameWriter::create(&self.dir, &built.output.fields)
+                    .map_err(|e| e.to_string())?;
+                Ok(Recorder::new(self.scene, writer, built))
+            })
+            .map_err(|e| {
+                eprintln!("error: {e}");
+                Outcome::Failed
+            })
+    }
+
+    /// Opens the output folder of the run to continue from the checkpoint `from`, keeping
+    /// its frames up to the checkpoint ([`Recorder::resume`]).
+    fn resumed_recorder<const D: usize>(
+        &self,
+        built: &Built<D>,
+        from: &Resume,
+    ) -> Result<Recorder<D>, Outcome> {
+        Recorder::resume(self.scene, &self.dir, built, from).map_err(|e| {
             eprintln!("error: {e}");
             Outcome::Failed
         })
@@ -110,22 +188,22 @@ pub struct Recorder<const D: usize> {
     initial: Vec<Vector<f64, D>>,
     gravity: Vector<f64, D>,
     materials: Vec<loam_core::Material<f64>>,
+    /// Steps completed before this run started (those of a resumed run's checkpoint).
+    first_step: usize,
     /// The summary being filled in.
     pub summary: RunSummary,
 }
 
 impl<const D: usize> Recorder<D> {
-    fn new(
-        scene: &Path,
-        dir: &Path,
-        built: &Built<D>,
-    ) -> Result<Self, loam_scene::output::OutputError> {
-        Ok(Self {
+    /// A recorder of a run of `scene` that writes its frames with `writer`.
+    fn new(scene: &Path, writer: FrameWriter, built: &Built<D>) -> Self {
+        Self {
             scene: scene.to_path_buf(),
-            writer: FrameWriter::create(dir, &built.output.fields)?,
+            writer,
             initial: built.particles.x.clone(),
             gravity: built.gravity,
             materials: built.materials.clone(),
+            first_step: 0,
             summary: RunSummary {
                 scene: scene.display().to_string(),
                 dimension: D,
@@ -144,8 +222,46 @@ impl<const D: usize> Recorder<D> {
                 energy: Vec::new(),
                 frames: Vec::new(),
                 load_steps: Vec::new(),
+                resumed_from: None,
+                checkpoint: None,
             },
-        })
+        }
+    }
+
+    /// A recorder that continues the run in `dir` from the checkpoint `from`: the frames
+    /// after its time are dropped ([`FrameWriter::resume`]), those up to it are kept, and the
+    /// earlier run's energy history up to it is kept when its summary can be read.
+    /// Displacements stay relative to the scene's initial positions.
+    fn resume(scene: &Path, dir: &Path, built: &Built<D>, from: &Resume) -> Result<Self, String> {
+        let time = from.header.time;
+        let writer = FrameWriter::resume(dir, &built.output.fields, time)
+            .map_err(|e| format!("cannot continue the frame series: {e}"))?;
+        let earlier = std::fs::read_to_string(dir.join(FrameWriter::SUMMARY_NAME))
+            .ok()
+            .and_then(|text| serde_json::from_str::<RunSummary>(&text).ok());
+        let mut rec = Self::new(scene, writer, built);
+        let s = &mut rec.summary;
+        s.frames = rec
+            .writer
+            .entries()
+            .iter()
+            .map(|e| dir.join(&e.file).display().to_string())
+            .collect();
+        if let Some(earlier) = earlier {
+            s.energy = earlier
+                .energy
+                .into_iter()
+                .filter(|e| e.time <= time)
+                .collect();
+        }
+        s.resumed_from = Some(from.note());
+        rec.first_step = from.header.step as usize;
+        Ok(rec)
+    }
+
+    /// Frames in the series so far (a resumed run starts with those it kept).
+    pub fn frames_written(&self) -> usize {
+        self.writer.entries().len()
     }
 
     /// Writes a frame at `time` (simulated time, or load factor for implicit runs) and records
@@ -193,7 +309,7 @@ impl<const D: usize> Recorder<D> {
         s.steps = steps as u64;
         s.time_reached = reached;
         s.wall_time_s = wall;
-        s.steps_per_second = steps as f64 / wall.max(1e-9);
+        s.steps_per_second = steps.saturating_sub(self.first_step) as f64 / wall.max(1e-9);
         s.particle_steps_per_second = s.steps_per_second * s.particles as f64;
         if steps == 0 || !s.dt_min.is_finite() {
             s.dt_min = 0.0;
@@ -211,12 +327,24 @@ impl<const D: usize> Recorder<D> {
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
-        let kept = format!(
+        let mut kept = format!(
             "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",
             self.summary.frames.len(),
             self.writer.pvd_path().display(),
             summary_path.display()
         );
+        // The checkpoint in the folder: the one this run wrote last, else the one it resumed
+        // from (left in place when it wrote none).
+        let s = &self.summary;
+        if let Some(c) = s.checkpoint.as_ref().or(s.resumed_from.as_ref()) {
+            kept.push_str(&format!(
+                "; the checkpoint at step {} (t = {:.4} s) is kept: `loam run --resume {}` \
+                 continues the run",
+                c.step,
+                c.time,
+                self.writer.dir().display()
+            ));
+        }
         match stop {
             None => {
                 println!(

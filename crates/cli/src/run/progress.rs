@@ -40,13 +40,15 @@ impl Progress {
         }
     }
 
-    /// Reports step `step` at simulated time `time` of `end`, `wall` seconds into the run
-    /// (drawn only when the last report is old enough).
-    pub fn update(&mut self, step: usize, time: f64, end: f64, wall: f64) {
+    /// Reports step `step` at simulated time `time` of `end`, `wall` seconds into the run,
+    /// which started at step and time `from` (`(0, 0)` unless resumed): the rate and the time
+    /// left count only this run's steps (drawn only when the last report is old enough).
+    pub fn update(&mut self, step: usize, time: f64, end: f64, wall: f64, from: (usize, f64)) {
         let frac = (time / end).clamp(0.0, 1.0);
-        let rate = step as f64 / wall.max(1e-9);
-        let eta = if frac > 0.0 {
-            wall * (1.0 - frac) / frac
+        let rate = step.saturating_sub(from.0) as f64 / wall.max(1e-9);
+        let done = ((time - from.1) / (end - from.1)).clamp(0.0, 1.0);
+        let eta = if done > 0.0 {
+            wall * (1.0 - done) / done
         } else {
             f64::NAN
         };

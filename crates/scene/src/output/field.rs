@@ -31,6 +31,11 @@ pub enum Field {
     Mass,
     /// Index of the particle's material in the scene's material table.
     MaterialId,
+    /// The affine velocity matrix `C` of APIC, TPIC and MLS-MPM (1/s), a 3×3 tensor (the
+    /// in-plane block in 2D); written only for those transfers. With it the angular momentum
+    /// of the particles, `L = Σ m (x × v) + Σ m ε:(C D)` (`D = κh² I`), can be audited
+    /// from the frames (`docs/scene-format.md`).
+    Affine,
     /// The particle's id: its index in the particle arrays (bodies in file order), the number
     /// that run errors quote.
     Id,
@@ -38,7 +43,7 @@ pub enum Field {
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 11] = [
+    pub const ALL: [Field; 12] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
@@ -49,6 +54,7 @@ impl Field {
         Field::Volume,
         Field::Mass,
         Field::MaterialId,
+        Field::Affine,
         Field::Id,
     ];
 
@@ -65,6 +71,7 @@ impl Field {
             Field::Volume => "volume",
             Field::Mass => "mass",
             Field::MaterialId => "material_id",
+            Field::Affine => "affine",
             Field::Id => "id",
         }
     }

@@ -3,7 +3,9 @@
 //! - [`FrameWriter`] writes one `.vtu` file per frame ([`write_vtu`]) into an output folder
 //!   and, after every frame, rewrites the `.pvd` collection ([`write_pvd`]) that lists them
 //!   with their times, so a run that stops early still leaves a valid series. It first
-//!   removes the files of an earlier run in that folder, so the folder never mixes two runs.
+//!   removes the files of an earlier run in that folder, so the folder never mixes two runs;
+//!   a writer that [resumes](FrameWriter::resume) a run keeps that run's frames up to the
+//!   saved state and removes only the later ones.
 //! - [`write_summary`] writes a [`RunSummary`] as JSON.
 //!
 //! Every file (frames, the `.pvd`, the summary) is written to a temporary file in the same
@@ -16,8 +18,10 @@ mod summary;
 mod vtu;
 
 pub use field::{Field, hencky_strain, pressure, von_mises};
-pub use pvd::{PvdEntry, write_pvd};
-pub use summary::{EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary};
+pub use pvd::{PvdEntry, read_pvd, write_pvd};
+pub use summary::{
+    CheckpointNote, EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary,
+};
 pub use vtu::write_vtu;
 
 use loam_core::Particles;
@@ -48,6 +52,16 @@ pub enum OutputError {
     /// The run summary could not be serialised.
     #[error("cannot serialise the run summary: {0}")]
     Json(#[source] serde_json::Error),
+    /// A `.pvd` collection that is to be continued could not be read.
+    #[error("{}: line {line}: {message}", path.display())]
+    Series {
+        /// The collection file.
+        path: PathBuf,
+        /// The 1-based line.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
     /// A frame would hold a NaN or an infinity; nothing was written.
     #[error(
         "non-finite {field} in {} particle(s), first ids {:?}{hint}",
@@ -73,15 +87,20 @@ pub enum OutputError {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    let io = |source| OutputError::Io {
+    write_file_atomically(path, bytes).map_err(|source| OutputError::Io {
         path: path.to_path_buf(),
         source,
-    };
+    })
+}
+
+/// Writes `bytes` to `path` through a temporary file (`path` + `.tmp`) and a rename, so a
+/// reader (or a run killed while writing) never sees a half-written file.
+pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, bytes).map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
 }
 
 /// Writes a series of particle frames, `frame_0000.vtu`, `frame_0001.vtu`, …, and the
@@ -123,6 +142,46 @@ impl FrameWriter {
             dir,
             fields: fields.to_vec(),
             entries: Vec::new(),
+        })
+    }
+
+    /// A writer that continues the series in `dir` from simulated time `until` on: the frames
+    /// its collection lists up to `until` are kept, every other frame file of a run in `dir`
+    /// (those listed after `until`, and any not listed) and temporaries are removed, and the
+    /// next frame takes the next number. For a run resumed from a state saved at `until`, so
+    /// the series has no duplicates. The summary is left for the resumed run to read and
+    /// replace.
+    pub fn resume(
+        dir: impl Into<PathBuf>,
+        fields: &[Field],
+        until: f64,
+    ) -> Result<Self, OutputError> {
+        let dir = dir.into();
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| OutputError::Io { path, source }
+        };
+        let pvd = dir.join(Self::PVD_NAME);
+        let mut entries = read_pvd(&pvd)?;
+        let keep = entries.iter().take_while(|e| e.time <= until).count();
+        entries.truncate(keep);
+        for entry in std::fs::read_dir(&dir).map_err(io(&dir))? {
+            let entry = entry.map_err(io(&dir))?;
+            let name = entry.file_name();
+            let Some(name) = name.to_str() else { continue };
+            let kept = name == Self::PVD_NAME
+                || name == Self::SUMMARY_NAME
+                || entries.iter().any(|e| e.file == name);
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if is_file && Self::is_run_file(name) && !kept {
+                std::fs::remove_file(entry.path()).map_err(io(&entry.path()))?;
+            }
+        }
+        write_pvd(&pvd, &entries)?;
+        Ok(Self {
+            dir,
+            fields: fields.to_vec(),
+            entries,
         })
     }
 

@@ -94,6 +94,25 @@ pub struct RunSummary {
     /// Implicit runs: the Newton report of every load step (empty for explicit runs).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub load_steps: Vec<LoadStepSummary>,
+    /// A run continued from a checkpoint (`loam run --resume`): the state it started from.
+    /// `steps` and `time_reached` count from the start of the original run; the timings
+    /// cover the continued part only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resumed_from: Option<CheckpointNote>,
+    /// The last checkpoint this run wrote (`loam run --checkpoint-every`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<CheckpointNote>,
+}
+
+/// A checkpoint file and the state it holds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointNote {
+    /// The checkpoint file.
+    pub path: String,
+    /// Steps completed at the checkpoint.
+    pub step: u64,
+    /// Simulated time at the checkpoint (s).
+    pub time: f64,
 }
 
 /// Writes the summary as pretty-printed JSON, atomically.

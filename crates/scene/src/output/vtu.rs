@@ -11,7 +11,7 @@
 use super::field::{Field, hencky_strain, pressure, von_mises};
 use super::{OutputError, write_atomically};
 use loam_core::Particles;
-use loam_core::tensor::det;
+use loam_core::tensor::{det, to3};
 use nalgebra::{Matrix3, SVector};
 use std::path::Path;
 use vtkio::model::{
@@ -154,6 +154,7 @@ fn point_data<const D: usize>(
         ),
         Field::Mass => scalars(p.mass.clone()),
         Field::MaterialId => scalar_array(name, IOBuffer::U32(p.material.clone())),
+        Field::Affine => tensor_array(name, p.c.iter().map(|c| to3(c, 0.0))),
         Field::Id => scalar_array(name, IOBuffer::U64((0..p.len() as u64).collect())),
     })
 }
