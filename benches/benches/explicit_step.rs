@@ -1,9 +1,12 @@
 //! Wall-clock cost of one explicit MPM step (P2G, grid update, G2P, stress update).
 //!
-//! Every bench builds a scene (a fluid-like block collapse, the friction dam-break of
-//! `loam_benches::dambreak_friction_2d` at 6k, 96k and 1M particles, or the 3D
-//! Drucker–Prager column of `loam_benches::granular_column_3d`), takes a few steps so the solver's scratch is
-//! allocated and the material is moving, and then times one `Solver::step` per iteration. Each timed step starts from a fresh copy of that warmed
+//! Every bench builds a scene file with `loam_benches::explicit_scene` (a fluid-like block
+//! collapse of `benches/scenes/block_*.toml`, the friction dam-break of
+//! `examples/dambreak_friction.toml` and `benches/scenes/dambreak_friction_*.toml` at 6k, 96k
+//! and 1M particles, or the 3D Drucker–Prager column of `benches/scenes/column_3d_93k.toml`),
+//! takes a few steps so the solver's scratch is allocated and the material is moving, and
+//! then times one `Solver::step` per iteration. Each timed step starts from a fresh copy of
+//! that warmed
 //! particle state (`iter_batched_ref`, the copy is not timed), so every iteration does the
 //! same work and a long measurement cannot drift the scene into a different regime.
 //! The throughput is set to the particle count, so criterion's elements/s are
@@ -15,19 +18,21 @@ use criterion::measurement::WallTime;
 use criterion::{
     BatchSize, BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main,
 };
-use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d, granular_column_3d};
-use loam_core::{Particles, Scalar};
-use loam_explicit::{Config, Solver};
+use loam_benches::explicit_scene;
+use loam_core::Scalar;
+use loam_explicit::Solver;
 
 /// Steps taken before timing starts.
 const WARM_UP_STEPS: usize = 5;
 
-/// Adds the bench `name`: one step of the scene `(config, particles)`.
+/// Adds the bench `name`: one step of the bench scene `scene` (a stem of
+/// `loam_benches::EXPLICIT_SCENES`) in `D` dimensions and precision `T`.
 fn bench_step<T: Scalar, const D: usize>(
     group: &mut BenchmarkGroup<'_, WallTime>,
     name: &str,
-    (config, mut particles): (Config<T, D>, Particles<T, D>),
+    scene: &str,
 ) {
+    let (config, mut particles) = explicit_scene::<T, D>(scene);
     let mut solver = Solver::new(config, &particles).expect("valid bench scene");
     for _ in 0..WARM_UP_STEPS {
         solver
@@ -51,10 +56,10 @@ fn explicit_step(c: &mut Criterion) {
         .sample_size(10)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(4));
-    bench_step(&mut group, "2d_10k", fluid_block_2d::<f64>(10_000));
-    bench_step(&mut group, "2d_100k", fluid_block_2d::<f64>(100_000));
-    bench_step(&mut group, "2d_100k_f32", fluid_block_2d::<f32>(100_000));
-    bench_step(&mut group, "3d_100k", fluid_block_3d::<f64>(100_000));
+    bench_step::<f64, 2>(&mut group, "2d_10k", "block_2d_10k");
+    bench_step::<f64, 2>(&mut group, "2d_100k", "block_2d_100k");
+    bench_step::<f32, 2>(&mut group, "2d_100k_f32", "block_2d_100k");
+    bench_step::<f64, 3>(&mut group, "3d_100k", "block_3d_100k");
     group.finish();
 }
 
@@ -66,38 +71,26 @@ fn explicit_dambreak(c: &mut Criterion) {
         .sample_size(20)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(3));
-    bench_step(&mut group, "2d_6k", dambreak_friction_2d::<f64>(1));
-    bench_step(&mut group, "2d_6k_f32", dambreak_friction_2d::<f32>(1));
+    bench_step::<f64, 2>(&mut group, "2d_6k", "dambreak_friction");
+    bench_step::<f32, 2>(&mut group, "2d_6k_f32", "dambreak_friction");
     group.finish();
 }
 
-/// The `explicit_large` group: the friction dam-break at 96k (scale 4) and 1M (scale 13)
-/// particles and the 3D Drucker–Prager column collapse at 93k particles (resolution 3), f64
-/// and f32.
+/// The `explicit_large` group: the friction dam-break at 96k (4× the resolution) and 1M
+/// (13×) particles and the 3D Drucker–Prager column collapse at 93k particles (a third of
+/// the example's cell size), f64 and f32.
 fn explicit_large(c: &mut Criterion) {
     let mut group = c.benchmark_group("explicit_large");
     group
         .sample_size(10)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(5));
-    bench_step(&mut group, "dambreak_96k", dambreak_friction_2d::<f64>(4));
-    bench_step(
-        &mut group,
-        "dambreak_96k_f32",
-        dambreak_friction_2d::<f32>(4),
-    );
-    bench_step(&mut group, "dambreak_1m", dambreak_friction_2d::<f64>(13));
-    bench_step(
-        &mut group,
-        "dambreak_1m_f32",
-        dambreak_friction_2d::<f32>(13),
-    );
-    bench_step(&mut group, "dp_column_3d_93k", granular_column_3d::<f64>(3));
-    bench_step(
-        &mut group,
-        "dp_column_3d_93k_f32",
-        granular_column_3d::<f32>(3),
-    );
+    bench_step::<f64, 2>(&mut group, "dambreak_96k", "dambreak_friction_96k");
+    bench_step::<f32, 2>(&mut group, "dambreak_96k_f32", "dambreak_friction_96k");
+    bench_step::<f64, 2>(&mut group, "dambreak_1m", "dambreak_friction_1m");
+    bench_step::<f32, 2>(&mut group, "dambreak_1m_f32", "dambreak_friction_1m");
+    bench_step::<f64, 3>(&mut group, "dp_column_3d_93k", "column_3d_93k");
+    bench_step::<f32, 3>(&mut group, "dp_column_3d_93k_f32", "column_3d_93k");
     group.finish();
 }
 

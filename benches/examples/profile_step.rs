@@ -1,22 +1,30 @@
 //! Runs explicit steps of a bench scene and prints the time per step (for profilers).
 //!
 //! `cargo run --release -p loam-benches --example profile_step -- [SCENE] [STEPS] [f32|f64]`
-//! with `SCENE` one of `dambreak` (the friction dam-break, 6,000 particles, MLS-MPM with USL;
-//! default), `dambreak_apic` (the same with APIC's gradient force), `dambreak_apic_musl`
-//! (APIC with MUSL), `dambreak4` (at scale 4, 96,000
-//! particles), `dambreak13` (at scale 13, 1,014,000 particles), `column3d` (the 3D
-//! Drucker–Prager column at resolution 3, 93,312 particles), `block2d` (2D block collapse,
-//! 101k particles) or `block3d` (3D block collapse, 111k particles).
+//! with `SCENE` one of `dambreak` (the friction dam-break of
+//! `examples/dambreak_friction.toml`, 6,000 particles, MLS-MPM with USL; default),
+//! `dambreak_apic` (the same with APIC's gradient force), `dambreak_apic_musl` (APIC with
+//! MUSL), `dambreak4` (at 4× the resolution, 96,000 particles,
+//! `benches/scenes/dambreak_friction_96k.toml`), `dambreak13` (at 13×, 1,014,000 particles,
+//! `dambreak_friction_1m.toml`), `column3d` (the 3D Drucker–Prager column,
+//! 93,312 particles, `column_3d_93k.toml`), `block2d` (2D block collapse, 101,124 particles,
+//! `block_2d_100k.toml`) or `block3d` (3D block collapse, 110,592 particles,
+//! `block_3d_100k.toml`).
 
-use loam_core::{Particles, Scalar};
+use loam_benches::explicit_scene;
+use loam_core::{Scalar, Scheme, Transfer};
 use loam_explicit::{Config, Solver};
 
-/// Takes `steps` steps of `(config, particles)` and prints the time per step.
+/// Takes `steps` steps of the bench scene `file` (a stem of `loam_benches::EXPLICIT_SCENES`)
+/// with its configuration changed by `adjust`, and prints the time per step.
 fn run<T: Scalar, const D: usize>(
     name: &str,
+    file: &str,
     steps: usize,
-    (config, mut p): (Config<T, D>, Particles<T, D>),
+    adjust: impl FnOnce(&mut Config<T, D>),
 ) {
+    let (mut config, mut p) = explicit_scene::<T, D>(file);
+    adjust(&mut config);
     let mut s = Solver::new(config, &p).expect("valid scene");
     let t = std::time::Instant::now();
     for _ in 0..steps {
@@ -31,27 +39,25 @@ fn run<T: Scalar, const D: usize>(
     );
 }
 
+/// Leaves a configuration as the scene file has it.
+fn keep<C>(_: &mut C) {}
+
 /// Runs `scene` with the scalar type `T`.
 fn scene<T: Scalar>(scene: &str, steps: usize) {
-    use loam_benches::*;
     match scene {
-        "dambreak" => run(scene, steps, dambreak_friction_2d::<T>(1)),
-        "dambreak4" => run(scene, steps, dambreak_friction_2d::<T>(4)),
-        "dambreak13" => run(scene, steps, dambreak_friction_2d::<T>(13)),
-        "column3d" => run(scene, steps, granular_column_3d::<T>(3)),
-        "dambreak_apic" => {
-            let (mut config, particles) = dambreak_friction_2d::<T>(1);
-            config.transfer = loam_core::Transfer::Apic;
-            run(scene, steps, (config, particles))
-        }
-        "dambreak_apic_musl" => {
-            let (mut config, particles) = dambreak_friction_2d::<T>(1);
-            config.transfer = loam_core::Transfer::Apic;
-            config.scheme = loam_core::Scheme::Musl;
-            run(scene, steps, (config, particles))
-        }
-        "block2d" => run(scene, steps, fluid_block_2d::<T>(100_000)),
-        "block3d" => run(scene, steps, fluid_block_3d::<T>(100_000)),
+        "dambreak" => run::<T, 2>(scene, "dambreak_friction", steps, keep),
+        "dambreak4" => run::<T, 2>(scene, "dambreak_friction_96k", steps, keep),
+        "dambreak13" => run::<T, 2>(scene, "dambreak_friction_1m", steps, keep),
+        "column3d" => run::<T, 3>(scene, "column_3d_93k", steps, keep),
+        "dambreak_apic" => run::<T, 2>(scene, "dambreak_friction", steps, |c| {
+            c.transfer = Transfer::Apic;
+        }),
+        "dambreak_apic_musl" => run::<T, 2>(scene, "dambreak_friction", steps, |c| {
+            c.transfer = Transfer::Apic;
+            c.scheme = Scheme::Musl;
+        }),
+        "block2d" => run::<T, 2>(scene, "block_2d_100k", steps, keep),
+        "block3d" => run::<T, 3>(scene, "block_3d_100k", steps, keep),
         _ => panic!(
             "unknown scene {scene} \
              (dambreak, dambreak_apic, dambreak_apic_musl, dambreak4, dambreak13, column3d, block2d, block3d)"

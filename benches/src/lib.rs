@@ -1,259 +1,104 @@
 //! Benchmark scenes of loam.
 //!
-//! The builders here return plain solver inputs (`Config` + `Particles`), so the criterion
-//! benches of this crate and the `loam bench` command time exactly the same work.
+//! The explicit bench scenes are scene files, as `loam run` reads them: `benches/scenes/*.toml`
+//! and the reference friction dam-break `examples/dambreak_friction.toml` (listed in
+//! [`EXPLICIT_SCENES`]). [`explicit_scene`] builds one through `loam-scene`
+//! (`Built::explicit_config` and the built particles, the one way from a scene to the
+//! explicit solver) and lifts it to the scalar type of the bench, so the criterion benches of
+//! this crate, the `loam bench` command and a `loam run` of the same file start from the same
+//! solver inputs. The files are compiled into the crate, so a `loam` binary needs no source
+//! tree to run its benches.
 //!
-//! The reference scene is a "fluid-like" block collapse (a dam break of a soft solid): a square
-//! (2D) or cubic (3D) block of a Neo-Hookean material with a low shear modulus sits in the
-//! lower corner of a box twice its size along every axis and slumps under gravity against
-//! separable slip walls. The solver settings are the usual explicit defaults: quadratic
-//! B-splines, APIC, MUSL and an adaptive time step at CFL 0.4.
+//! - `block_2d_10k`, `block_2d_100k`, `block_3d_100k`: a "fluid-like" block collapse (a dam
+//!   break of a soft Neo-Hookean solid) in a box twice its size, separable slip walls, APIC,
+//!   MUSL and an adaptive step at CFL 0.4; 10,000, 101,124 and 110,592 particles.
+//! - `dambreak_friction` (6,000 particles), `dambreak_friction_96k`, `dambreak_friction_1m`:
+//!   the water dam-break of the friction study (weakly compressible fluid, fixed step, five
+//!   Coulomb floor segments, MLS-MPM with USL), where the fixed costs of a step dominate at
+//!   the smallest size, at 1×, 4× and 13× the resolution.
+//! - `column_3d_93k`: a Drucker–Prager granular column collapse in 3D (93,312 particles).
 //!
-//! The second explicit scene, [`dambreak_friction_2d`], is the 6,000-particle water dam-break of
-//! the friction study (a weakly compressible fluid at a fixed time step, five Coulomb floor
-//! segments), where the fixed costs of a step dominate; it scales to 100k and 1M particles.
-//! The third, [`granular_column_3d`], is a Drucker–Prager column collapse in 3D.
-//!
-//! The implicit benches use two quasi-static scenes ([`cantilever_2d`] and [`hencky_block_3d`]),
-//! returned as `ImplicitConfig` + `Particles`.
+//! The implicit benches use two quasi-static scenes ([`cantilever_2d`] and
+//! [`hencky_block_3d`]), built here and returned as `ImplicitConfig` + `Particles`.
 
 use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Contact, FrictionSegment, Grid, Material, ModelKind, Particles, Scalar, Scheme,
-    Shape, TimeStep, Transfer, Wall, WallKind,
-};
+use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Scalar, Shape, Wall, WallKind};
 use loam_explicit::Config;
 use loam_implicit::{ImplicitConfig, NewtonSettings};
+use loam_scene::Scene;
 use loam_verification::cantilever;
 
-/// Young's modulus of the block material (Pa): soft, so the block flows like a fluid.
-const YOUNG: f64 = 1.0e5;
-/// Poisson's ratio of the block material: nearly incompressible, low shear modulus.
-const POISSON: f64 = 0.45;
-/// Mass density of the block material (kg/m³).
+/// An explicit bench scene: a scene file of the repository, compiled into the crate.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchScene {
+    /// The file's stem, which [`explicit_scene`] takes.
+    pub name: &'static str,
+    /// The file, relative to the repository root.
+    pub path: &'static str,
+    /// The file's text.
+    pub toml: &'static str,
+}
+
+/// A [`BenchScene`] for the file at `$path` (relative to the repository root).
+macro_rules! bench_scene {
+    ($name:literal, $path:literal) => {
+        BenchScene {
+            name: $name,
+            path: $path,
+            toml: include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/../", $path)),
+        }
+    };
+}
+
+/// The explicit bench scenes.
+pub const EXPLICIT_SCENES: [BenchScene; 7] = [
+    bench_scene!("block_2d_10k", "benches/scenes/block_2d_10k.toml"),
+    bench_scene!("block_2d_100k", "benches/scenes/block_2d_100k.toml"),
+    bench_scene!("block_3d_100k", "benches/scenes/block_3d_100k.toml"),
+    bench_scene!("dambreak_friction", "examples/dambreak_friction.toml"),
+    bench_scene!(
+        "dambreak_friction_96k",
+        "benches/scenes/dambreak_friction_96k.toml"
+    ),
+    bench_scene!(
+        "dambreak_friction_1m",
+        "benches/scenes/dambreak_friction_1m.toml"
+    ),
+    bench_scene!("column_3d_93k", "benches/scenes/column_3d_93k.toml"),
+];
+
+/// The solver inputs of the explicit bench scene `name` (a stem of [`EXPLICIT_SCENES`]) in
+/// `D` dimensions and precision `T`: the scene is parsed, validated and built by
+/// `loam-scene` (`Built::explicit_config` and `Built::particles`), then lifted to `T`
+/// (`Config::lift`, `Particles::lift`).
+///
+/// # Panics
+///
+/// When `name` is not a bench scene or the scene is not `D`-dimensional: the names and
+/// dimensions are fixed by the callers, and the tests build every scene.
+pub fn explicit_scene<T: Scalar, const D: usize>(name: &str) -> (Config<T, D>, Particles<T, D>) {
+    let Some(scene) = EXPLICIT_SCENES.iter().find(|s| s.name == name) else {
+        let known: Vec<&str> = EXPLICIT_SCENES.iter().map(|s| s.name).collect();
+        panic!(
+            "no bench scene `{name}`; expected one of {}",
+            known.join(", ")
+        );
+    };
+    let built = Scene::from_toml_str(scene.toml)
+        .and_then(|s| s.build::<D>())
+        .unwrap_or_else(|e| panic!("{}: {e}", scene.path));
+    let config = built
+        .explicit_config()
+        .unwrap_or_else(|| panic!("{}: not an explicit scene", scene.path));
+    (config.lift(), built.particles.lift())
+}
+
+/// Mass density of the implicit 3D block (kg/m³).
 const DENSITY: f64 = 1000.0;
-/// Side length of the block (m); the box is twice as large along every axis.
+/// Side length of the implicit 3D block (m).
 const BLOCK_SIDE: f64 = 1.0;
-/// Particles per cell along each axis.
+/// Particles per cell along each axis of the implicit 3D block.
 const PARTICLES_PER_CELL_AXIS: usize = 2;
-
-/// A 2D (plane-strain) fluid-like block collapse with at least `target_particles` particles.
-///
-/// The block is `n × n` particles, 2 × 2 per cell, with `n` the smallest even number such that
-/// `n² ≥ target_particles` (at least one cell): 100,000 gives 318² = 101,124 particles and
-/// 10,000 gives exactly 10,000. The block is 1 m wide and the box 2 m × 2 m; gravity acts
-/// along `-y`.
-pub fn fluid_block_2d<T: Scalar>(target_particles: usize) -> (Config<T, 2>, Particles<T, 2>) {
-    fluid_block(target_particles)
-}
-
-/// A 3D fluid-like block collapse with at least `target_particles` particles.
-///
-/// The block is `n × n × n` particles, 2 × 2 × 2 per cell, with `n` the smallest even number
-/// such that `n³ ≥ target_particles` (at least one cell): 100,000 gives 48³ = 110,592
-/// particles. The block is 1 m wide and the box 2 m × 2 m × 2 m; gravity acts along `-y`.
-pub fn fluid_block_3d<T: Scalar>(target_particles: usize) -> (Config<T, 3>, Particles<T, 3>) {
-    fluid_block(target_particles)
-}
-
-/// The block collapse in `D` dimensions (see [`fluid_block_2d`] and [`fluid_block_3d`]).
-fn fluid_block<T: Scalar, const D: usize>(
-    target_particles: usize,
-) -> (Config<T, D>, Particles<T, D>) {
-    let per_axis = particles_per_axis(target_particles, D);
-    let block_cells = per_axis / PARTICLES_PER_CELL_AXIS;
-    let h = BLOCK_SIDE / block_cells as f64;
-    let shape = Shape::QuadraticBspline;
-    let mut gravity = Vector::<T, D>::zeros();
-    gravity[1] = T::cst(-9.81);
-    let config = Config {
-        grid: Grid::new([0.0; D], [2 * block_cells; D], h, shape.ghost_cells()),
-        shape,
-        transfer: Transfer::Apic,
-        scheme: Scheme::Musl,
-        boundary: Boundary::all(Wall {
-            kind: WallKind::Slip,
-            separable: true,
-        }),
-        contact: Default::default(),
-        gravity,
-        materials: vec![Material::elastic(
-            ModelKind::NeoHookean,
-            T::cst(YOUNG),
-            T::cst(POISSON),
-            T::cst(DENSITY),
-        )],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.4,
-            max_dt: 1e-3,
-        },
-    };
-
-    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
-    let half_width = Vector::<T, D>::repeat(T::cst(0.5 * dp));
-    let mut particles = Particles::default();
-    for k in 0..per_axis.pow(D as u32) {
-        let x = Vector::<T, D>::from_fn(|a, _| {
-            let i = k / per_axis.pow(a as u32) % per_axis;
-            T::cst((i as f64 + 0.5) * dp)
-        });
-        particles.push(x, Vector::zeros(), T::cst(DENSITY), half_width, 0);
-    }
-    (config, particles)
-}
-
-/// Height of the friction dam-break tank (m); its length is [`DAMBREAK_LENGTH`].
-const DAMBREAK_HEIGHT: f64 = 0.4;
-/// Length of the friction dam-break tank (m).
-const DAMBREAK_LENGTH: f64 = 2.0;
-/// Width and height of the water block of the friction dam-break (m).
-const DAMBREAK_WATER: [f64; 2] = [0.5, 0.3];
-/// Cell size of the friction dam-break at scale 1 (m).
-const DAMBREAK_CELL: f64 = 0.01;
-/// Fixed time step of the friction dam-break at scale 1 (s).
-pub const DAMBREAK_DT: f64 = 3e-5;
-/// Coulomb coefficients of the five equal floor segments of the friction dam-break, from
-/// x = 0 to x = 2 m.
-pub const DAMBREAK_FRICTION: [f64; 5] = [0.0, 0.5, 0.1, 0.2, 0.0];
-
-/// The 2D "friction dam-break" of `examples/dambreak_friction.toml` (forward only): a water
-/// block of 0.5 m × 0.3 m in the lower left corner of a 2.0 m × 0.4 m tank, collapsing under
-/// gravity (9.8 m/s² along −y). Slip walls; the floor is a separable slip wall split into five
-/// Coulomb segments of 0.4 m with μ = [`DAMBREAK_FRICTION`].
-///
-/// Water is the weakly compressible [`Material::fluid`] with ρ₀ = 1000 kg/m³, sound speed
-/// 35 m/s (K = ρ₀c² = 1.225 MPa), γ = 7 and no viscosity. Quadratic B-splines, MLS-MPM
-/// (APIC transfers, moving-least-squares force and `L = C`) with USL, as the reference solver
-/// runs this scene: one P2G and one G2P per step. 2 × 2 particles per cell and a fixed time step of [`DAMBREAK_DT`]` / scale`. `scale = 1` is
-/// the reference: 200 × 40 cells of 0.01 m and 6,000 particles (13,333 steps make 0.4 s);
-/// `scale = k` divides the cell size and the time step by `k` (6,000·k² particles).
-pub fn dambreak_friction_2d<T: Scalar>(scale: usize) -> (Config<T, 2>, Particles<T, 2>) {
-    assert!(scale >= 1, "dambreak_friction_2d: scale must be at least 1");
-    let h = DAMBREAK_CELL / scale as f64;
-    let cells = [
-        (DAMBREAK_LENGTH / h).round() as usize,
-        (DAMBREAK_HEIGHT / h).round() as usize,
-    ];
-    let shape = Shape::QuadraticBspline;
-    let sound_speed = 35.0;
-    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-    boundary.walls[1][0] = Wall {
-        kind: WallKind::Slip,
-        separable: true,
-    };
-    let mut contact = Contact::new(shape);
-    let segment = DAMBREAK_LENGTH / DAMBREAK_FRICTION.len() as f64;
-    for (k, &mu) in DAMBREAK_FRICTION.iter().enumerate() {
-        contact.segments.push(FrictionSegment {
-            axis: 1,
-            side: 0,
-            from: [k as f64 * segment, 0.0],
-            to: [(k + 1) as f64 * segment, 0.0],
-            mu: T::cst(mu),
-        });
-    }
-    let config = Config {
-        grid: Grid::new([0.0; 2], cells, h, shape.ghost_cells()),
-        shape,
-        transfer: Transfer::Mls,
-        scheme: Scheme::Usl,
-        boundary,
-        contact,
-        gravity: Vector::<T, 2>::new(T::zero(), T::cst(-9.8)),
-        materials: vec![Material::fluid(
-            T::cst(DENSITY * sound_speed * sound_speed),
-            T::cst(7.0),
-            T::zero(),
-            T::cst(DENSITY),
-        )],
-        time_step: TimeStep::Fixed {
-            dt: DAMBREAK_DT / scale as f64,
-        },
-    };
-    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
-    let n: [usize; 2] = std::array::from_fn(|a| (DAMBREAK_WATER[a] / dp).round() as usize);
-    let half_width = Vector::<T, 2>::repeat(T::cst(0.5 * dp));
-    let mut particles = Particles::default();
-    for j in 0..n[1] {
-        for i in 0..n[0] {
-            let x =
-                Vector::<T, 2>::new(T::cst((i as f64 + 0.5) * dp), T::cst((j as f64 + 0.5) * dp));
-            particles.push(x, Vector::zeros(), T::cst(DENSITY), half_width, 0);
-        }
-    }
-    (config, particles)
-}
-
-/// Cell size of the 3D granular column at `resolution = 1` (m).
-const COLUMN_CELL: f64 = 0.01;
-
-/// The 3D granular column collapse of `examples/granular_collapse_3d.toml` at `resolution`
-/// times its cell count per axis (cell size `0.01 m / resolution`).
-///
-/// A quarter of a square column, 0.06 m × 0.12 m × 0.06 m (x, y up, z), in the corner of a
-/// 0.4 m × 0.15 m × 0.4 m box whose planes x = 0 and z = 0 are symmetry (slip) walls;
-/// cohesionless non-associated Drucker–Prager sand (ρ = 2650 kg/m³, E = 0.84 MPa, ν = 0.3,
-/// φ = 30°, ψ = 0) on a Coulomb floor with μ = tan φ, stress-free at t = 0. Quadratic B-splines,
-/// APIC, MUSL, 2 × 2 × 2 particles per cell, adaptive time step at CFL 0.4. `resolution = 1`
-/// gives 3,456 particles, 3 gives 93,312.
-pub fn granular_column_3d<T: Scalar>(resolution: usize) -> (Config<T, 3>, Particles<T, 3>) {
-    assert!(
-        resolution >= 1,
-        "granular_column_3d: resolution must be at least 1"
-    );
-    let h = COLUMN_CELL / resolution as f64;
-    let cells = |length: f64| (length / h).round() as usize;
-    let shape = Shape::QuadraticBspline;
-    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-    boundary.walls[1] = [
-        Wall {
-            kind: WallKind::Slip,
-            separable: true,
-        },
-        Wall::new(WallKind::Free),
-    ];
-    let mut contact = Contact::new(shape);
-    contact.segments.push(FrictionSegment::whole_face(
-        1,
-        0,
-        T::cst(30f64.to_radians().tan()),
-    ));
-    let config = Config {
-        grid: Grid::new([0.0; 3], [cells(0.4), cells(0.15), cells(0.4)], h, 2),
-        shape,
-        transfer: Transfer::Apic,
-        scheme: Scheme::Musl,
-        boundary,
-        contact,
-        gravity: Vector::<T, 3>::new(T::zero(), T::cst(-9.81), T::zero()),
-        materials: vec![Material::drucker_prager(
-            T::cst(0.84e6),
-            T::cst(0.3),
-            T::cst(30f64.to_radians()),
-            T::zero(),
-            T::zero(),
-            None,
-            T::cst(2650.0),
-        )],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.4,
-            max_dt: 1e-3,
-        },
-    };
-    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
-    let n = [0.06, 0.12, 0.06].map(|l: f64| (l / dp).round() as usize);
-    let half_width = Vector::<T, 3>::repeat(T::cst(0.5 * dp));
-    let mut particles = Particles::default();
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                let x = Vector::<T, 3>::from_fn(|a, _| T::cst(([i, j, k][a] as f64 + 0.5) * dp));
-                particles.push(x, Vector::zeros(), T::cst(2650.0), half_width, 0);
-            }
-        }
-    }
-    (config, particles)
-}
 
 /// The reference large-deflection cantilever of the implicit benchmark
 /// (`loam_verification::cantilever::Setup::reference` with quadratic B-splines) at cell size
@@ -347,19 +192,223 @@ fn particles_per_axis(target: usize, dim: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use loam_core::{FrictionSegment, Scheme, TimeStep, Transfer};
+
+    /// Builds the bench scene `name` in f64 through the loader.
+    fn load<const D: usize>(name: &str) -> (Config<f64, D>, Particles<f64, D>) {
+        explicit_scene::<f64, D>(name)
+    }
+
+    /// Checks that `p` is the block of `n[0] × … × n[D−1]` particles of spacing `dp` and
+    /// density `density` from the origin, at `(i + ½) dp` per axis, axis 0 fastest, at rest:
+    /// the lattice the benches used to build by hand.
+    fn assert_lattice<const D: usize>(p: &Particles<f64, D>, n: [usize; D], dp: f64, density: f64) {
+        assert_eq!(p.len(), n.iter().product::<usize>());
+        let volume = dp.powi(D as i32);
+        let mut k = 0;
+        let mut index = [0usize; D];
+        loop {
+            for a in 0..D {
+                // Round-off: the coordinates are at most 2 m and come from a few operations
+                // (~1e-16 m each); 1e-12 m is far below the smallest spacing (3.8e-4 m), so a
+                // particle one site off fails.
+                let expected = (index[a] as f64 + 0.5) * dp;
+                assert!(
+                    (p.x[k][a] - expected).abs() < 1e-12,
+                    "particle {k} axis {a}"
+                );
+                assert!((p.half_width0[k][a] - 0.5 * dp).abs() < 1e-15);
+            }
+            assert!(
+                (p.volume0[k] / volume - 1.0).abs() < 1e-12,
+                "particle {k} volume"
+            );
+            assert!(
+                (p.mass[k] / (density * volume) - 1.0).abs() < 1e-12,
+                "particle {k} mass"
+            );
+            assert_eq!(p.v[k], Vector::<f64, D>::zeros());
+            assert_eq!(p.material[k], 0);
+            k += 1;
+            let Some(a) = (0..D).find(|&a| index[a] + 1 < n[a]) else {
+                break;
+            };
+            index[a] += 1;
+            index[..a].fill(0);
+        }
+        assert_eq!(k, p.len());
+    }
+
+    /// Checks the grid of `config`: `cells` of size `h` from the origin, with the two ghost
+    /// cells of quadratic B-splines.
+    fn assert_grid<const D: usize>(config: &Config<f64, D>, cells: [usize; D], h: f64) {
+        assert_eq!(config.grid.cells, cells);
+        assert!(
+            (config.grid.h / h - 1.0).abs() < 1e-15,
+            "h = {}",
+            config.grid.h
+        );
+        assert_eq!(config.grid.lo, [0.0; D]);
+        assert_eq!(config.grid.pad, Shape::QuadraticBspline.ghost_cells());
+        assert_eq!(config.shape, Shape::QuadraticBspline);
+    }
+
+    /// The block collapse: a 1 m block of `n` particles per axis (2 per cell) in a box twice
+    /// its size, separable slip walls everywhere, soft Neo-Hookean, APIC + MUSL at CFL 0.4.
+    fn assert_block<const D: usize>(name: &str, n: usize) {
+        let (config, particles) = load::<D>(name);
+        let h = 1.0 / (n / 2) as f64;
+        assert_grid(&config, [n; D], h);
+        let separable_slip = Wall {
+            kind: WallKind::Slip,
+            separable: true,
+        };
+        assert_eq!(config.boundary, Boundary::all(separable_slip));
+        assert!(config.contact.is_empty());
+        assert_eq!(config.transfer, Transfer::Apic);
+        assert_eq!(config.scheme, Scheme::Musl);
+        assert_eq!(
+            config.time_step,
+            TimeStep::Adaptive {
+                cfl: 0.4,
+                max_dt: 1e-3
+            }
+        );
+        let mut gravity = Vector::<f64, D>::zeros();
+        gravity[1] = -9.81;
+        assert_eq!(config.gravity, gravity);
+        assert_eq!(
+            config.materials,
+            vec![Material::elastic(
+                ModelKind::NeoHookean,
+                1.0e5,
+                0.45,
+                1000.0
+            )]
+        );
+        assert_lattice(&particles, [n; D], 0.5 * h, 1000.0);
+    }
 
     #[test]
-    fn particle_counts() {
-        assert_eq!(fluid_block_2d::<f64>(100_000).1.len(), 101_124);
-        assert_eq!(fluid_block_2d::<f64>(10_000).1.len(), 10_000);
-        assert_eq!(fluid_block_3d::<f64>(100_000).1.len(), 110_592);
-        assert_eq!(fluid_block_2d::<f32>(0).1.len(), 4);
+    fn block_scenes_are_the_block_collapse() {
+        assert_block::<2>("block_2d_10k", 100);
+        assert_block::<2>("block_2d_100k", 318);
+        assert_block::<3>("block_3d_100k", 48);
+    }
+
+    #[test]
+    fn dambreak_scenes_are_the_friction_dam_break_at_their_scale() {
+        for (name, scale) in [
+            ("dambreak_friction", 1),
+            ("dambreak_friction_96k", 4),
+            ("dambreak_friction_1m", 13),
+        ] {
+            let (config, particles) = load::<2>(name);
+            let h = 0.01 / scale as f64;
+            assert_grid(&config, [200 * scale, 40 * scale], h);
+            let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+            boundary.walls[1][0].separable = true;
+            assert_eq!(config.boundary, boundary);
+            assert_eq!(config.transfer, Transfer::Mls);
+            assert_eq!(config.scheme, Scheme::Usl);
+            let TimeStep::Fixed { dt } = config.time_step else {
+                panic!("{name}: fixed time step expected");
+            };
+            assert!(
+                (dt * scale as f64 / 3e-5 - 1.0).abs() < 1e-15,
+                "{name}: dt = {dt}"
+            );
+            assert_eq!(config.gravity, Vector::<f64, 2>::new(0.0, -9.8));
+            assert_eq!(
+                config.materials,
+                vec![Material::fluid(1000.0 * 35.0 * 35.0, 7.0, 0.0, 1000.0)]
+            );
+            // Five floor segments of 0.4 m; their ends agree to round-off (k · 0.4).
+            let mu = [0.0, 0.5, 0.1, 0.2, 0.0];
+            assert_eq!(config.contact.segments.len(), mu.len());
+            assert!(config.contact.obstacles.is_empty());
+            for (k, s) in config.contact.segments.iter().enumerate() {
+                assert_eq!((s.axis, s.side, s.mu), (1, 0, mu[k]));
+                assert!((s.from[0] - 0.4 * k as f64).abs() < 1e-12);
+                assert!((s.to[0] - 0.4 * (k + 1) as f64).abs() < 1e-12);
+                assert_eq!((s.from[1], s.to[1]), (0.0, 0.0));
+            }
+            assert_lattice(&particles, [100 * scale, 60 * scale], 0.5 * h, 1000.0);
+        }
+    }
+
+    #[test]
+    fn column_scene_is_the_granular_column_at_a_third_of_the_cell_size() {
+        let (config, particles) = load::<3>("column_3d_93k");
+        let h = 0.01 / 3.0;
+        assert_grid(&config, [120, 45, 120], h);
+        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+        boundary.walls[1] = [
+            Wall {
+                kind: WallKind::Slip,
+                separable: true,
+            },
+            Wall::new(WallKind::Free),
+        ];
+        assert_eq!(config.boundary, boundary);
+        assert_eq!(config.transfer, Transfer::Apic);
+        assert_eq!(config.scheme, Scheme::Musl);
+        assert_eq!(
+            config.time_step,
+            TimeStep::Adaptive {
+                cfl: 0.4,
+                max_dt: 1e-3
+            }
+        );
+        assert_eq!(config.gravity, Vector::<f64, 3>::new(0.0, -9.81, 0.0));
+        let phi = 30f64.to_radians();
+        assert_eq!(
+            config.materials,
+            vec![Material::drucker_prager(
+                0.84e6, 0.3, phi, 0.0, 0.0, None, 2650.0
+            )]
+        );
+        // The floor, μ = tan φ, over the whole face of the domain.
+        assert_eq!(
+            config.contact.segments,
+            vec![FrictionSegment {
+                axis: 1,
+                side: 0,
+                from: [0.0; 3],
+                to: [0.4, 0.0, 0.4],
+                mu: phi.tan(),
+            }]
+        );
+        assert_lattice(&particles, [36, 72, 36], 0.5 * h, 2650.0);
+    }
+
+    #[test]
+    fn scenes_lift_to_single_precision_and_step() {
+        let (config, mut particles) = explicit_scene::<f32, 2>("dambreak_friction");
+        let reference = load::<2>("dambreak_friction").1;
+        assert_eq!(particles.len(), reference.len());
+        for (x, y) in particles.x.iter().zip(&reference.x) {
+            // f32 round-off of coordinates below 0.5 m.
+            assert!((x.map(f64::from) - y).norm() < 1e-7);
+        }
+        let mut solver = loam_explicit::Solver::new(config, &particles).expect("valid scene");
+        solver
+            .step(&mut particles, f64::INFINITY)
+            .expect("a stable step");
+    }
+
+    #[test]
+    #[should_panic(expected = "no bench scene `block_2d_1m`")]
+    fn an_unknown_scene_is_refused_with_the_known_ones() {
+        explicit_scene::<f64, 2>("block_2d_1m");
+    }
+
+    #[test]
+    fn implicit_particle_counts() {
         assert_eq!(cantilever_2d(0.25).1.len(), 5_760);
         assert_eq!(cantilever_2d(0.125).1.len(), 23_040);
         assert_eq!(cantilever_2d(0.0625).1.len(), 92_160);
         assert_eq!(hencky_block_3d(25_000).1.len(), 27_000);
-        assert_eq!(dambreak_friction_2d::<f64>(1).1.len(), 6_000);
-        assert_eq!(dambreak_friction_2d::<f32>(2).1.len(), 24_000);
     }
 
     #[test]
@@ -376,16 +425,5 @@ mod tests {
         assert!(!system.is_empty());
         // Gravity pushes down: the external force on the unknowns sums to −ρ g V λ along y.
         assert!(system.f_ext.iter().sum::<f64>() < 0.0);
-    }
-
-    #[test]
-    fn block_sits_in_the_lower_corner_of_the_box() {
-        let (config, particles) = fluid_block_3d::<f64>(1000);
-        let hi = config.grid.hi();
-        for x in &particles.x {
-            for a in 0..3 {
-                assert!(x[a] > 0.0 && x[a] < 0.5 * hi[a]);
-            }
-        }
     }
 }

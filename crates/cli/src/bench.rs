@@ -1,16 +1,19 @@
 //! `loam bench`: times the bench scenes of `loam_benches` on this machine.
 //!
-//! The scenes are the ones the criterion benches use (`cargo bench -p loam-benches`), so the
-//! figures are comparable with `docs/performance.md`. An explicit scene takes
+//! The explicit scenes are scene files (`examples/dambreak_friction.toml` and
+//! `benches/scenes/*.toml`, which `loam run` runs too), built by
+//! `loam_benches::explicit_scene`, the same loader the criterion benches use
+//! (`cargo bench -p loam-benches`), so the figures are comparable with `docs/performance.md`.
+//! An explicit scene takes
 //! [`WARM_UP_STEPS`] untimed steps (scratch allocated, material moving), then the timed steps;
 //! the figure is particle-steps per second, `particles · steps / wall time`. The implicit
 //! cantilever runs its 50 load steps end to end and reports the wall time and the Newton
 //! iterations.
 
 use crate::Outcome;
-use loam_benches::{dambreak_friction_2d, fluid_block_2d, fluid_block_3d, granular_column_3d};
-use loam_core::{Particles, Scalar, Shape};
-use loam_explicit::{Config, Solver};
+use loam_benches::explicit_scene;
+use loam_core::{Scalar, Shape};
+use loam_explicit::Solver;
 use loam_implicit::StepReport;
 use loam_verification::cantilever::Setup;
 use std::path::Path;
@@ -164,25 +167,27 @@ pub fn bench(
     Outcome::Ok
 }
 
-/// Times `steps` explicit steps of the scene `name` in precision `T`.
+/// Times `steps` explicit steps of the bench `name` in precision `T`.
 fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {
     match name {
-        "dambreak" => time_steps(name, steps, dambreak_friction_2d::<T>(1)),
-        "dambreak-96k" => time_steps(name, steps, dambreak_friction_2d::<T>(4)),
-        "dambreak-1m" => time_steps(name, steps, dambreak_friction_2d::<T>(13)),
-        "block-2d" => time_steps(name, steps, fluid_block_2d::<T>(100_000)),
-        "block-3d" => time_steps(name, steps, fluid_block_3d::<T>(100_000)),
-        "column-3d" => time_steps(name, steps, granular_column_3d::<T>(3)),
+        "dambreak" => time_steps::<T, 2>(name, "dambreak_friction", steps),
+        "dambreak-96k" => time_steps::<T, 2>(name, "dambreak_friction_96k", steps),
+        "dambreak-1m" => time_steps::<T, 2>(name, "dambreak_friction_1m", steps),
+        "block-2d" => time_steps::<T, 2>(name, "block_2d_100k", steps),
+        "block-3d" => time_steps::<T, 3>(name, "block_3d_100k", steps),
+        "column-3d" => time_steps::<T, 3>(name, "column_3d_93k", steps),
         _ => unreachable!("`{name}` is in BENCHES"),
     }
 }
 
-/// Warms the solver up, then times `steps` steps.
+/// Builds the bench scene `scene` (a stem of `loam_benches::EXPLICIT_SCENES`), warms the
+/// solver up, then times `steps` steps.
 fn time_steps<T: Scalar, const D: usize>(
     name: &'static str,
+    scene: &str,
     steps: usize,
-    (config, mut particles): (Config<T, D>, Particles<T, D>),
 ) -> Measured {
+    let (config, mut particles) = explicit_scene::<T, D>(scene);
     let mut solver = Solver::new(config, &particles).expect("bench scenes are valid");
     let mut advance = |k: usize| {
         for _ in 0..k {
