@@ -5,6 +5,24 @@ use loam_verification::{Bound, Case, Metric, Size, case, cases};
 use std::path::Path;
 use std::time::Instant;
 
+/// One row of the report: case, metric, value, bound and tolerance, and the result
+/// (`pass`, `FAIL`, or `info` for a metric without tolerance).
+fn metric_line(m: &Metric) -> String {
+    let (bound, tolerance, result) = match (m.bound, m.tolerance) {
+        (Bound::Info, _) | (_, None) => (" ", "-".to_string(), "info"),
+        (Bound::Upper, Some(t)) => ("≤", format!("{t:.4e}"), pass_fail(m.passed)),
+        (Bound::Lower, Some(t)) => ("≥", format!("{t:.4e}"), pass_fail(m.passed)),
+    };
+    format!(
+        "{:<16} {:<30} {:>12.4e} {bound} {:>10}  {result}",
+        m.case, m.metric, m.value, tolerance
+    )
+}
+
+fn pass_fail(passed: bool) -> &'static str {
+    if passed { "pass" } else { "FAIL" }
+}
+
 /// Runs the named cases (all when empty); exit 1 if any metric fails.
 pub fn verify(
     names: &[String],
@@ -47,18 +65,7 @@ pub fn verify(
         match (c.run)(size, &dir) {
             Ok(report) => {
                 for m in &report.metrics {
-                    let bound = match m.bound {
-                        Bound::Upper => "≤",
-                        Bound::Lower => "≥",
-                    };
-                    println!(
-                        "{:<16} {:<30} {:>12.4e} {bound} {:>10.4e}  {}",
-                        m.case,
-                        m.metric,
-                        m.value,
-                        m.tolerance,
-                        if m.passed { "pass" } else { "FAIL" }
-                    );
+                    println!("{}", metric_line(m));
                     failed |= !m.passed;
                 }
                 let files: Vec<String> = report
