@@ -14,7 +14,7 @@ fn metric_line(m: &Metric) -> String {
         (Bound::Lower, Some(t)) => ("≥", format!("{t:.4e}"), pass_fail(m.passed)),
     };
     format!(
-        "{:<16} {:<30} {:>12.4e} {bound} {:>10}  {result}",
+        "{:<21} {:<44} {:>12.4e} {bound} {:>10}  {result}",
         m.case, m.metric, m.value, tolerance
     )
 }
@@ -33,7 +33,7 @@ pub fn verify(
 ) -> Outcome {
     if list {
         for c in cases() {
-            println!("{:<16} {}", c.name, c.description);
+            println!("{:<21} {}", c.name, c.description);
         }
         return Outcome::Ok;
     }
@@ -52,7 +52,7 @@ pub fn verify(
     let mut metrics: Vec<Metric> = Vec::new();
     let mut failed = false;
     println!(
-        "{:<16} {:<30} {:>12} {:>12}  result",
+        "{:<21} {:<44} {:>12} {:>12}  result",
         "case", "metric", "value", "tolerance"
     );
     for c in selected {
@@ -74,7 +74,7 @@ pub fn verify(
                     .map(|f| f.display().to_string())
                     .collect();
                 println!(
-                    "{:<16} ({:.1} s; wrote {})",
+                    "{:<21} ({:.1} s; wrote {})",
                     "",
                     start.elapsed().as_secs_f64(),
                     files.join(", ")
@@ -83,7 +83,7 @@ pub fn verify(
             }
             Err(e) => {
                 println!(
-                    "{:<16} {:<30} {:>12} {:>12}  FAIL ({e})",
+                    "{:<21} {:<44} {:>12} {:>12}  FAIL ({e})",
                     c.name, "run", "-", "-"
                 );
                 metrics.push(Metric::at_most(c.name, "run", f64::NAN, 0.0));
