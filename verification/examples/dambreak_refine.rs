@@ -1,11 +1,11 @@
 //! The `dambreak-2d` case at any cell size, particle density, time step, transfer and sound
-//! speed, for the refinement tables of docs/verification.md (the case itself runs h = 0.01 m
-//! in the tests and 0.004 m in `loam verify`).
+//! speed, for the refinement tables of docs/verification.md (the case itself runs h = 0.02 and
+//! 0.01 m in the tests, 0.01 and 0.004 m in `loam verify`).
 //!
 //! `cargo run --release -p loam-verification --example dambreak_refine -- [H] [PPC] [dt=DT]
 //! [transfer=T] [c=C]` with `H` the cell size in metres (it must divide 0.1, 0.12 and 2 m;
 //! default 0.0025), `PPC` the particles per cell per axis (default 2), `DT` the time step in
-//! seconds (default 1e-5 s · H / 0.004 m, the case's CFL number), `T` one of `apic` (the
+//! seconds (default 1e-5 s · H / 0.004 m, CFL ≈ 0.09; the case runs CFL ≈ 0.37), `T` one of `apic` (the
 //! default), `tpic`, `flip` (α = 1), `pic` or `mls`, and `C` the sound speed in m/s (default
 //! 35). MUSL, window T_W = 0.5 s. Prints one row of the table.
 

@@ -29,7 +29,8 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
-/// One measured quantity of a case, with its acceptance threshold.
+/// One measured quantity of a case, with its acceptance threshold (or none, for a quantity
+/// reported as information only).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Metric {
     /// Case name (e.g. `axial-bar`).
@@ -38,11 +39,13 @@ pub struct Metric {
     pub metric: String,
     /// Measured value.
     pub value: f64,
-    /// Acceptance threshold (`value ≤ tolerance` passes).
-    pub tolerance: f64,
-    /// Whether the tolerance is an upper bound (`value ≤ tolerance`) or a lower bound.
+    /// Acceptance threshold; `None` (JSON `null`) for an information-only metric.
+    pub tolerance: Option<f64>,
+    /// Whether the tolerance is an upper bound (`value ≤ tolerance`), a lower bound, or
+    /// there is none (information).
     pub bound: Bound,
-    /// Whether the value is within tolerance.
+    /// Whether the value is within tolerance; always `true` for an information-only metric,
+    /// which never fails a case.
     pub passed: bool,
 }
 
@@ -54,6 +57,9 @@ pub enum Bound {
     Upper,
     /// `value ≥ tolerance` passes (convergence orders).
     Lower,
+    /// Reported as information: no tolerance, does not decide pass or fail (e.g. the error
+    /// against a reference that the converged model is known not to match).
+    Info,
 }
 
 impl Metric {
@@ -63,7 +69,7 @@ impl Metric {
             case: case.into(),
             metric: metric.into(),
             value,
-            tolerance,
+            tolerance: Some(tolerance),
             bound: Bound::Upper,
             passed: value.is_finite() && value <= tolerance,
         }
@@ -75,6 +81,18 @@ impl Metric {
             bound: Bound::Lower,
             passed: value.is_finite() && value >= tolerance,
             ..Self::at_most(case, metric, value, tolerance)
+        }
+    }
+
+    /// A value reported as information only: no tolerance, never fails.
+    pub fn info(case: &str, metric: &str, value: f64) -> Self {
+        Self {
+            case: case.into(),
+            metric: metric.into(),
+            value,
+            tolerance: None,
+            bound: Bound::Info,
+            passed: true,
         }
     }
 }

@@ -5,6 +5,24 @@ use loam_verification::{Bound, Case, Metric, Size, case, cases};
 use std::path::Path;
 use std::time::Instant;
 
+/// One row of the report: case, metric, value, bound and tolerance, and the result
+/// (`pass`, `FAIL`, or `info` for a metric without tolerance).
+fn metric_line(m: &Metric) -> String {
+    let (bound, tolerance, result) = match (m.bound, m.tolerance) {
+        (Bound::Info, _) | (_, None) => (" ", "-".to_string(), "info"),
+        (Bound::Upper, Some(t)) => ("≤", format!("{t:.4e}"), pass_fail(m.passed)),
+        (Bound::Lower, Some(t)) => ("≥", format!("{t:.4e}"), pass_fail(m.passed)),
+    };
+    format!(
+        "{:<21} {:<44} {:>12.4e} {bound} {:>10}  {result}",
+        m.case, m.metric, m.value, tolerance
+    )
+}
+
+fn pass_fail(passed: bool) -> &'static str {
+    if passed { "pass" } else { "FAIL" }
+}
+
 /// Runs the named cases (all when empty); exit 1 if any metric fails.
 pub fn verify(
     names: &[String],
@@ -15,7 +33,7 @@ pub fn verify(
 ) -> Outcome {
     if list {
         for c in cases() {
-            println!("{:<16} {}", c.name, c.description);
+            println!("{:<21} {}", c.name, c.description);
         }
         return Outcome::Ok;
     }
@@ -34,7 +52,7 @@ pub fn verify(
     let mut metrics: Vec<Metric> = Vec::new();
     let mut failed = false;
     println!(
-        "{:<16} {:<30} {:>12} {:>12}  result",
+        "{:<21} {:<44} {:>12} {:>12}  result",
         "case", "metric", "value", "tolerance"
     );
     for c in selected {
@@ -47,18 +65,7 @@ pub fn verify(
         match (c.run)(size, &dir) {
             Ok(report) => {
                 for m in &report.metrics {
-                    let bound = match m.bound {
-                        Bound::Upper => "≤",
-                        Bound::Lower => "≥",
-                    };
-                    println!(
-                        "{:<16} {:<30} {:>12.4e} {bound} {:>10.4e}  {}",
-                        m.case,
-                        m.metric,
-                        m.value,
-                        m.tolerance,
-                        if m.passed { "pass" } else { "FAIL" }
-                    );
+                    println!("{}", metric_line(m));
                     failed |= !m.passed;
                 }
                 let files: Vec<String> = report
@@ -67,7 +74,7 @@ pub fn verify(
                     .map(|f| f.display().to_string())
                     .collect();
                 println!(
-                    "{:<16} ({:.1} s; wrote {})",
+                    "{:<21} ({:.1} s; wrote {})",
                     "",
                     start.elapsed().as_secs_f64(),
                     files.join(", ")
@@ -76,7 +83,7 @@ pub fn verify(
             }
             Err(e) => {
                 println!(
-                    "{:<16} {:<30} {:>12} {:>12}  FAIL ({e})",
+                    "{:<21} {:<44} {:>12} {:>12}  FAIL ({e})",
                     c.name, "run", "-", "-"
                 );
                 metrics.push(Metric::at_most(c.name, "run", f64::NAN, 0.0));
