@@ -17,6 +17,7 @@ pub mod footing;
 pub mod granular;
 pub mod incline;
 pub mod newmark_bar;
+pub mod newmark_energy;
 pub mod newton_quadratic;
 pub mod obstacles;
 mod output;
@@ -217,6 +218,11 @@ pub fn cases() -> Vec<Case> {
             name: "axial-bar-newmark",
             description: "the axial bar by the implicit solver with Newmark dynamics at twice the explicit stability limit",
             run: newmark_bar::run,
+        },
+        Case {
+            name: "newmark-energy",
+            description: "free vibration of the dynamic cantilever (Hencky, first-mode velocity, tip amplitude L/100) by implicit Newmark at 20 steps per period for 10 periods: total energy drift",
+            run: newmark_energy::run,
         },
         Case {
             name: "tangent-fd",

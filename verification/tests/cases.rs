@@ -68,6 +68,11 @@ fn axial_bar_newmark() {
 }
 
 #[test]
+fn newmark_energy() {
+    check("newmark-energy");
+}
+
+#[test]
 fn dambreak_2d() {
     check("dambreak-2d");
 }

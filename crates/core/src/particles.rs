@@ -14,7 +14,8 @@ pub struct Particles<T: Scalar, const D: usize> {
     pub x: Vec<Vector<T, D>>,
     /// Velocity `v_p`.
     pub v: Vec<Vector<T, D>>,
-    /// Acceleration `a_p` (carried by implicit Newmark dynamics; zero otherwise).
+    /// Acceleration `a_p`: the end-of-step acceleration of implicit Newmark dynamics (for
+    /// output; a step takes its start acceleration from the forces); zero otherwise.
     pub a: Vec<Vector<T, D>>,
     /// Deformation gradient `F_p` (in-plane block in plane strain, where `F_zz = 1`).
     pub f: Vec<Tensor<T, D>>,

@@ -155,6 +155,16 @@ impl<const D: usize> DofMap<D> {
         Self { nodes, owners }
     }
 
+    /// Makes the inactive node `node` (flat index) follow `target`: every component of `node`
+    /// takes the unknown (or prescribed value) of the same component of `target`, so a
+    /// uniform `Δu` stays uniform over the stencils that reach `node`. A node that already
+    /// has unknowns is left as it is.
+    pub fn follow(&mut self, node: usize, target: usize) {
+        if self.nodes[node].iter().all(|d| *d == NodeDof::Inactive) {
+            self.nodes[node] = self.nodes[target];
+        }
+    }
+
     /// Number of unknowns.
     pub fn len(&self) -> usize {
         self.owners.len()

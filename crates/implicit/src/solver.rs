@@ -3,9 +3,9 @@
 
 use crate::dofs::DofMap;
 use crate::kernel::Frozen;
-use crate::linear::LinearSolver;
+use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
-use crate::system::{Materials, StepSystem};
+use crate::system::{Inverted, Materials, ParticleUpdate, StepSystem};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, NodeConstraint, Particles, PointLoad, Shape, Stencil};
@@ -38,6 +38,8 @@ pub struct ImplicitConfig<const D: usize> {
     pub dynamics: Option<f64>,
     /// A node takes part in a load step when its particle support `Σ_p w_ip V_p` exceeds
     /// this fraction of a cell volume (1e-4 by default; see `ImplicitConfig::DEFAULT_MIN_NODE_SUPPORT`).
+    /// A node below it keeps `Δu = 0` in a quasi-static step and follows an active neighbour
+    /// in a dynamic one.
     pub min_node_support: f64,
 }
 
@@ -73,6 +75,17 @@ pub enum ImplicitError {
         cuts: usize,
         /// The last failure.
         reason: String,
+    },
+    /// A particle's start-of-step state has no stress (its deformation gradient is not
+    /// invertible).
+    #[error(
+        "load step {step}: particle {particle} starts the step with a deformation gradient that is not invertible"
+    )]
+    InvalidState {
+        /// Load step.
+        step: usize,
+        /// Particle id.
+        particle: usize,
     },
     /// A particle's support left the grid.
     #[error("load step {step}: particle {particle} left the grid at {position:?}")]
@@ -115,11 +128,70 @@ impl<const D: usize> StepReport<D> {
     }
 }
 
+/// Lets every node that particles reach but that is too weakly supported to take part in the
+/// step follow an active node instead of staying put. With `Δu_j = 0`, a particle whose stencil
+/// reaches node `j` with weight `w` is strained by `Δu ⊗ ∇N_j` (`|∇N_j| ≈ √(2w)/h` for quadratic
+/// B-splines) by any translation of the step, which does work and breaks rigid motion. The
+/// node follows the best-supported active node inside every stencil that reaches it (the
+/// intersection of the stencil boxes), so the sparsity pattern is unchanged; if there is none,
+/// it stays at `Δu = 0`.
+fn follow_weak_nodes<const D: usize>(
+    grid: &Grid<D>,
+    frozen: &[Frozen<D>],
+    support: &[f64],
+    active: &[bool],
+    dofs: &mut DofMap<D>,
+) {
+    // Per inactive node, the intersection [lo, hi) of the stencil boxes holding it.
+    let mut boxes: Vec<Option<([isize; D], [isize; D])>> = vec![None; support.len()];
+    for fr in frozen {
+        let st = &fr.stencil;
+        st.for_each(|n| {
+            // Every stencil box that holds the node counts, zero weights included: the assembly
+            // couples all the nodes of a box.
+            if active[n.flat] {
+                return;
+            }
+            let hi_p: [isize; D] = std::array::from_fn(|a| st.base[a] + st.b as isize);
+            boxes[n.flat] = Some(match boxes[n.flat] {
+                None => (st.base, hi_p),
+                Some((lo, hi)) => (
+                    std::array::from_fn(|a| lo[a].max(st.base[a])),
+                    std::array::from_fn(|a| hi[a].min(hi_p[a])),
+                ),
+            });
+        });
+    }
+    for (node, b) in boxes.iter().enumerate() {
+        let Some((lo, hi)) = *b else { continue };
+        let extent: [usize; D] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0) as usize);
+        let count: usize = extent.iter().product();
+        let mut best: Option<usize> = None;
+        for k in 0..count {
+            let mut r = k;
+            let idx: [usize; D] = std::array::from_fn(|a| {
+                let i = lo[a] as usize + r % extent[a];
+                r /= extent[a];
+                i
+            });
+            let f = grid.flat(idx);
+            if active[f] && best.is_none_or(|b| support[f] > support[b]) {
+                best = Some(f);
+            }
+        }
+        if let Some(target) = best {
+            dofs.follow(node, target);
+        }
+    }
+}
+
 /// The quasi-static implicit solver.
 pub struct ImplicitSolver<const D: usize> {
     config: ImplicitConfig<D>,
     materials: Materials,
     linear: LinearSolver,
+    /// Cholesky of the regularised consistent mass for the end of Newmark steps.
+    mass_solver: LinearSolver,
     load_factor: f64,
     steps: usize,
 }
@@ -178,6 +250,7 @@ impl<const D: usize> ImplicitSolver<D> {
         Ok(Self {
             materials: Materials::new(config.materials.clone()),
             linear: LinearSolver::new(config.newton.linear),
+            mass_solver: LinearSolver::new(LinearSolverKind::Cholesky),
             config,
             load_factor: 0.0,
             steps: 0,
@@ -243,7 +316,8 @@ impl<const D: usize> ImplicitSolver<D> {
         }
         // Nodes whose particle support `Σ_p w_ip V_p` is a tiny fraction of a full cell carry
         // a tiny stiffness and make the tangent near-singular (a particle at the very edge of
-        // a B-spline support); they are left out (Δu = 0 there).
+        // a B-spline support); they are left out: Δu = 0 there in quasi-static steps, and in
+        // dynamic steps they follow an active neighbour (`follow_weak_nodes`).
         let full = grid.h.powi(D as i32);
         let active: Vec<bool> = support
             .iter()
@@ -259,7 +333,10 @@ impl<const D: usize> ImplicitSolver<D> {
                 .find(|k| k.displacement[c].is_some() && k.contains(&xa, grid.h))
                 .and_then(|k| k.displacement[c].map(|u| u * dl))
         };
-        let dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
+        let mut dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
+        if cfg.dynamics.is_some() {
+            follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
+        }
         // Quasi-static loads ramp with the load factor; dynamic loads act in full.
         let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
@@ -271,7 +348,12 @@ impl<const D: usize> ImplicitSolver<D> {
         });
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;
-            system.set_dynamic(step_dt, &p.mass, &p.v, &p.a);
+            system
+                .set_dynamic(step_dt, &p.mass, &p.v, &self.materials)
+                .map_err(|Inverted { particle }| ImplicitError::InvalidState {
+                    step: self.steps + 1,
+                    particle,
+                })?;
         }
         Ok(system)
     }
@@ -303,6 +385,28 @@ impl<const D: usize> ImplicitSolver<D> {
             .collect()
     }
 
+    /// The particle updates of a converged (sub-)step `x`, with the grid motion of a Newmark
+    /// step (see [`crate::system::Inertia`]); `Err` says why the attempt must be cut.
+    fn particle_updates(
+        &mut self,
+        system: &StepSystem<D>,
+        x: &[f64],
+    ) -> Result<Vec<ParticleUpdate<D>>, String> {
+        let motion = match &system.inertia {
+            Some(inertia) => Some(
+                inertia
+                    .grid_motion(x, &mut self.mass_solver)
+                    .map_err(|e| format!("mass matrix: {e}"))?,
+            ),
+            None => None,
+        };
+        system
+            .particle_updates(x, motion.as_ref(), &self.materials)
+            .map_err(|Inverted { particle }| {
+                format!("the converged state inverts particle {particle}")
+            })
+    }
+
     /// Advances one load step (cutting it into halves as needed) and updates the particles.
     pub fn step(
         &mut self,
@@ -332,10 +436,16 @@ impl<const D: usize> ImplicitSolver<D> {
                 self.config.grid.h,
             );
             let converged = newton.converged;
-            let failure = newton.failure.clone();
+            let mut failure = newton.failure.clone();
             report.solves.push(newton);
             let update = if converged {
-                system.particle_updates(&x, &self.materials).ok()
+                match self.particle_updates(&system, &x) {
+                    Ok(u) => Some(u),
+                    Err(reason) => {
+                        failure = Some(reason);
+                        None
+                    }
+                }
             } else {
                 None
             };
@@ -347,7 +457,7 @@ impl<const D: usize> ImplicitSolver<D> {
                     for (i, u) in update.into_iter().enumerate() {
                         particles.x[i] += u.displacement;
                         particles.v[i] += u.velocity_increment;
-                        particles.a[i] += u.acceleration_increment;
+                        particles.a[i] = u.acceleration;
                         particles.f[i] = u.f;
                         particles.stress[i] = u.stress;
                         particles.state[i] = u.state;
@@ -362,9 +472,7 @@ impl<const D: usize> ImplicitSolver<D> {
                             from,
                             to,
                             cuts: report.cuts,
-                            reason: failure.unwrap_or_else(|| {
-                                "inverted particle in the converged state".into()
-                            }),
+                            reason: failure.unwrap_or_default(),
                         });
                     }
                     report.cuts += 1;

@@ -3,7 +3,7 @@
 
 use crate::dofs::{DofMap, NodeDof};
 use crate::kernel::{Frozen, delta_f, particle_stress};
-use crate::linear::{SparseMatrix, SparsePattern};
+use crate::linear::{LinearError, LinearSolver, SparseMatrix, SparsePattern};
 use loam_core::tensor::{Tensor, Vector, det};
 use loam_core::{Grid, Material, Stencil};
 use nalgebra::Matrix3;
@@ -52,40 +52,131 @@ impl Materials {
     }
 }
 
-/// The inertia of a Newmark step (β = ¼, γ = ½, the trapezoidal rule): with the consistent
-/// mass `M_ij = Σ_p m_p N_i N_j`, the grid velocity `vₙ` and acceleration `aₙ` projected from the
-/// particles, `a_{n+1} = (4/Δt²)(Δu − Δt vₙ) − aₙ` adds `M a_{n+1}` to the residual and
-/// `(4/Δt²) M` to the tangent.
+/// Relative weight `ε` of the diagonal added to the consistent mass in the end-of-step solves,
+/// `(M + ε diag M) x = b` (see [`Inertia`]). `M` is positive semi-definite: it is singular when
+/// a step has more unknowns than its particles pin down (one particle per cell with B-splines),
+/// and its null space is that of the interpolation `N`, which moves no particle. A right-hand
+/// side in the range of `M` has no component along that null space, so `ε` only scales each
+/// resolved mode by `λ/(λ + ε)` (`λ` an eigenvalue of `(diag M)⁻¹ M`) and keeps the Cholesky
+/// pivots positive. With 10⁻¹⁰ the energy of a linear-elastic beam drifts by ~10⁻⁹ over ten
+/// periods (the drift is proportional to `ε`).
+pub const MASS_REGULARISATION: f64 = 1e-10;
+
+/// The inertia of a Newmark step (β = ¼, γ = ½, average acceleration / trapezoidal rule) and
+/// the particle update it implies.
+///
+/// On the grid of the step, with the consistent mass `M_ij = Σ_p m_p N_ip N_jp` (through the
+/// unknown map), Newmark reads
+///
+/// ```text
+/// Δu      = Δt vₙ + Δt²/4 (aₙ + aₙ₊₁)
+/// vₙ₊₁    = vₙ + Δt/2 (aₙ + aₙ₊₁)  =  2 Δu/Δt − vₙ
+/// M aₙ₊₁  = f_ext − f_int(Δu)
+/// ```
+///
+/// and the grid state at the start of the step is the one the particles carry:
+///
+/// - `M vₙ = pₙ := Σ_p m_p N_ip v_p`, the mass-weighted L² projection of the particle
+///   velocities onto the grid (never formed: only `M vₙ = pₙ` enters the residual);
+/// - `M aₙ = rₙ := f_ext − f_int(0)`, the force balance of the start state on this step's grid.
+///
+/// The residual is `R(Δu) = (4/Δt²) M Δu − (4/Δt) pₙ − rₙ + f_int(Δu) − f_ext` and the
+/// tangent adds `(4/Δt²) M`. Once Newton has converged, the particles take
+///
+/// ```text
+/// M Δv    = (2/Δt) M Δu − 2 pₙ           (Δv = vₙ₊₁ − vₙ on the grid)
+/// M aₙ₊₁  = (2/Δt) M Δv − rₙ
+/// v_p    ← v_p + Σ_i N_ip Δv_i           (FLIP: the part of v_p the grid cannot hold is kept)
+/// a_p    ← Σ_i N_ip aₙ₊₁,i              (output; the next step does not read it)
+/// x_p    ← x_p + Σ_i N_ip Δu_i
+/// ```
+///
+/// **Energy.** Because `Σ_p m_p v_p·(N Δv)_p = Δv·pₙ = Δv·M vₙ`, the particles' kinetic energy
+/// changes by exactly the grid's, `Δv·M vₙ + ½ Δv·M Δv = ½ (vₙ + vₙ₊₁)·M Δv`, which by the two
+/// Newmark relations is `(Δu/Δt)·(Δt/2)(M aₙ + M aₙ₊₁) = ½ Δu·(rₙ + rₙ₊₁)`: the trapezoidal
+/// rule for the work of the forces over the step. The stored energy `Σ_p V_p⁰ ψ(ΔF Fⁿ)` is a
+/// function of `Δu` whose gradient is `f_int(Δu)`, so for a quadratic `ψ` (linear elasticity)
+/// `K + U − f_ext·u` is conserved exactly, step by step, whatever the grid and however the
+/// particles move; for a nonlinear `ψ` the error per step is the trapezoidal rule's,
+/// `O(|Δu|³ ψ‴)`, which falls as Δt². Three shortcuts break this and did before:
+///
+/// - projecting with the lumped mass (`vₙ = M_L⁻¹ pₙ`, so `M vₙ ≠ pₙ`) exchanges
+///   `Δv·(M_L − M) vₙ` per step with nothing;
+/// - carrying `aₙ` on the particles from the last step balances it against the last step's
+///   grid: once the particles' stencils change, `M aₙ ≠ rₙ` and the mismatch does work (and a
+///   body starting at rest under load starts with `aₙ = 0`, which halves its first step);
+/// - holding a weakly supported node at `Δu = 0` strains every particle whose stencil reaches
+///   it by `Δu ⊗ ∇N_j` in any translation: a steep, non-quadratic `ψ` along the step, whose
+///   trapezoidal error dominated at small amplitude. Dynamic steps let such nodes follow an
+///   active neighbour instead (`ImplicitSolver::system`).
+///
+/// The end-of-step solves use `M + ε diag M` with `ε` = [`MASS_REGULARISATION`].
 pub struct Inertia {
     /// Consistent mass matrix on the step's pattern.
     pub mass: SparseMatrix,
     /// Time step Δt.
     pub dt: f64,
-    /// Grid velocity at the start of the step, per unknown.
-    pub v_n: Vec<f64>,
-    /// Grid acceleration at the start of the step, per unknown.
-    pub a_n: Vec<f64>,
+    /// Grid momentum at the start of the step, `pₙ = Σ_p m_p N_ip v_p` (= `M vₙ`), per unknown.
+    pub momentum: Vec<f64>,
+    /// Start-of-step force `rₙ = f_ext − f_int(0)` (= `M aₙ`), per unknown.
+    pub force: Vec<f64>,
+}
+
+/// The grid fields a converged Newmark step hands to the particles.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridMotion {
+    /// `Δv = vₙ₊₁ − vₙ` per unknown.
+    pub velocity_increment: Vec<f64>,
+    /// `aₙ₊₁` per unknown.
+    pub acceleration: Vec<f64>,
 }
 
 impl Inertia {
-    /// `a_{n+1}(Δu)` per unknown.
-    pub fn acceleration(&self, x: &[f64]) -> Vec<f64> {
-        let c0 = 4.0 / (self.dt * self.dt);
-        x.iter()
-            .zip(&self.v_n)
-            .zip(&self.a_n)
-            .map(|((x, v), a)| c0 * (x - self.dt * v) - a)
+    /// The inertia term of the residual for `Δu = x`: `M aₙ₊₁(Δu) = (4/Δt²) M Δu − (4/Δt) pₙ − rₙ`.
+    pub fn mass_times_acceleration(&self, x: &[f64]) -> Vec<f64> {
+        let mut mx = vec![0.0; x.len()];
+        self.mass.mul_vec(x, &mut mx);
+        let (c0, c1) = (4.0 / (self.dt * self.dt), 4.0 / self.dt);
+        mx.iter()
+            .zip(&self.momentum)
+            .zip(&self.force)
+            .map(|((mx, p), r)| c0 * mx - c1 * p - r)
             .collect()
     }
 
-    /// `v_{n+1} = vₙ + Δt/2 (aₙ + a_{n+1})` per unknown.
-    pub fn velocity(&self, a_next: &[f64]) -> Vec<f64> {
-        self.v_n
+    /// The grid velocity increment and end-of-step acceleration of the converged `Δu = x`,
+    /// from `(M + ε diag M) Δv = (2/Δt) M Δu − 2 pₙ` and `(M + ε diag M) aₙ₊₁ = (2/Δt) M Δv − rₙ`.
+    pub fn grid_motion(
+        &self,
+        x: &[f64],
+        solver: &mut LinearSolver,
+    ) -> Result<GridMotion, LinearError> {
+        let n = x.len();
+        let mut m = self.mass.clone();
+        for (d, md) in self.mass.diagonal().into_iter().enumerate() {
+            m.add(d, d, MASS_REGULARISATION * md);
+        }
+        let mut mx = vec![0.0; n];
+        self.mass.mul_vec(x, &mut mx);
+        let rhs: Vec<f64> = mx
             .iter()
-            .zip(&self.a_n)
-            .zip(a_next)
-            .map(|((v, a0), a1)| v + 0.5 * self.dt * (a0 + a1))
-            .collect()
+            .zip(&self.momentum)
+            .map(|(mx, p)| 2.0 / self.dt * mx - 2.0 * p)
+            .collect();
+        let mut dv = vec![0.0; n];
+        solver.solve(&m, &rhs, &mut dv)?;
+        self.mass.mul_vec(&dv, &mut mx);
+        let rhs: Vec<f64> = mx
+            .iter()
+            .zip(&self.force)
+            .map(|(mdv, r)| 2.0 / self.dt * mdv - r)
+            .collect();
+        let mut a = vec![0.0; n];
+        solver.solve(&m, &rhs, &mut a)?;
+        Ok(GridMotion {
+            velocity_increment: dv,
+            acceleration: a,
+        })
     }
 }
 
@@ -313,8 +404,7 @@ impl<const D: usize> StepSystem<D> {
         let mut r = self.internal_force(x, materials)?;
         r.iter_mut().zip(&self.f_ext).for_each(|(r, f)| *r -= f);
         if let Some(inertia) = &self.inertia {
-            let mut ma = vec![0.0; r.len()];
-            inertia.mass.mul_vec(&inertia.acceleration(x), &mut ma);
+            let ma = inertia.mass_times_acceleration(x);
             r.iter_mut().zip(&ma).for_each(|(r, m)| *r += m);
         }
         Ok(r)
@@ -331,19 +421,20 @@ impl<const D: usize> StepSystem<D> {
         }
     }
 
-    /// Makes this a Newmark step of size `dt`: assembles the consistent mass and projects the
-    /// particle velocities and accelerations onto the unknowns (mass-weighted, through the
-    /// unknown map).
+    /// Makes this a Newmark step of size `dt` (see [`Inertia`]): assembles the consistent
+    /// mass, the grid momentum `pₙ = Σ_p m_p N_ip v_p` and the start-of-step force
+    /// `rₙ = f_ext − f_int(0)`. `Err` names a particle whose start state has no stress (a
+    /// deformation gradient that is not invertible).
     pub fn set_dynamic(
         &mut self,
         dt: f64,
         mass: &[f64],
         v: &[Vector<f64, D>],
-        a: &[Vector<f64, D>],
-    ) {
+        materials: &Materials,
+    ) -> Result<(), Inverted> {
         let n = self.len();
         let mut m = SparseMatrix::zeros(self.pattern.clone());
-        let (mut mv, mut ma, mut lumped) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut momentum = vec![0.0; n];
         for (p, fr) in self.frozen.iter().enumerate() {
             let mut nodes = Vec::with_capacity(fr.stencil.len());
             fr.stencil
@@ -353,9 +444,7 @@ impl<const D: usize> StepSystem<D> {
                     let NodeDof::Free { dof: row, sign: si } = self.dofs.get(fi, c) else {
                         continue;
                     };
-                    lumped[row] += mass[p] * wi;
-                    mv[row] += si * mass[p] * wi * v[p][c];
-                    ma[row] += si * mass[p] * wi * a[p][c];
+                    momentum[row] += si * mass[p] * wi * v[p][c];
                     for &(fj, wj) in &nodes {
                         if let NodeDof::Free { dof: col, sign: sj } = self.dofs.get(fj, c) {
                             m.values[self.slot(row, col)] += si * sj * mass[p] * wi * wj;
@@ -364,18 +453,15 @@ impl<const D: usize> StepSystem<D> {
                 }
             }
         }
-        let div = |num: Vec<f64>| -> Vec<f64> {
-            num.iter()
-                .zip(&lumped)
-                .map(|(x, m)| if *m > 0.0 { x / m } else { 0.0 })
-                .collect()
-        };
+        let f0 = self.internal_force(&vec![0.0; n], materials)?;
+        let force = self.f_ext.iter().zip(&f0).map(|(e, i)| e - i).collect();
         self.inertia = Some(Inertia {
             mass: m,
             dt,
-            v_n: div(mv),
-            a_n: div(ma),
+            momentum,
+            force,
         });
+        Ok(())
     }
 
     /// Tangent by per-particle forward-mode AD: `A = ∂(V⁰ τ ΔF⁻ᵀ)/∂ΔF` from `D²` passes with
@@ -554,20 +640,15 @@ impl<const D: usize> StepSystem<D> {
     }
 
     /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J`, the
-    /// displacement `Σ_i N_i Δu_i` and, for a dynamic step, the velocity and acceleration
-    /// increments mapped from the grid (FLIP-style, so the projection does not damp them).
+    /// displacement `Σ_i N_i Δu_i` and, for a dynamic step, the particle velocity increment
+    /// `Σ_i N_i Δv_i` and acceleration `Σ_i N_i aₙ₊₁,i` from the step's [`GridMotion`]
+    /// (see [`Inertia`]).
     pub fn particle_updates(
         &self,
         x: &[f64],
+        motion: Option<&GridMotion>,
         materials: &Materials,
     ) -> Result<Vec<ParticleUpdate<D>>, Inverted> {
-        let grid_increments = self.inertia.as_ref().map(|inertia| {
-            let a1 = inertia.acceleration(x);
-            let v1 = inertia.velocity(&a1);
-            let dv: Vec<f64> = v1.iter().zip(&inertia.v_n).map(|(a, b)| a - b).collect();
-            let da: Vec<f64> = a1.iter().zip(&inertia.a_n).map(|(a, b)| a - b).collect();
-            (dv, da)
-        });
         (0..self.frozen.len())
             .into_par_iter()
             .map(|p| {
@@ -578,20 +659,20 @@ impl<const D: usize> StepSystem<D> {
                 let f = g * fr.f_n;
                 let j = det(&f);
                 let mut u = Vector::<f64, D>::zeros();
-                let (mut dv, mut da) = (Vector::<f64, D>::zeros(), Vector::<f64, D>::zeros());
+                let (mut dv, mut acc) = (Vector::<f64, D>::zeros(), Vector::<f64, D>::zeros());
                 fr.stencil.for_each(|n| {
                     for a in 0..D {
                         u[a] += n.weight * self.dofs.value(n.flat, a, x);
-                        if let Some((dvel, dacc)) = &grid_increments {
-                            dv[a] += n.weight * self.dofs.field(n.flat, a, dvel);
-                            da[a] += n.weight * self.dofs.field(n.flat, a, dacc);
+                        if let Some(m) = motion {
+                            dv[a] += n.weight * self.dofs.field(n.flat, a, &m.velocity_increment);
+                            acc[a] += n.weight * self.dofs.field(n.flat, a, &m.acceleration);
                         }
                     }
                 });
                 Ok(ParticleUpdate {
                     displacement: u,
                     velocity_increment: dv,
-                    acceleration_increment: da,
+                    acceleration: acc,
                     f,
                     stress: tau / j,
                     state,
@@ -606,10 +687,10 @@ impl<const D: usize> StepSystem<D> {
 pub struct ParticleUpdate<const D: usize> {
     /// Displacement over the step.
     pub displacement: Vector<f64, D>,
-    /// Change of the particle velocity, `Σ_i N_i (v_i^{n+1} − v_iⁿ)` (zero when quasi-static).
+    /// Change of the particle velocity, `Σ_i N_i Δv_i` (zero when quasi-static).
     pub velocity_increment: Vector<f64, D>,
-    /// Change of the particle acceleration, `Σ_i N_i (a_i^{n+1} − a_iⁿ)`.
-    pub acceleration_increment: Vector<f64, D>,
+    /// End-of-step acceleration `Σ_i N_i aₙ₊₁,i` (zero when quasi-static).
+    pub acceleration: Vector<f64, D>,
     /// New deformation gradient.
     pub f: Tensor<f64, D>,
     /// New Cauchy stress (3×3).

@@ -122,6 +122,7 @@ impl fmt::Debug for SparsePattern {
 
 /// A square sparse matrix on a shared [`SparsePattern`]: `values[k]` is the entry at row
 /// `pattern.row_idx()[k]` of the column whose range contains `k`.
+#[derive(Clone)]
 pub struct SparseMatrix {
     /// The (shared) sparsity pattern.
     pub pattern: Arc<SparsePattern>,
