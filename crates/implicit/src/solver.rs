@@ -316,8 +316,10 @@ impl<const D: usize> ImplicitSolver<D> {
         }
         // Nodes whose particle support `Σ_p w_ip V_p` is a tiny fraction of a full cell carry
         // a tiny stiffness and make the tangent near-singular (a particle at the very edge of
-        // a B-spline support); they are left out: Δu = 0 there in quasi-static steps, and in
-        // dynamic steps they follow an active neighbour (`follow_weak_nodes`).
+        // a B-spline support); they are left out as unknowns and follow an active neighbour
+        // (`follow_weak_nodes`). Held at Δu = 0 they would pin the particles touching them,
+        // and every converged step would freeze that into F (a beam stiffening with the
+        // number of load steps, `docs/verification.md`).
         let full = grid.h.powi(D as i32);
         let active: Vec<bool> = support
             .iter()
@@ -334,9 +336,7 @@ impl<const D: usize> ImplicitSolver<D> {
                 .and_then(|k| k.displacement[c].map(|u| u * dl))
         };
         let mut dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
-        if cfg.dynamics.is_some() {
-            follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
-        }
+        follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
         // Quasi-static loads ramp with the load factor; dynamic loads act in full.
         let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
