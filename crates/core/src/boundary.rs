@@ -324,6 +324,49 @@ impl<const D: usize> Boundary<D> {
         });
     }
 
+    /// The ghost runs of [`Boundary::fold_ghosts`] over the whole grid, in the order it
+    /// visits them: `(ghost, mirror, len, axis, parity)`.
+    fn ghost_runs(&self, grid: &Grid<D>) -> Vec<(usize, usize, usize, usize, Parity)> {
+        let mut runs = Vec::new();
+        self.for_each_ghost(grid, 0..grid.num_nodes(), |g, m, len, axis, parity| {
+            runs.push((g, m, len, axis, parity));
+        });
+        runs
+    }
+
+    /// The adjoint of [`Boundary::fold_ghosts`]: with `mass`, `momentum` and `force` holding
+    /// the adjoints of the folded fields, adds to each ghost the adjoint of its mirror,
+    /// `ḡ += image(m̄)` (`image` is its own transpose: ±1 per component), run by run in the
+    /// reverse of the fold's order. The fold is linear, `m ← m + image(g)`, so this is its
+    /// transpose exactly.
+    pub fn fold_ghosts_adjoint(
+        &self,
+        grid: &Grid<D>,
+        mass: &mut [f64],
+        momentum: &mut [Vector<f64, D>],
+        force: &mut [Vector<f64, D>],
+    ) {
+        for (g, m, len, axis, parity) in self.ghost_runs(grid).into_iter().rev() {
+            for k in 0..len {
+                mass[g + k] += mass[m + k];
+                momentum[g + k] += parity.image(axis, &momentum[m + k]);
+                force[g + k] += parity.image(axis, &force[m + k]);
+            }
+        }
+    }
+
+    /// The adjoint of [`Boundary::reflect_ghosts`]: `m̄ += image(ḡ)`, `ḡ = 0`, run by run in
+    /// the reverse of the reflection's order (the ghost's own value before the reflection
+    /// does not reach the result).
+    pub fn reflect_ghosts_adjoint(&self, grid: &Grid<D>, v: &mut [Vector<f64, D>]) {
+        for (g, m, len, axis, parity) in self.ghost_runs(grid).into_iter().rev() {
+            for k in 0..len {
+                let ghost = std::mem::replace(&mut v[g + k], Vector::zeros());
+                v[m + k] += parity.image(axis, &ghost);
+            }
+        }
+    }
+
     /// Per axis, how many node layers at the (lower, upper) end the ghost folds and
     /// reflections of a bilateral wall reach: the `pad` ghost layers, the face and the `pad`
     /// mirror layers inside it, `2·pad + 1` (at most the node count); 0 where the wall is free
@@ -531,5 +574,61 @@ mod tests {
             p0[gh] = parity.image(axis, &p0[m]);
         }
         assert_eq!(v1, p0);
+    }
+
+    /// The adjoints are the transposes of the fold and the reflection:
+    /// `⟨A x, y⟩ = ⟨x, Aᵀ y⟩` for random fields on a grid with fixed, slip and free walls
+    /// (corner ghosts compose two reflections).
+    #[test]
+    fn fold_and_reflect_adjoints_are_their_transposes() {
+        let g = Grid::<2>::new([0.0; 2], [5, 4], 0.5, 2);
+        let mut b = Boundary::<2>::all(Wall::new(WallKind::Slip));
+        b.walls[0][1] = Wall::new(WallKind::Fixed);
+        b.walls[1][1] = Wall::new(WallKind::Free);
+        let n = g.num_nodes();
+        let val = |i: usize, c: usize| ((i * 13 + c * 5) % 17) as f64 * 0.29 - 2.3;
+        let vec = |c: usize| -> Vec<Vector<f64, 2>> {
+            (0..n)
+                .map(|i| Vector::<f64, 2>::new(val(i, c), val(i, c + 1)))
+                .collect()
+        };
+        let dot = |a: &[Vector<f64, 2>], b: &[Vector<f64, 2>]| -> f64 {
+            a.iter().zip(b).map(|(a, b)| a.dot(b)).sum()
+        };
+        let (x_m, x_p, x_f) = (
+            (0..n).map(|i| val(i, 9)).collect::<Vec<_>>(),
+            vec(0),
+            vec(2),
+        );
+        let (y_m, y_p, y_f) = (
+            (0..n).map(|i| val(i, 7)).collect::<Vec<_>>(),
+            vec(4),
+            vec(6),
+        );
+        let (mut ax_m, mut ax_p, mut ax_f) = (x_m.clone(), x_p.clone(), x_f.clone());
+        b.fold_ghosts(&g, Some(&mut ax_m), &mut ax_p, Some(&mut ax_f));
+        let (mut aty_m, mut aty_p, mut aty_f) = (y_m.clone(), y_p.clone(), y_f.clone());
+        b.fold_ghosts_adjoint(&g, &mut aty_m, &mut aty_p, &mut aty_f);
+        let lhs: f64 = ax_m.iter().zip(&y_m).map(|(a, b)| a * b).sum::<f64>()
+            + dot(&ax_p, &y_p)
+            + dot(&ax_f, &y_f);
+        let rhs: f64 = x_m.iter().zip(&aty_m).map(|(a, b)| a * b).sum::<f64>()
+            + dot(&x_p, &aty_p)
+            + dot(&x_f, &aty_f);
+        // Sums of a few hundred O(1) products: agreement to round-off.
+        assert!(
+            (lhs - rhs).abs() < 1e-12 * lhs.abs().max(1.0),
+            "{lhs} vs {rhs}"
+        );
+
+        let mut ax = x_p.clone();
+        b.reflect_ghosts(&g, &mut ax);
+        let mut aty = y_p.clone();
+        b.reflect_ghosts_adjoint(&g, &mut aty);
+        let (lhs, rhs) = (dot(&ax, &y_p), dot(&x_p, &aty));
+        assert!(
+            (lhs - rhs).abs() < 1e-12 * lhs.abs().max(1.0),
+            "{lhs} vs {rhs}"
+        );
     }
 }

@@ -17,4 +17,4 @@ mod solver;
 pub use config::Config;
 pub use error::{ConfigError, StepError};
 pub use loam_core::Energy;
-pub use solver::{Solver, StepInfo};
+pub use solver::{MASS_EPS, Solver, StepInfo};

@@ -49,8 +49,9 @@ pub struct Solver<T: Scalar, const D: usize> {
 }
 
 /// Minimum nodal mass (relative to the largest particle mass) below which a node is treated
-/// as empty, so `p/m` never divides by round-off.
-const MASS_EPS: f64 = 1e-14;
+/// as empty, so `p/m` never divides by round-off: a node takes part in a step when
+/// `m_i > MASS_EPS · max_p m_p`.
+pub const MASS_EPS: f64 = 1e-14;
 
 /// Particles handed to one rayon task at least.
 const MIN_PARTICLES_PER_TASK: usize = 256;

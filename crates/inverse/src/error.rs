@@ -1,0 +1,42 @@
+//! Errors of gradient computations.
+
+use loam_explicit::{ConfigError, StepError};
+use thiserror::Error;
+
+/// Why a gradient could not be computed.
+#[derive(Debug, Error)]
+pub enum AdjointError {
+    /// A parameter that the configuration does not have, or that its model does not use.
+    #[error("parameter `{param}`: {msg}")]
+    Parameter {
+        /// The parameter, as written in messages (`friction[2]`, `materials[0].young`).
+        param: String,
+        /// What is wrong.
+        msg: String,
+    },
+    /// A configuration the adjoint does not cover (yet).
+    #[error("the adjoint does not support {what}: {why}")]
+    Unsupported {
+        /// The feature, as the scene names it.
+        what: String,
+        /// Why, and what to use instead.
+        why: String,
+    },
+    /// The forward run was refused.
+    #[error("forward run: {0}")]
+    Config(#[from] ConfigError),
+    /// The forward run stopped.
+    #[error("forward run: {0}")]
+    Step(#[from] StepError),
+    /// The recomputation of a segment in the reverse pass did not reproduce the forward pass.
+    #[error(
+        "the reverse pass recomputed step {step} differently from the forward pass ({what}); \
+         the forward map is not deterministic here"
+    )]
+    Replay {
+        /// The step.
+        step: usize,
+        /// What differed.
+        what: String,
+    },
+}

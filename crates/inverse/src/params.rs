@@ -1,0 +1,327 @@
+//! The parameters a gradient is taken with respect to, and how each one is seeded.
+//!
+//! A parameter of the step (a friction coefficient, gravity, a material constant) is a `T` of
+//! the configuration from the setup on (`loam_explicit::Config::lift`). Seeding it means: the
+//! configuration lifted to `Dual64` with a unit derivative on that one parameter. The reverse
+//! step evaluates a node's or a particle's kernel once with such a configuration (and constant
+//! inputs) to get that parameter's share of the gradient, `ȳ · ∂y/∂θ`.
+//!
+//! The particle density enters through the particle masses `m_p = ρ₀ V_p⁰`, which are part of
+//! the initial state: its gradient is `Σ_p m̄_p V_p⁰` over the material's particles, formed from
+//! the adjoint of the initial state ([`crate::Gradient`]).
+
+use crate::error::AdjointError;
+use loam_core::Material;
+use loam_core::constitutive::{Lame, Model};
+use loam_explicit::Config;
+use num_dual::Dual64;
+use std::fmt;
+
+/// A material constant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MaterialField {
+    /// Young's modulus `E` (elastic and elastoplastic models), ν held.
+    Young,
+    /// Poisson's ratio `ν`, `E` held.
+    Poisson,
+    /// Reference density `ρ₀` (through the particle masses).
+    Density,
+    /// Fluid bulk modulus `K`.
+    BulkModulus,
+    /// Fluid sound speed `c = √(K/ρ₀)`, ρ₀ held (`dK/dc = 2 ρ₀ c`).
+    SoundSpeed,
+    /// Fluid Tait exponent `γ`.
+    Gamma,
+    /// Fluid dynamic viscosity `η`.
+    Viscosity,
+    /// Drucker–Prager friction angle `φ` (radians).
+    FrictionAngle,
+    /// Drucker–Prager dilation angle `ψ` (radians).
+    DilationAngle,
+    /// Drucker–Prager cohesion `c`.
+    Cohesion,
+    /// J2 yield stress `σ_y`.
+    YieldStress,
+    /// J2 linear hardening modulus `H`.
+    Hardening,
+}
+
+impl MaterialField {
+    /// The name used in messages and files (`young`, `poisson`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Young => "young",
+            Self::Poisson => "poisson",
+            Self::Density => "density",
+            Self::BulkModulus => "bulk_modulus",
+            Self::SoundSpeed => "sound_speed",
+            Self::Gamma => "gamma",
+            Self::Viscosity => "viscosity",
+            Self::FrictionAngle => "friction_angle",
+            Self::DilationAngle => "dilation_angle",
+            Self::Cohesion => "cohesion",
+            Self::YieldStress => "yield_stress",
+            Self::Hardening => "hardening",
+        }
+    }
+}
+
+/// One scalar parameter of an explicit run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Param {
+    /// Coulomb coefficient `μ` of friction segment `k` (`Contact::segments[k]`).
+    Friction(usize),
+    /// Coulomb coefficient of obstacle `k`.
+    ObstacleFriction(usize),
+    /// Component `a` of obstacle `k`'s velocity.
+    ObstacleVelocity(usize, usize),
+    /// Component `a` of gravity.
+    Gravity(usize),
+    /// A constant of material `k` (`Config::materials[k]`).
+    Material(usize, MaterialField),
+}
+
+impl fmt::Display for Param {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Param::Friction(k) => write!(f, "friction[{k}]"),
+            Param::ObstacleFriction(k) => write!(f, "obstacle[{k}].friction"),
+            Param::ObstacleVelocity(k, a) => write!(f, "obstacle[{k}].velocity[{a}]"),
+            Param::Gravity(a) => write!(f, "gravity[{a}]"),
+            Param::Material(k, field) => write!(f, "materials[{k}].{}", field.name()),
+        }
+    }
+}
+
+/// Where a parameter acts in the step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Acts {
+    /// In the grid-node update (contact, gravity).
+    Nodes,
+    /// In the particle end of the step (the constitutive update of material `k`).
+    Particles(usize),
+    /// Only in the initial state (the density, through the masses).
+    Initial,
+}
+
+impl Param {
+    /// Where the parameter acts.
+    pub fn acts(&self) -> Acts {
+        match *self {
+            Param::Friction(_)
+            | Param::ObstacleFriction(_)
+            | Param::ObstacleVelocity(..)
+            | Param::Gravity(_) => Acts::Nodes,
+            Param::Material(_, MaterialField::Density) => Acts::Initial,
+            Param::Material(k, _) => Acts::Particles(k),
+        }
+    }
+
+    /// Its value in `config`.
+    pub fn value<const D: usize>(&self, config: &Config<f64, D>) -> Result<f64, AdjointError> {
+        Ok(seed(config, *self)?.1)
+    }
+
+    /// `config` lifted to `Dual64` with a unit derivative on this parameter.
+    pub fn seeded<const D: usize>(
+        &self,
+        config: &Config<f64, D>,
+    ) -> Result<Config<Dual64, D>, AdjointError> {
+        Ok(seed(config, *self)?.0)
+    }
+
+    /// `config` with this parameter set to `value` (the other constants of its law held, as
+    /// in [`MaterialField`]).
+    pub fn set<const D: usize>(
+        &self,
+        config: &mut Config<f64, D>,
+        value: f64,
+    ) -> Result<(), AdjointError> {
+        let d = value - self.value(config)?;
+        // Every field is affine in its parameter along the seeded direction except the
+        // Lamé constants (E, ν) and the sound speed: rebuild those from the new value.
+        let unknown = self.unknown(config);
+        match *self {
+            Param::Friction(k) => config.contact.segments.get_mut(k).ok_or(unknown)?.mu += d,
+            Param::ObstacleFriction(k) => {
+                config.contact.obstacles.get_mut(k).ok_or(unknown)?.mu += d
+            }
+            Param::ObstacleVelocity(k, a) => {
+                config.contact.obstacles.get_mut(k).ok_or(unknown)?.velocity[a] += d
+            }
+            Param::Gravity(a) => config.gravity[a] += d,
+            Param::Material(k, field) => {
+                let m = config.materials.get_mut(k).ok_or(unknown)?;
+                set_material(m, field, value).ok_or_else(|| AdjointError::Parameter {
+                    param: self.to_string(),
+                    msg: "the material's model has no such constant".into(),
+                })?;
+            }
+        }
+        Ok(())
+    }
+
+    fn unknown<const D: usize>(&self, config: &Config<f64, D>) -> AdjointError {
+        AdjointError::Parameter {
+            param: self.to_string(),
+            msg: format!(
+                "no such item: the scene has {} friction segments, {} obstacles and {} materials",
+                config.contact.segments.len(),
+                config.contact.obstacles.len(),
+                config.materials.len()
+            ),
+        }
+    }
+}
+
+/// The lifted configuration with `param` seeded, and the parameter's value.
+fn seed<const D: usize>(
+    config: &Config<f64, D>,
+    param: Param,
+) -> Result<(Config<Dual64, D>, f64), AdjointError> {
+    let mut lifted: Config<Dual64, D> = config.lift();
+    let unknown = || param.unknown(config);
+    let value = match param {
+        Param::Friction(k) => {
+            let s = lifted.contact.segments.get_mut(k).ok_or_else(unknown)?;
+            s.mu.eps = 1.0;
+            s.mu.re
+        }
+        Param::ObstacleFriction(k) => {
+            let o = lifted.contact.obstacles.get_mut(k).ok_or_else(unknown)?;
+            o.mu.eps = 1.0;
+            o.mu.re
+        }
+        Param::ObstacleVelocity(k, a) if a < D => {
+            let o = lifted.contact.obstacles.get_mut(k).ok_or_else(unknown)?;
+            o.velocity[a].eps = 1.0;
+            o.velocity[a].re
+        }
+        Param::Gravity(a) if a < D => {
+            lifted.gravity[a].eps = 1.0;
+            lifted.gravity[a].re
+        }
+        Param::ObstacleVelocity(..) | Param::Gravity(_) => {
+            return Err(AdjointError::Parameter {
+                param: param.to_string(),
+                msg: format!("the component must be below the dimension {D}"),
+            });
+        }
+        Param::Material(k, field) => {
+            let m = config.materials.get(k).ok_or_else(unknown)?;
+            let (seeded, value) =
+                seed_material(m, field).ok_or_else(|| AdjointError::Parameter {
+                    param: param.to_string(),
+                    msg: "the material's model has no such constant".into(),
+                })?;
+            lifted.materials[k] = seeded;
+            value
+        }
+    };
+    Ok((lifted, value))
+}
+
+/// `E` and `ν` of Lamé constants: `E = μ(3λ + 2μ)/(λ + μ)`, `ν = λ/(2(λ + μ))`.
+fn young_poisson(l: &Lame<f64>) -> (f64, f64) {
+    (
+        l.mu * (3.0 * l.lambda + 2.0 * l.mu) / (l.lambda + l.mu),
+        l.lambda / (2.0 * (l.lambda + l.mu)),
+    )
+}
+
+/// Lamé constants with the derivative with respect to `E` (`young`) or `ν` on their dual
+/// parts, and the primal parts exactly those stored (so the seeded run takes the forward's
+/// branches bit for bit).
+fn seed_lame(l: &Lame<f64>, young: bool) -> (Lame<Dual64>, f64) {
+    let (e, nu) = young_poisson(l);
+    let (e_d, nu_d) = if young {
+        (Dual64::new(e, 1.0), Dual64::from_re(nu))
+    } else {
+        (Dual64::from_re(e), Dual64::new(nu, 1.0))
+    };
+    let d = Lame::from_young_poisson(e_d, nu_d);
+    (
+        Lame {
+            mu: Dual64::new(l.mu, d.mu.eps),
+            lambda: Dual64::new(l.lambda, d.lambda.eps),
+        },
+        if young { e } else { nu },
+    )
+}
+
+/// The material lifted to `Dual64` with `field` seeded, and the field's value; `None` when
+/// the model has no such constant.
+fn seed_material(m: &Material<f64>, field: MaterialField) -> Option<(Material<Dual64>, f64)> {
+    use MaterialField as F;
+    let mut out: Material<Dual64> = m.lift();
+    let one = |x: &mut Dual64| {
+        x.eps = 1.0;
+        x.re
+    };
+    let value = match (field, &mut out.model) {
+        (F::Density, _) => one(&mut out.density),
+        (F::Young | F::Poisson, model) => {
+            let mut stored = m.model.clone();
+            let (seeded, value) = seed_lame(lame_of(&mut stored)?, field == F::Young);
+            *lame_of(model)? = seeded;
+            value
+        }
+        (F::BulkModulus, Model::Fluid(x)) => one(&mut x.bulk_modulus),
+        (F::SoundSpeed, Model::Fluid(x)) => {
+            // K = ρ₀ c², dK/dc = 2 ρ₀ c = 2 √(K ρ₀).
+            let (k, rho) = (x.bulk_modulus.re, m.density);
+            x.bulk_modulus.eps = 2.0 * (k * rho).sqrt();
+            (k / rho).sqrt()
+        }
+        (F::Gamma, Model::Fluid(x)) => one(&mut x.gamma),
+        (F::Viscosity, Model::Fluid(x)) => one(&mut x.viscosity),
+        (F::FrictionAngle, Model::DruckerPrager(x)) => one(&mut x.friction_angle),
+        (F::DilationAngle, Model::DruckerPrager(x)) => one(&mut x.dilation_angle),
+        (F::Cohesion, Model::DruckerPrager(x)) => one(&mut x.cohesion),
+        (F::YieldStress, Model::J2(x)) => one(&mut x.yield_stress),
+        (F::Hardening, Model::J2(x)) => one(&mut x.hardening),
+        _ => return None,
+    };
+    Some((out, value))
+}
+
+/// The Lamé constants of a model that has them (every model but the fluid).
+fn lame_of<T>(model: &mut Model<T>) -> Option<&mut Lame<T>> {
+    match model {
+        Model::LinearElastic(x) => Some(&mut x.lame),
+        Model::NeoHookean(x) => Some(&mut x.lame),
+        Model::Hencky(x) => Some(&mut x.lame),
+        Model::J2(x) => Some(&mut x.lame),
+        Model::DruckerPrager(x) => Some(&mut x.lame),
+        Model::Fluid(_) => None,
+    }
+}
+
+/// Sets `field` of `m` to `value`; `None` when the model has no such constant.
+fn set_material(m: &mut Material<f64>, field: MaterialField, value: f64) -> Option<()> {
+    use MaterialField as F;
+    let density = m.density;
+    match (field, &mut m.model) {
+        (F::Density, _) => m.density = value,
+        (F::Young | F::Poisson, model) => {
+            let lame = lame_of(model)?;
+            let (e, nu) = young_poisson(lame);
+            *lame = if field == F::Young {
+                Lame::from_young_poisson(value, nu)
+            } else {
+                Lame::from_young_poisson(e, value)
+            };
+        }
+        (F::BulkModulus, Model::Fluid(x)) => x.bulk_modulus = value,
+        (F::SoundSpeed, Model::Fluid(x)) => x.bulk_modulus = density * value * value,
+        (F::Gamma, Model::Fluid(x)) => x.gamma = value,
+        (F::Viscosity, Model::Fluid(x)) => x.viscosity = value,
+        (F::FrictionAngle, Model::DruckerPrager(x)) => x.friction_angle = value,
+        (F::DilationAngle, Model::DruckerPrager(x)) => x.dilation_angle = value,
+        (F::Cohesion, Model::DruckerPrager(x)) => x.cohesion = value,
+        (F::YieldStress, Model::J2(x)) => x.yield_stress = value,
+        (F::Hardening, Model::J2(x)) => x.hardening = value,
+        _ => return None,
+    }
+    Some(())
+}

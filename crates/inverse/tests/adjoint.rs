@@ -1,0 +1,509 @@
+//! The discrete adjoint against forward-mode duals and central finite differences.
+//!
+//! Each scene is a short run (tens of steps) of a small scene file; the loss is the squared
+//! distance of a few tracked particles from fixed points at three steps. For every parameter
+//! the adjoint gradient must equal the derivative of the forward-mode dual run
+//! (`Solver<Dual64, D>` on the configuration lifted with that parameter seeded): both are the
+//! exact derivative of the same discrete map, so they agree to round-off (1e-10 relative; the
+//! two differ only in the order of the nodal sums, the adjoint recomputing the grid serially).
+//! A central finite difference (Richardson-extrapolated, truncation O(δ⁴)) checks the dual
+//! oracle itself, to 1e-6 relative, at the largest step δ ≤ 10⁻⁴ |θ| whose perturbed runs take the forward run's branches in every step (the
+//! map is piecewise smooth: across a stick/slip or yield switch a difference measures the
+//! jump). The step is a compromise: a loss of order one that moves by 1e-11 when the viscosity
+//! moves by δ = 5e-8 loses its difference in the round-off of the run (plain central
+//! difference against the dual on the fluid scene: 5e-11 at δ = 10⁻³ |θ|, 1e-7 at 10⁻⁴, 1e-5
+//! at 10⁻⁶, 1e-3 at 10⁻⁸), while ν of the Neo-Hookean block has a large third derivative
+//! (3.7e-6 at 10⁻³, 3e-8 at 3·10⁻⁴, 1e-9 at 10⁻⁴).
+
+use loam_core::step::{NodeState, ParticleBranch, StepRecord};
+use loam_core::tensor::Vector;
+use loam_core::{Particles, Scalar};
+use loam_explicit::{Config, Solver};
+use loam_inverse::{MaterialField, Objective, Param, TrackedPositions, gradient};
+use loam_scene::Scene;
+use num_dual::Dual64;
+use std::collections::BTreeMap;
+
+/// The solver inputs of a scene file's text.
+fn scene<const D: usize>(toml: &str) -> (Config<f64, D>, Particles<f64, D>) {
+    let built = Scene::from_toml_str(toml)
+        .and_then(|s| s.build::<D>())
+        .unwrap_or_else(|e| panic!("{e}"));
+    (built.explicit_config().expect("explicit"), built.particles)
+}
+
+/// Tracked particles (every `stride`-th) pulled towards `target` at three steps.
+fn objective<const D: usize>(
+    n: usize,
+    steps: usize,
+    stride: usize,
+    target: [f64; D],
+) -> TrackedPositions<D> {
+    let ids: Vec<(usize, Vector<f64, D>)> = (0..n)
+        .step_by(stride)
+        .map(|p| (p, Vector::from(target)))
+        .collect();
+    let targets: BTreeMap<usize, Vec<(usize, Vector<f64, D>)>> = [steps / 3, 2 * steps / 3, steps]
+        .into_iter()
+        .map(|s| (s, ids.clone()))
+        .collect();
+    TrackedPositions {
+        targets,
+        weight: 1.0,
+    }
+}
+
+/// The loss of a run in any scalar type: the same sum as [`TrackedPositions`].
+fn run_loss<T: Scalar, const D: usize>(
+    config: Config<T, D>,
+    mut p: Particles<T, D>,
+    steps: usize,
+    obj: &TrackedPositions<D>,
+) -> T {
+    let mut solver = Solver::new(config, &p).expect("solver");
+    let mut loss = T::zero();
+    let mut add = |s: usize, p: &Particles<T, D>| {
+        if let Some(targets) = obj.targets.get(&s) {
+            for (i, x) in targets {
+                let d = p.x[*i] - x.map(T::cst);
+                loss += d.norm_squared() * T::cst(obj.weight);
+            }
+        }
+    };
+    add(0, &p);
+    for s in 1..=steps {
+        solver.step(&mut p, f64::INFINITY).expect("step");
+        add(s, &p);
+    }
+    loss
+}
+
+/// The forward-mode derivative of the loss with respect to `param`.
+fn dual_derivative<const D: usize>(
+    config: &Config<f64, D>,
+    particles: &Particles<f64, D>,
+    steps: usize,
+    obj: &TrackedPositions<D>,
+    param: Param,
+) -> f64 {
+    let seeded = param.seeded(config).expect("param");
+    let mut p: Particles<Dual64, D> = particles.lift();
+    if let Param::Material(m, MaterialField::Density) = param {
+        // The density reaches the run through the masses m_p = ρ₀ V⁰_p.
+        for i in 0..p.len() {
+            if particles.material[i] as usize == m {
+                p.mass[i].eps = particles.volume0[i];
+            }
+        }
+    }
+    run_loss(seeded, p, steps, obj).eps
+}
+
+/// The branches one step took: contact and wall states of the nodes, projections and return
+/// regions of the particles.
+type Branches = (Vec<(usize, NodeState)>, Vec<ParticleBranch>);
+
+/// The branches every step of a run took.
+fn branches<const D: usize>(
+    config: &Config<f64, D>,
+    particles: &Particles<f64, D>,
+    steps: usize,
+) -> Vec<Branches> {
+    let mut solver = Solver::new(config.clone(), particles).expect("solver");
+    let mut p = particles.clone();
+    (0..steps)
+        .map(|_| {
+            let mut record = StepRecord::default();
+            solver
+                .step_recorded(&mut p, f64::INFINITY, &mut record)
+                .expect("step");
+            (record.nodes, record.particles)
+        })
+        .collect()
+}
+
+/// The central difference of the loss with respect to `param`, Richardson-extrapolated,
+/// `(4 D(δ/2) − D(δ))/3` with `D(δ) = (L(θ + δ) − L(θ − δ))/(2δ)` (truncation O(δ⁴)), at the
+/// largest `δ = rel · |θ|` (rel from 10⁻⁴ down to 10⁻⁶) for which the four perturbed runs take
+/// the branches of the unperturbed run in every step: a difference across a branch switch (a
+/// node going from stick to slip, a particle starting to yield) measures the jump, not the
+/// derivative. Returns the difference and `rel`.
+fn central_difference<const D: usize>(
+    config: &Config<f64, D>,
+    particles: &Particles<f64, D>,
+    steps: usize,
+    obj: &TrackedPositions<D>,
+    param: Param,
+) -> (f64, f64) {
+    let value = param.value(config).expect("param");
+    let base = branches(config, particles, steps);
+    let perturbed = |theta: f64| {
+        let mut c = config.clone();
+        param.set(&mut c, theta).expect("set");
+        let mut p = particles.clone();
+        if let Param::Material(m, MaterialField::Density) = param {
+            // The masses m_p = ρ₀ V⁰_p are built from the density.
+            for i in 0..p.len() {
+                if p.material[i] as usize == m {
+                    p.mass[i] = theta * p.volume0[i];
+                }
+            }
+        }
+        (c, p)
+    };
+    let at = |(c, p): (Config<f64, D>, Particles<f64, D>)| run_loss(c, p, steps, obj);
+    for rel in [1e-4, 3e-5, 1e-5, 3e-6, 1e-6] {
+        let delta = rel * value.abs().max(1e-3);
+        let runs = [delta, -delta, 0.5 * delta, -0.5 * delta].map(|d| perturbed(value + d));
+        if runs.iter().all(|(c, p)| branches(c, p, steps) == base) {
+            let [up, down, half_up, half_down] = runs;
+            let d1 = (at(up) - at(down)) / (2.0 * delta);
+            let d2 = (at(half_up) - at(half_down)) / delta;
+            return ((4.0 * d2 - d1) / 3.0, rel);
+        }
+    }
+    panic!("{param}: every perturbation down to 1e-6 switches a branch");
+}
+
+/// Checks every parameter: adjoint = dual to 1e-10, and dual = central difference to 1e-6
+/// except for those in `no_difference`; also the initial-velocity gradient (x component, all particles) against
+/// the dual run with a seeded initial velocity.
+fn check<const D: usize>(
+    toml: &str,
+    steps: usize,
+    stride: usize,
+    target: [f64; D],
+    params: &[Param],
+    no_difference: &[Param],
+) {
+    let (config, particles) = scene::<D>(toml);
+    let obj = objective(particles.len(), steps, stride, target);
+    let grad = gradient(&config, &particles, steps, params, &obj, None).expect("gradient");
+    let plain = run_loss(config.clone(), particles.clone(), steps, &obj);
+    assert!(
+        (grad.loss - plain).abs() <= 1e-12 * plain.abs(),
+        "loss {} vs {plain}",
+        grad.loss
+    );
+    for (k, &param) in params.iter().enumerate() {
+        let dual = dual_derivative(&config, &particles, steps, &obj, param);
+        let adj = grad.params[k];
+        let scale = dual.abs().max(1e-12 * grad.loss.abs());
+        println!("{param}: adjoint {adj:.12e}, dual {dual:.12e}");
+        assert!(
+            (adj - dual).abs() <= 1e-10 * scale,
+            "{param}: adjoint {adj:e} vs dual {dual:e}"
+        );
+        if !no_difference.contains(&param) {
+            let (fd, rel) = central_difference(&config, &particles, steps, &obj, param);
+            println!("{param}: central difference {fd:.12e} (δ = {rel:e} |θ|)");
+            assert!(
+                (fd - dual).abs() <= 1e-6 * scale,
+                "{param}: central difference {fd:e} vs dual {dual:e}"
+            );
+        }
+    }
+    // Initial velocity, x component, every particle.
+    let mut p: Particles<Dual64, D> = particles.lift();
+    for v in &mut p.v {
+        v[0].eps = 1.0;
+    }
+    let dual = run_loss(config.lift(), p, steps, &obj).eps;
+    let adj: f64 = grad.initial.v.iter().map(|v| v[0]).sum();
+    println!("v0_x: adjoint {adj:.12e}, dual {dual:.12e}");
+    assert!(
+        (adj - dual).abs() <= 1e-10 * dual.abs().max(1e-12),
+        "v0_x: adjoint {adj:e} vs dual {dual:e}"
+    );
+    // The segment length does not change the result (checkpointing is exact).
+    let every = gradient(&config, &particles, steps, params, &obj, Some(1)).expect("gradient");
+    assert_eq!(every.params, grad.params);
+}
+
+/// Water (MLS-MPM, USL) on a floor of two Coulomb segments, a bilateral slip wall behind it.
+const FLUID_2D: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.4, 0.2]
+cell_size = 0.02
+shape_function = "quadratic_bspline"
+
+[[materials]]
+name = "water"
+model = "fluid"
+density = 1000.0
+sound_speed = 10.0
+gamma = 7.0
+viscosity = 0.05
+
+[[bodies]]
+material = "water"
+shape = { type = "box", lo = [0.0, 0.0], hi = [0.12, 0.1] }
+particles_per_cell = 2
+velocity = [0.3, 0.0]
+
+[boundaries]
+x_min = "slip"
+x_max = "slip"
+y_min = { kind = "slip", separable = true }
+y_max = "slip"
+
+[[friction]]
+wall = "y_min"
+mu = 0.3
+from = [0.0]
+to = [0.06]
+
+[[friction]]
+wall = "y_min"
+mu = 0.1
+from = [0.06]
+to = [0.4]
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+type = "explicit"
+scheme = "usl"
+transfer = "mls"
+time_step = { type = "fixed", dt = 5e-4 }
+end_time = 0.03
+"#;
+
+#[test]
+fn fluid_mls_on_friction_segments() {
+    let params = [
+        Param::Friction(0),
+        Param::Friction(1),
+        Param::Gravity(1),
+        Param::Material(0, MaterialField::SoundSpeed),
+        Param::Material(0, MaterialField::Viscosity),
+        Param::Material(0, MaterialField::Gamma),
+        Param::Material(0, MaterialField::Density),
+    ];
+    check::<2>(FLUID_2D, 60, 7, [0.3, 0.02], &params, &[]);
+}
+
+/// A Neo-Hookean block (APIC with uGIMP: the affine matrix is the velocity gradient) thrown
+/// at a moving box with friction, between bilateral slip walls.
+const BLOCK_2D: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.5, 0.3]
+cell_size = 0.025
+shape_function = "ugimp"
+
+[[materials]]
+name = "rubber"
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 2.0e5
+poisson_ratio = 0.3
+
+[[bodies]]
+material = "rubber"
+shape = { type = "box", lo = [0.05, 0.05], hi = [0.15, 0.15] }
+particles_per_cell = 2
+velocity = [2.0, 0.5]
+
+[[obstacles]]
+shape = "box"
+lo = [0.22, 0.0]
+hi = [0.3, 0.3]
+velocity = [-0.5, 0.0]
+friction = 0.2
+
+[boundaries]
+x_min = "slip"
+x_max = "slip"
+y_min = "slip"
+y_max = "slip"
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+type = "explicit"
+scheme = "usl"
+transfer = "apic"
+time_step = { type = "fixed", dt = 1e-3 }
+end_time = 0.04
+"#;
+
+#[test]
+fn neo_hookean_block_against_a_moving_obstacle() {
+    let params = [
+        Param::Material(0, MaterialField::Young),
+        Param::Material(0, MaterialField::Poisson),
+        Param::ObstacleVelocity(0, 0),
+        Param::ObstacleFriction(0),
+        Param::Gravity(1),
+    ];
+    // The obstacle's velocity also moves its geometry, which is `f64` (the contact layer's
+    // node set changes with it, a branch switch at any δ): its derivative is that of the
+    // contact law at the recorded geometry, checked against the dual run only.
+    let no_difference = [Param::ObstacleVelocity(0, 0)];
+    check::<2>(BLOCK_2D, 40, 3, [0.25, 0.2], &params, &no_difference);
+}
+
+/// A Drucker–Prager column (FLIP, cubic B-splines) collapsing on a Coulomb floor.
+const SAND_2D: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.4, 0.2]
+cell_size = 0.02
+shape_function = "cubic_bspline"
+
+[[materials]]
+name = "sand"
+model = "drucker_prager"
+density = 1800.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+friction_angle = 30.0
+dilation_angle = 5.0
+cohesion = 50.0
+
+[[bodies]]
+material = "sand"
+shape = { type = "box", lo = [0.0, 0.0], hi = [0.08, 0.12] }
+particles_per_cell = 2
+
+[boundaries]
+x_min = "slip"
+x_max = "slip"
+y_min = { kind = "slip", separable = true }
+y_max = "slip"
+
+[[friction]]
+wall = "y_min"
+mu = 0.4
+from = [0.0]
+to = [0.4]
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+type = "explicit"
+scheme = "usl"
+transfer = { type = "flip", alpha = 0.9 }
+time_step = { type = "fixed", dt = 5e-4 }
+end_time = 0.03
+"#;
+
+#[test]
+fn drucker_prager_column_with_flip() {
+    let params = [
+        Param::Material(0, MaterialField::FrictionAngle),
+        Param::Material(0, MaterialField::Cohesion),
+        Param::Material(0, MaterialField::DilationAngle),
+        Param::Material(0, MaterialField::Young),
+        Param::Friction(0),
+    ];
+    check::<2>(SAND_2D, 60, 5, [0.2, 0.0], &params, &[]);
+}
+
+/// A 3D Neo-Hookean block (TPIC) falling onto a separable floor.
+const BLOCK_3D: &str = r#"
+[grid]
+lo = [0.0, 0.0, 0.0]
+hi = [0.2, 0.2, 0.2]
+cell_size = 0.04
+shape_function = "quadratic_bspline"
+
+[[materials]]
+name = "rubber"
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1.0e5
+poisson_ratio = 0.3
+
+[[bodies]]
+material = "rubber"
+shape = { type = "box", lo = [0.04, 0.0, 0.04], hi = [0.12, 0.08, 0.12] }
+particles_per_cell = 2
+velocity = [0.5, -0.5, 0.2]
+
+[boundaries]
+x_min = "slip"
+x_max = "slip"
+y_min = { kind = "slip", separable = true }
+y_max = "slip"
+z_min = "no_slip"
+z_max = "slip"
+
+[loads]
+gravity = [0.0, -9.81, 0.0]
+
+[solver]
+type = "explicit"
+scheme = "usl"
+transfer = "tpic"
+time_step = { type = "fixed", dt = 1e-3 }
+end_time = 0.03
+"#;
+
+#[test]
+fn neo_hookean_block_3d_with_tpic() {
+    let params = [
+        Param::Material(0, MaterialField::Young),
+        Param::Gravity(1),
+        Param::Material(0, MaterialField::Density),
+    ];
+    check::<3>(BLOCK_3D, 30, 5, [0.15, 0.0, 0.1], &params, &[]);
+}
+
+/// A loss that is not a position: the objective's own adjoint is what the reverse pass
+/// starts from, so any `Objective` works (here the kinetic energy at the last step).
+struct Kinetic {
+    step: usize,
+}
+
+impl<const D: usize> Objective<D> for Kinetic {
+    fn term(
+        &self,
+        step: usize,
+        p: &Particles<f64, D>,
+        adjoint: Option<&mut loam_inverse::ParticleAdjoint<D>>,
+    ) -> f64 {
+        if step != self.step {
+            return 0.0;
+        }
+        if let Some(a) = adjoint {
+            for i in 0..p.len() {
+                a.v[i] += p.v[i] * p.mass[i];
+                a.mass[i] += 0.5 * p.v[i].norm_squared();
+            }
+        }
+        p.kinetic_energy()
+    }
+}
+
+#[test]
+fn kinetic_energy_gradient_matches_the_dual_run() {
+    let (config, particles) = scene::<2>(FLUID_2D);
+    let steps = 40;
+    let param = Param::Friction(1);
+    let grad = gradient(
+        &config,
+        &particles,
+        steps,
+        &[param],
+        &Kinetic { step: steps },
+        None,
+    )
+    .expect("gradient");
+    let mut solver = Solver::new(param.seeded(&config).unwrap(), &particles.lift()).unwrap();
+    let mut p: Particles<Dual64, 2> = particles.lift();
+    for _ in 0..steps {
+        solver.step(&mut p, f64::INFINITY).unwrap();
+    }
+    let dual = p.kinetic_energy().eps;
+    assert!(
+        (grad.params[0] - dual).abs() <= 1e-10 * dual.abs(),
+        "{} vs {dual}",
+        grad.params[0]
+    );
+}
