@@ -335,22 +335,26 @@ impl<const D: usize> Boundary<D> {
     }
 
     /// The adjoint of [`Boundary::fold_ghosts`]: with `mass`, `momentum` and `force` holding
-    /// the adjoints of the folded fields, adds to each ghost the adjoint of its mirror,
-    /// `ḡ += image(m̄)` (`image` is its own transpose: ±1 per component), run by run in the
-    /// reverse of the fold's order. The fold is linear, `m ← m + image(g)`, so this is its
-    /// transpose exactly.
+    /// the adjoints of the folded fields (`None` for what the fold did not carry), adds to
+    /// each ghost the adjoint of its mirror, `ḡ += image(m̄)` (`image` is its own transpose:
+    /// ±1 per component), run by run in the reverse of the fold's order. The fold is linear,
+    /// `m ← m + image(g)`, so this is its transpose exactly.
     pub fn fold_ghosts_adjoint(
         &self,
         grid: &Grid<D>,
-        mass: &mut [f64],
+        mut mass: Option<&mut [f64]>,
         momentum: &mut [Vector<f64, D>],
-        force: &mut [Vector<f64, D>],
+        mut force: Option<&mut [Vector<f64, D>]>,
     ) {
         for (g, m, len, axis, parity) in self.ghost_runs(grid).into_iter().rev() {
             for k in 0..len {
-                mass[g + k] += mass[m + k];
+                if let Some(mass) = mass.as_deref_mut() {
+                    mass[g + k] += mass[m + k];
+                }
                 momentum[g + k] += parity.image(axis, &momentum[m + k]);
-                force[g + k] += parity.image(axis, &force[m + k]);
+                if let Some(force) = force.as_deref_mut() {
+                    force[g + k] += parity.image(axis, &force[m + k]);
+                }
             }
         }
     }
@@ -608,7 +612,7 @@ mod tests {
         let (mut ax_m, mut ax_p, mut ax_f) = (x_m.clone(), x_p.clone(), x_f.clone());
         b.fold_ghosts(&g, Some(&mut ax_m), &mut ax_p, Some(&mut ax_f));
         let (mut aty_m, mut aty_p, mut aty_f) = (y_m.clone(), y_p.clone(), y_f.clone());
-        b.fold_ghosts_adjoint(&g, &mut aty_m, &mut aty_p, &mut aty_f);
+        b.fold_ghosts_adjoint(&g, Some(&mut aty_m), &mut aty_p, Some(&mut aty_f));
         let lhs: f64 = ax_m.iter().zip(&y_m).map(|(a, b)| a * b).sum::<f64>()
             + dot(&ax_p, &y_p)
             + dot(&ax_f, &y_f);

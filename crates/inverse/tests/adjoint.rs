@@ -507,3 +507,57 @@ fn kinetic_energy_gradient_matches_the_dual_run() {
         grad.params[0]
     );
 }
+
+/// `toml` with MUSL instead of USL.
+fn musl(toml: &str) -> String {
+    toml.replace("scheme = \"usl\"", "scheme = \"musl\"")
+}
+
+#[test]
+fn musl_fluid_apic_on_friction_segments() {
+    let toml = musl(FLUID_2D).replace("transfer = \"mls\"", "transfer = \"apic\"");
+    let params = [
+        Param::Friction(0),
+        Param::Friction(1),
+        Param::Gravity(1),
+        Param::Material(0, MaterialField::SoundSpeed),
+        Param::Material(0, MaterialField::Viscosity),
+    ];
+    check::<2>(&toml, 60, 7, [0.3, 0.02], &params, &[]);
+}
+
+#[test]
+fn musl_fluid_mls() {
+    let params = [
+        Param::Friction(1),
+        Param::Material(0, MaterialField::SoundSpeed),
+    ];
+    check::<2>(&musl(FLUID_2D), 40, 7, [0.3, 0.02], &params, &[]);
+}
+
+#[test]
+fn musl_neo_hookean_block_against_a_moving_obstacle() {
+    let params = [
+        Param::Material(0, MaterialField::Young),
+        Param::ObstacleVelocity(0, 0),
+        Param::ObstacleFriction(0),
+    ];
+    let no_difference = [Param::ObstacleVelocity(0, 0)];
+    check::<2>(&musl(BLOCK_2D), 40, 3, [0.25, 0.2], &params, &no_difference);
+}
+
+#[test]
+fn musl_drucker_prager_column_with_flip() {
+    let params = [
+        Param::Material(0, MaterialField::FrictionAngle),
+        Param::Material(0, MaterialField::Cohesion),
+        Param::Friction(0),
+    ];
+    check::<2>(&musl(SAND_2D), 60, 5, [0.2, 0.0], &params, &[]);
+}
+
+#[test]
+fn musl_neo_hookean_block_3d_with_tpic() {
+    let params = [Param::Material(0, MaterialField::Young), Param::Gravity(1)];
+    check::<3>(&musl(BLOCK_3D), 30, 5, [0.15, 0.0, 0.1], &params, &[]);
+}

@@ -1,0 +1,491 @@
+//! The reverse of one explicit step: the exact adjoint of the discrete map
+//! `(particles at tⁿ, θ) → particles at tⁿ⁺¹` of `loam_explicit::Solver::step`, USL and MUSL.
+//!
+//! The forward step, stage by stage (`loam_core::step`), and what the reverse does for each,
+//! in the opposite order:
+//!
+//! | forward | reverse |
+//! |---|---|
+//! | 1. P2G: `m_i, P_i, f_i = Σ_p φ(x_p, v_p, C_p, F_p, σ_p, m_p, V⁰_p; i)` | a gather per particle: `x̄_p, v̄_p, C̄_p, F̄_p, σ̄_p, m̄_p, V̄⁰_p += Σ_i (∂φ/∂·)ᵀ (m̄_i, P̄_i, f̄_i)` ([`transfers`]) |
+//! | 1b. fold of the ghosts across bilateral walls (linear) | its transpose (`Boundary::fold_ghosts_adjoint`) |
+//! | 2. node update `(vⁿ_i, v̂_i) = ψ(m_i, P_i, f_i; g, μ, …)` | a local VJP per node, by duals ([`crate::lanes`]) |
+//! | 2b. reflection of the ghost velocities (linear) | its transpose (`Boundary::reflect_ghosts_adjoint`) |
+//! | 3. G2P gather `G_p = Σ_i (w v̂_i, w (v̂_i − vⁿ_i), v̂_i ⊗ ∇w, w v̂_i ⊗ (x_i − x_p))` | a scatter per particle, `v̂̄_i += (∂G/∂v̂_i)ᵀ Ḡ`; `x̄_p` through the weights |
+//! | 3b. G2P motion and (USL) the particle end: velocity, affine matrix, position, wall projection, `F ← (I + Δt L) F`, stress update | a local VJP per particle, by duals |
+//!
+//! MUSL inserts, between 3b's motion and the particle end, a second P2G of momentum at the
+//! start-of-step stencils, its fold, `v_i = P₂_i/m_i` with the first projection's active set
+//! enforced, its reflection, and the gather of `L` from that field; the reverse runs their
+//! adjoints in between (`musl.rs`).
+//!
+//! The grid of the step is recomputed from the start-of-step particles (serially, in particle
+//! order). Branches (stick/slip, separable walls, the projection of shallow wall crossings,
+//! yield and return region) are taken on real parts, so every local derivative is that of the
+//! branch the recomputed step takes, which is the forward pass's: the same real arithmetic on
+//! the same inputs, except that the nodal sums add in another order (the forward sums block by
+//! block) and may differ from the forward's in the last bit. A node whose contact state sits
+//! exactly on a switch could then take the other branch; `tests/adjoint.rs` checks the
+//! gradient against forward-mode duals on scenes with stick, slip and yield.
+//!
+//! Sums over particles into nodes (the scatters) run serially in particle order, and the
+//! parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
+//! order: the gradient has the same bits at any thread count.
+
+mod kernels;
+mod musl;
+mod transfers;
+mod usl;
+
+use crate::adjoint_state::ParticleAdjoint;
+use crate::error::AdjointError;
+use crate::lanes::{Packed, Unpack, constants, dot_eps, vjp};
+use crate::params::{Acts, Param};
+use kernels::node_update;
+use loam_core::constitutive::Material;
+use loam_core::stencil::{Layout, particle_half_width};
+use loam_core::step::{NodeLaw, NodeState, NodeSums, P2g, momentum_update};
+use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
+use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
+use loam_explicit::{Config, MASS_EPS};
+use nalgebra::Matrix3;
+use num_dual::Dual64;
+use rayon::prelude::*;
+use transfers::{GatherForm, NodeAdjoints, Site};
+
+/// Particles or nodes per parallel task (a fixed split, so that sums have a fixed order).
+const CHUNK: usize = 256;
+
+/// The reverse of one step, for one configuration and parameter list: the lifted
+/// configurations (one constant, one per parameter with that parameter seeded) and the grid
+/// scratch, reused from step to step.
+pub struct ReverseStep<const D: usize> {
+    config: Config<f64, D>,
+    /// The configuration as `Dual64` constants (for the input lanes).
+    base: Config<Dual64, D>,
+    /// Per parameter acting on the nodes: its index in the gradient and the seeded
+    /// configuration.
+    node_params: Vec<(usize, Param, Config<Dual64, D>)>,
+    /// Per parameter acting on particles of one material: its index in the gradient, the
+    /// material and that material seeded.
+    particle_params: Vec<(usize, usize, Material<Dual64>)>,
+    grid: GridScratch<D>,
+}
+
+/// The grid of one step, recomputed, and the adjoints of its fields.
+struct GridScratch<const D: usize> {
+    /// P2G sums, folded: the node update's inputs.
+    sums: Vec<NodeSums<f64, D>>,
+    /// Start-of-step grid velocity `vⁿ_i` (reflected; FLIP reads it).
+    v_old: Vec<Vector<f64, D>>,
+    /// Updated grid velocity `v̂_i` (after contact, walls and the reflection).
+    v_hat: Vec<Vector<f64, D>>,
+    /// What the node law did (MUSL's second projection enforces it again).
+    states: Vec<NodeState>,
+    /// Whether a node took part (`m_i` above the floor).
+    live: Vec<bool>,
+    /// Adjoints `m̄_i`, `P̄_i`, `f̄_i`, `v̂̄_i`, `v̄ⁿ_i`.
+    adj_m: Vec<f64>,
+    adj_p: Vec<Vector<f64, D>>,
+    adj_f: Vec<Vector<f64, D>>,
+    adj_v_hat: Vec<Vector<f64, D>>,
+    adj_v_old: Vec<Vector<f64, D>>,
+}
+
+/// One particle's share of the adjoint of the start-of-step state from the stages after P2G
+/// (the old affine matrix reaches the step only through P2G).
+#[derive(Clone, Copy)]
+struct ParticleShare<const D: usize> {
+    x: Vector<f64, D>,
+    v: Vector<f64, D>,
+    f: Tensor<f64, D>,
+    stress: Matrix3<f64>,
+    plastic_strain: f64,
+    tensor: Matrix3<f64>,
+    /// `m̄_p` from MUSL's second P2G.
+    mass: f64,
+}
+
+impl<const D: usize> ParticleShare<D> {
+    fn zero() -> Self {
+        Self {
+            x: Vector::zeros(),
+            v: Vector::zeros(),
+            f: Tensor::zeros(),
+            stress: Matrix3::zeros(),
+            plastic_strain: 0.0,
+            tensor: Matrix3::zeros(),
+            mass: 0.0,
+        }
+    }
+
+    /// Reads `F̄, σ̄`, plastic strain and tensor adjoints (the [`kernels::End`] block).
+    fn read_end(&mut self, u: &mut Unpack<'_, f64>) {
+        self.f = u.tensor::<D>();
+        self.stress = u.matrix3();
+        self.plastic_strain = u.scalar();
+        self.tensor = u.matrix3();
+    }
+}
+
+/// A scatter to the nodes: `(node, v̄ share, v̄ⁿ share)` per stencil node of every particle.
+type Scatter<const D: usize> = Vec<(usize, Vector<f64, D>, Vector<f64, D>)>;
+
+/// Packs the particle's end-of-step state fields `F, σ`, plastic strain and tensor (the
+/// [`kernels::End`] block).
+fn pack_end<const D: usize>(p: &Particles<f64, D>, i: usize, out: &mut Packed<f64>) {
+    out.tensor(&p.f[i]);
+    out.matrix3(&p.stress[i]);
+    out.push(p.state[i].plastic_strain);
+    out.matrix3(&p.state[i].tensor);
+}
+
+/// Packs the adjoints of `F, σ`, plastic strain and tensor.
+fn pack_end_adjoint<const D: usize>(a: &ParticleAdjoint<D>, i: usize, out: &mut Packed<f64>) {
+    out.tensor(&a.f[i]);
+    out.matrix3(&a.stress[i]);
+    out.push(a.plastic_strain[i]);
+    out.matrix3(&a.tensor[i]);
+}
+
+/// Adds per-chunk parameter shares to the gradient, in chunk order.
+fn add_parts(gradient: &mut [f64], parts: Vec<Vec<f64>>) {
+    for part in parts {
+        for (g, x) in gradient.iter_mut().zip(part) {
+            *g += x;
+        }
+    }
+}
+
+impl<const D: usize> ReverseStep<D> {
+    /// The reverse step of `config` for the gradient with respect to `params` (in that order).
+    ///
+    /// # Errors
+    /// [`AdjointError::Unsupported`] for cpGIMP (its weights depend on `F`, which the
+    /// transfers' adjoints do not follow yet); [`AdjointError::Parameter`] for a parameter
+    /// the configuration does not have.
+    pub fn new(config: &Config<f64, D>, params: &[Param]) -> Result<Self, AdjointError> {
+        if config.shape == Shape::Cpgimp {
+            return Err(AdjointError::Unsupported {
+                what: "grid.shape_function = \"cpgimp\"".into(),
+                why: "its weights depend on F; use ugimp or a B-spline".into(),
+            });
+        }
+        let mut node_params = Vec::new();
+        let mut particle_params = Vec::new();
+        for (k, &param) in params.iter().enumerate() {
+            let seeded = param.seeded(config)?;
+            match param.acts() {
+                Acts::Nodes => node_params.push((k, param, seeded)),
+                Acts::Particles(m) => particle_params.push((k, m, seeded.materials[m].clone())),
+                Acts::Initial => {}
+            }
+        }
+        let n = config.grid.num_nodes();
+        Ok(Self {
+            base: config.lift(),
+            node_params,
+            particle_params,
+            grid: GridScratch {
+                sums: vec![NodeSums::zero(); n],
+                v_old: vec![Vector::zeros(); n],
+                v_hat: vec![Vector::zeros(); n],
+                states: vec![NodeState::default(); n],
+                live: vec![false; n],
+                adj_m: vec![0.0; n],
+                adj_p: vec![Vector::zeros(); n],
+                adj_f: vec![Vector::zeros(); n],
+                adj_v_hat: vec![Vector::zeros(); n],
+                adj_v_old: vec![Vector::zeros(); n],
+            },
+            config: config.clone(),
+        })
+    }
+
+    /// Maps the adjoint of the state after a step of size `dt` from time `time`, started from
+    /// the particles `start`, to the adjoint of the state before it (in place), and adds the
+    /// parameters' shares of the step to `gradient` (indexed as the `params` of
+    /// [`ReverseStep::new`]).
+    pub fn reverse(
+        &mut self,
+        start: &Particles<f64, D>,
+        time: f64,
+        dt: f64,
+        adjoint: &mut ParticleAdjoint<D>,
+        gradient: &mut [f64],
+    ) {
+        self.recompute_grid(start, time, dt);
+        let (shares, extra_mass) = match self.config.scheme {
+            Scheme::Usl => (self.usl_particles(start, time, dt, adjoint, gradient), None),
+            Scheme::Musl => {
+                let (shares, m) = self.musl_particles(start, time, dt, adjoint, gradient);
+                (shares, Some(m))
+            }
+        };
+        self.reverse_nodes(time, dt, extra_mass.as_deref(), gradient);
+        self.reverse_p2g(start, dt, &shares, adjoint);
+    }
+
+    /// The stencil site of particle `i`.
+    fn site(&self, p: &Particles<f64, D>, i: usize) -> Site<'_, D> {
+        let cfg = &self.config;
+        Site {
+            grid: &cfg.grid,
+            shape: cfg.shape,
+            x: p.x[i],
+            half_width: particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]),
+        }
+    }
+
+    /// How the transfer's G2P forms its sums.
+    fn gather_form(&self) -> GatherForm {
+        let cfg = &self.config;
+        let scale = match cfg.transfer {
+            Transfer::Apic | Transfer::Mls => cfg
+                .shape
+                .apic_inverse_inertia()
+                .map(|k| k / (cfg.grid.h * cfg.grid.h)),
+            _ => None,
+        };
+        GatherForm {
+            scale,
+            affine_is_gradient: cfg.transfer.is_affine() && scale.is_none(),
+        }
+    }
+
+    /// The node floor of the step: `MASS_EPS` times the largest particle mass.
+    fn mass_floor(p: &Particles<f64, D>) -> f64 {
+        MASS_EPS * p.mass.iter().fold(0.0f64, |a, &m| a.max(m))
+    }
+
+    /// Stages 1 and 2 of the forward step from the start-of-step particles: P2G (serially, in
+    /// particle order), the fold of the ghosts, the node update, the reflection.
+    fn recompute_grid(&mut self, p: &Particles<f64, D>, time: f64, dt: f64) {
+        let cfg = &self.config;
+        let g = &mut self.grid;
+        g.sums.fill(NodeSums::zero());
+        let layout = Layout::grid(&cfg.grid);
+        let stage = P2g::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
+        let mut stencil = Stencil::new(cfg.shape, &cfg.grid, &p.x[0], &p.half_width0[0]);
+        for i in 0..p.len() {
+            stage.particle(p, i, &mut stencil, &layout, &mut g.sums);
+        }
+        let mut mass: Vec<f64> = g.sums.iter().map(|s| s.m).collect();
+        let mut mom: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.p).collect();
+        let mut force: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.f).collect();
+        cfg.boundary
+            .fold_ghosts(&cfg.grid, Some(&mut mass), &mut mom, Some(&mut force));
+        let floor = Self::mass_floor(p);
+        let law = NodeLaw::new(&cfg.grid, &cfg.boundary, &cfg.contact, time + dt);
+        for n in 0..mass.len() {
+            g.sums[n] = NodeSums {
+                m: mass[n],
+                p: mom[n],
+                f: force[n],
+            };
+            g.live[n] = mass[n] > floor;
+            (g.v_old[n], g.v_hat[n], g.states[n]) = if g.live[n] {
+                let (v_old, mut v) = momentum_update(mass[n], &mom[n], &force[n], &cfg.gravity, dt);
+                let state = law.apply(cfg.grid.multi(n), &mut v);
+                (v_old, v, state)
+            } else {
+                (Vector::zeros(), Vector::zeros(), NodeState::default())
+            };
+        }
+        cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_hat);
+        if cfg.transfer.needs_old_grid_velocity() {
+            cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_old);
+        }
+    }
+
+    /// Adds a scatter into `adj` (serially, in particle order) after zeroing it, and the `vⁿ`
+    /// shares into `adj_old` when given.
+    fn add_scatter(
+        scatter: &Scatter<D>,
+        adj: &mut [Vector<f64, D>],
+        mut adj_old: Option<&mut [Vector<f64, D>]>,
+    ) {
+        adj.fill(Vector::zeros());
+        if let Some(old) = adj_old.as_deref_mut() {
+            old.fill(Vector::zeros());
+        }
+        for &(node, a, a_old) in scatter {
+            adj[node] += a;
+            if let Some(old) = adj_old.as_deref_mut() {
+                old[node] += a_old;
+            }
+        }
+    }
+
+    /// Stage 2 in reverse: per live node, the local VJP of the node update (and the
+    /// parameters' shares: gravity everywhere, contact where a contact constraint acted),
+    /// then the transpose of the fold. `extra_mass` adds MUSL's `m̄_i` from the second
+    /// projection before the fold.
+    fn reverse_nodes(
+        &mut self,
+        time: f64,
+        dt: f64,
+        extra_mass: Option<&[f64]>,
+        gradient: &mut [f64],
+    ) {
+        let cfg = &self.config;
+        let grid = &cfg.grid;
+        let dtd = Dual64::from_re(dt);
+        let base_law = NodeLaw::new(grid, &cfg.boundary, &self.base.contact, time + dt);
+        let seeded: Vec<_> = self
+            .node_params
+            .iter()
+            .map(|(k, param, c)| {
+                let law = NodeLaw::new(grid, &cfg.boundary, &c.contact, time + dt);
+                (*k, matches!(param, Param::Gravity(_)), law, c.gravity)
+            })
+            .collect();
+        let g = &mut self.grid;
+        let (sums, live, states) = (&g.sums, &g.live, &g.states);
+        let (adj_v_hat, adj_v_old) = (&g.adj_v_hat, &g.adj_v_old);
+        let nparams = gradient.len();
+        let gravity = self.base.gravity;
+        let parts: Vec<Vec<f64>> = g
+            .adj_m
+            .par_chunks_mut(CHUNK)
+            .zip(g.adj_p.par_chunks_mut(CHUNK))
+            .zip(g.adj_f.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(chunk, ((am, ap), af))| {
+                let mut grad = vec![0.0; nparams];
+                for k in 0..am.len() {
+                    let n = chunk * CHUNK + k;
+                    (am[k], ap[k], af[k]) = (0.0, Vector::zeros(), Vector::zeros());
+                    if !live[n] {
+                        continue;
+                    }
+                    if let Some(extra) = extra_mass {
+                        am[k] = extra[n];
+                    }
+                    let mut y_bar = Packed::<f64>::default();
+                    y_bar.vector(&adj_v_old[n]);
+                    y_bar.vector(&adj_v_hat[n]);
+                    if y_bar.as_slice().iter().all(|&y| y == 0.0) {
+                        continue;
+                    }
+                    let mut input = Packed::<f64>::default();
+                    input.push(sums[n].m);
+                    input.vector(&sums[n].p);
+                    input.vector(&sums[n].f);
+                    let node = grid.multi(n);
+                    let mut x_bar = [0.0; 1 + 2 * 3];
+                    vjp(
+                        input.as_slice(),
+                        0..1 + 2 * D,
+                        y_bar.as_slice(),
+                        &mut x_bar,
+                        |i, out| node_update(&base_law, &gravity, dtd, node, i, out),
+                    );
+                    let mut u = Unpack::new(&x_bar[..1 + 2 * D]);
+                    am[k] += u.scalar();
+                    (ap[k], af[k]) = (u.vector::<D>(), u.vector::<D>());
+                    let constant = constants(input.as_slice());
+                    let touched = states[n].contact.active != 0;
+                    for (index, gravity_param, law, grav) in &seeded {
+                        if *gravity_param || touched {
+                            let mut out = Packed::default();
+                            node_update(law, grav, dtd, node, constant.as_slice(), &mut out);
+                            grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
+                        }
+                    }
+                }
+                grad
+            })
+            .collect();
+        add_parts(gradient, parts);
+        cfg.boundary.fold_ghosts_adjoint(
+            grid,
+            Some(&mut g.adj_m),
+            &mut g.adj_p,
+            Some(&mut g.adj_f),
+        );
+    }
+
+    /// Stage 1 in reverse: per particle, the gather of the node adjoints through its P2G
+    /// contributions, added to its share from the later stages; the result replaces the
+    /// adjoint (mass and reference volume accumulate).
+    fn reverse_p2g(
+        &self,
+        p: &Particles<f64, D>,
+        dt: f64,
+        shares: &[ParticleShare<D>],
+        adjoint: &mut ParticleAdjoint<D>,
+    ) {
+        let cfg = &self.config;
+        let g = &self.grid;
+        let nodes = NodeAdjoints {
+            mass: Some(&g.adj_m[..]),
+            momentum: &g.adj_p,
+            force: (!cfg.transfer.is_mls()).then_some(&g.adj_f[..]),
+        };
+        // MLS-MPM: A = m C − Δt V σ D⁻¹ with D⁻¹ = (1/κ)/h² I, and no force term.
+        let mls = cfg.transfer.is_mls().then(|| {
+            dt * cfg.shape.apic_inverse_inertia().unwrap_or(0.0) / (cfg.grid.h * cfg.grid.h)
+        });
+        let affine = cfg.transfer.is_affine();
+        let ParticleAdjoint {
+            x,
+            v,
+            c,
+            f,
+            stress,
+            plastic_strain,
+            tensor,
+            mass,
+            volume0,
+        } = adjoint;
+        (x, v, c, f, stress, plastic_strain, tensor, mass, volume0)
+            .into_par_iter()
+            .zip(shares.par_iter())
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(
+                |(i, ((x, v, c, f, stress, ps, tensor, mass, volume0), share))| {
+                    let site = self.site(p, i);
+                    let (m, vp, cp, fp) = (p.mass[i], p.v[i], p.c[i], p.f[i]);
+                    let j = det(&fp);
+                    let vol = p.volume0[i] * j;
+                    let sigma = from3::<f64, D>(&p.stress[i]);
+                    let sv = sigma * vol;
+                    let a = match mls {
+                        Some(k) => cp * m - sv * k,
+                        None if affine => cp * m,
+                        None => Tensor::zeros(),
+                    };
+                    // J = m S₀ + m v·S₁ + A:S₂ − (V σ):S₃ (MLS-MPM: the force is in A).
+                    let s = nodes.moments(&site);
+                    let sv_bar = match mls {
+                        Some(k) => -s.s2 * k,
+                        None => -s.s3,
+                    };
+                    *x = share.x + nodes.position_derivative(&site, m, &vp, &a, &sv);
+                    *v = share.v + s.s1 * m;
+                    *c = if affine { s.s2 * m } else { Tensor::zeros() };
+                    let vol_bar = sv_bar.component_mul(&sigma).sum();
+                    let mut s_bar = share.stress;
+                    for r in 0..D {
+                        for col in 0..D {
+                            s_bar[(r, col)] += sv_bar[(r, col)] * vol;
+                        }
+                    }
+                    *stress = s_bar;
+                    // V = V⁰ det F: ∂V/∂F = V⁰ det F F⁻ᵀ.
+                    let cof = inverse(&fp).map_or_else(Tensor::zeros, |inv| inv.transpose() * j);
+                    *f = share.f + cof * (p.volume0[i] * vol_bar);
+                    *ps = share.plastic_strain;
+                    *tensor = share.tensor;
+                    let affine_part = if affine {
+                        cp.component_mul(&s.s2).sum()
+                    } else {
+                        0.0
+                    };
+                    *mass += share.mass + s.s0 + vp.dot(&s.s1) + affine_part;
+                    *volume0 += j * vol_bar;
+                },
+            );
+    }
+}

@@ -1,0 +1,167 @@
+//! The adjoints of the transfers, written for the stencil: P2G's is a gather of the node
+//! adjoints, G2P's a scatter to the nodes; the dependence on the particle position (through
+//! the weights, their gradients and the offsets `x_i − x_p`) is taken by `D` evaluations of
+//! the same sums with a dual position.
+
+use loam_core::stencil::Stencil;
+use loam_core::tensor::{Tensor, Vector};
+use loam_core::transfer::Gathered;
+use loam_core::{Grid, Shape};
+use num_dual::Dual64;
+
+/// What the stencil of one particle needs: grid, shape and the particle's half-width.
+#[derive(Clone, Copy)]
+pub(super) struct Site<'a, const D: usize> {
+    pub grid: &'a Grid<D>,
+    pub shape: Shape,
+    pub x: Vector<f64, D>,
+    pub half_width: Vector<f64, D>,
+}
+
+impl<const D: usize> Site<'_, D> {
+    /// The stencil at the particle.
+    pub fn stencil(&self) -> Stencil<f64, D> {
+        Stencil::new(self.shape, self.grid, &self.x, &self.half_width)
+    }
+
+    /// `∂J/∂x_p` of `J = Σ_i term(node i)` with everything but the position held, by `D`
+    /// evaluations of the stencil with a dual position.
+    pub fn position_derivative(
+        &self,
+        mut term: impl FnMut(usize, Dual64, &Vector<Dual64, D>, &Vector<Dual64, D>) -> Dual64,
+    ) -> Vector<f64, D> {
+        let hw = self.half_width.map(Dual64::from_re);
+        Vector::from_fn(|axis, _| {
+            let mut x = self.x.map(Dual64::from_re);
+            x[axis].eps = 1.0;
+            let st = Stencil::new(self.shape, self.grid, &x, &hw);
+            let mut j = Dual64::from_re(0.0);
+            st.for_each(|node| j += term(node.flat, node.weight, &node.gradient, &node.offset));
+            j.eps
+        })
+    }
+}
+
+/// How a transfer's gathered sums are formed, for their adjoint.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct GatherForm {
+    /// `k/h²` of the affine sum `C = (k/h²) Σ w v (x_i − x_p)ᵀ` (APIC and MLS-MPM with
+    /// B-splines); `None` where the affine matrix is the velocity gradient or absent.
+    pub scale: Option<f64>,
+    /// Whether the affine matrix is the velocity gradient (TPIC, APIC with the hat and GIMP).
+    pub affine_is_gradient: bool,
+}
+
+/// The adjoint of a G2P gather `G = Σ_i (w v_i, w (v_i − vⁿ_i), v_i ⊗ ∇w, k/h² w v_i ⊗ o_i)` at
+/// one particle: writes `(node, v̄ share, v̄ⁿ share)` per stencil node into `out`,
+/// `v̄_i = w Ḡ.v + w Ḡ.dv + Ḡ.grad ∇w + (k/h²) w Ḡ.aff o_i`, `v̄ⁿ_i = −w Ḡ.dv`, and returns
+/// `x̄_p = ∂(Ḡ · G)/∂x_p` with the nodal velocities held. `old` is empty unless FLIP.
+pub(super) fn gather_adjoint<const D: usize>(
+    site: &Site<'_, D>,
+    form: GatherForm,
+    g_bar: &Gathered<f64, D>,
+    velocity: &[Vector<f64, D>],
+    old: &[Vector<f64, D>],
+    out: &mut [(usize, Vector<f64, D>, Vector<f64, D>)],
+) -> Vector<f64, D> {
+    let grad_bar = if form.affine_is_gradient {
+        g_bar.grad_v + g_bar.affine
+    } else {
+        g_bar.grad_v
+    };
+    let aff_bar = form.scale.map(|k| g_bar.affine * k);
+    let mut k = 0;
+    site.stencil().for_each(|node| {
+        let w = node.weight;
+        let mut a = (g_bar.v + g_bar.dv) * w + grad_bar * node.gradient;
+        if let Some(aff) = aff_bar {
+            a += aff * node.offset * w;
+        }
+        out[k] = (node.flat, a, -g_bar.dv * w);
+        k += 1;
+    });
+    let (gv, gdv) = (g_bar.v.map(Dual64::from_re), g_bar.dv.map(Dual64::from_re));
+    let grad_d = grad_bar.map(Dual64::from_re);
+    let aff_d = aff_bar.map(|a| a.map(Dual64::from_re));
+    site.position_derivative(|n, w, gradient, offset| {
+        let vi = velocity[n].map(Dual64::from_re);
+        let mut s = gv.dot(&vi) * w + vi.dot(&(grad_d * gradient));
+        if !old.is_empty() {
+            s += gdv.dot(&(vi - old[n].map(Dual64::from_re))) * w;
+        }
+        if let Some(aff) = &aff_d {
+            s += vi.dot(&(aff * offset)) * w;
+        }
+        s
+    })
+}
+
+/// The node adjoints a particle's P2G contributions meet, summed over its stencil:
+/// `S₀ = Σ w m̄_i`, `S₁ = Σ w P̄_i`, `S₂ = Σ w P̄_i o_iᵀ`, `S₃ = Σ f̄_i ∇wᵀ` (`o_i = x_i − x_p`).
+pub(super) struct Moments<const D: usize> {
+    pub s0: f64,
+    pub s1: Vector<f64, D>,
+    pub s2: Tensor<f64, D>,
+    pub s3: Tensor<f64, D>,
+}
+
+/// The adjoints a P2G of mass, momentum and force reads (mass and force absent for MUSL's
+/// second, momentum-only transfer).
+#[derive(Clone, Copy)]
+pub(super) struct NodeAdjoints<'a, const D: usize> {
+    pub mass: Option<&'a [f64]>,
+    pub momentum: &'a [Vector<f64, D>],
+    pub force: Option<&'a [Vector<f64, D>]>,
+}
+
+impl<const D: usize> NodeAdjoints<'_, D> {
+    /// [`Moments`] over the stencil of `site`.
+    pub fn moments(&self, site: &Site<'_, D>) -> Moments<D> {
+        let mut m = Moments {
+            s0: 0.0,
+            s1: Vector::zeros(),
+            s2: Tensor::zeros(),
+            s3: Tensor::zeros(),
+        };
+        site.stencil().for_each(|node| {
+            let (n, w) = (node.flat, node.weight);
+            if let Some(mass) = self.mass {
+                m.s0 += w * mass[n];
+            }
+            let pw = self.momentum[n] * w;
+            m.s1 += pw;
+            m.s2 += pw * node.offset.transpose();
+            if let Some(force) = self.force {
+                m.s3 += force[n] * node.gradient.transpose();
+            }
+        });
+        m
+    }
+
+    /// `x̄_p` through P2G's weights, gradients and offsets:
+    /// `∂/∂x_p Σ_i [m̄_i m w + P̄_i · w (m v + A o_i) − f̄_i · (V σ) ∇w]` with the particle's
+    /// other fields held (`A` its affine momentum, `sv = V σ`).
+    pub fn position_derivative(
+        &self,
+        site: &Site<'_, D>,
+        m: f64,
+        v: &Vector<f64, D>,
+        a: &Tensor<f64, D>,
+        sv: &Tensor<f64, D>,
+    ) -> Vector<f64, D> {
+        let mv = (v * m).map(Dual64::from_re);
+        let a = a.map(Dual64::from_re);
+        let sv = sv.map(Dual64::from_re);
+        site.position_derivative(|n, w, gradient, offset| {
+            let pb = self.momentum[n].map(Dual64::from_re);
+            let mut s = pb.dot(&(mv + a * offset)) * w;
+            if let Some(mass) = self.mass {
+                s += w * (m * mass[n]);
+            }
+            if let Some(force) = self.force {
+                s -= force[n].map(Dual64::from_re).dot(&(sv * gradient));
+            }
+            s
+        })
+    }
+}

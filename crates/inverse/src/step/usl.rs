@@ -1,0 +1,139 @@
+//! USL in reverse: per particle, the local VJP of G2P and the particle end together
+//! ([`kernels::usl_particle`]) and the scatter of the gathered sums' adjoints to the nodes.
+
+use super::kernels::{self, End, Motion};
+use super::transfers::gather_adjoint;
+use super::{CHUNK, ParticleShare, ReverseStep, Scatter, add_parts, pack_end, pack_end_adjoint};
+use crate::adjoint_state::ParticleAdjoint;
+use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
+use loam_core::stencil::Layout;
+use loam_core::step::EndOfStep;
+use loam_core::tensor::Vector;
+use loam_core::transfer::{Gathered, g2p};
+use loam_core::{Particles, ShapeFunction};
+use num_dual::Dual64;
+use rayon::prelude::*;
+
+impl<const D: usize> ReverseStep<D> {
+    /// Stages 3 and 4 of a USL step in reverse, then the transpose of the reflection; leaves
+    /// `v̂̄` and `v̄ⁿ` on the grid and returns each particle's share of the start-of-step
+    /// adjoint.
+    pub(super) fn usl_particles(
+        &mut self,
+        p: &Particles<f64, D>,
+        time: f64,
+        dt: f64,
+        adjoint: &ParticleAdjoint<D>,
+        gradient: &mut [f64],
+    ) -> Vec<ParticleShare<D>> {
+        let cfg = &self.config;
+        let end = EndOfStep::new(&cfg.grid, &cfg.boundary, &self.base.contact, time + dt);
+        let dtd = Dual64::from_re(dt);
+        let (grid, transfer, shape) = (&cfg.grid, cfg.transfer, cfg.shape);
+        let stencil_len = shape.support_width().pow(D as u32);
+        let layout = Layout::grid(grid);
+        let form = self.gather_form();
+        let flip = transfer.needs_old_grid_velocity();
+        let (v_hat, v_old) = (&self.grid.v_hat, &self.grid.v_old);
+        let old: &[Vector<f64, D>] = if flip { v_old } else { &[] };
+        let lanes: Vec<Vec<usize>> = cfg
+            .materials
+            .iter()
+            .map(|m| {
+                let mut l = Motion::<D>::lanes(transfer, !transfer.is_mls());
+                l.extend(End::lanes::<D>(Motion::<D>::END, &m.model));
+                l
+            })
+            .collect();
+        let mut shares = vec![ParticleShare::zero(); p.len()];
+        let mut scatter: Scatter<D> =
+            vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
+        let nparams = gradient.len();
+        let parts: Vec<Vec<f64>> = shares
+            .par_chunks_mut(CHUNK)
+            .zip(scatter.par_chunks_mut(CHUNK * stencil_len))
+            .enumerate()
+            .map(|(chunk, (shares, scatter))| {
+                let mut grad = vec![0.0; nparams];
+                for (k, share) in shares.iter_mut().enumerate() {
+                    let i = chunk * CHUNK + k;
+                    let mat = p.material[i] as usize;
+                    let site = self.site(p, i);
+                    let st = site.stencil();
+                    let g = g2p(
+                        &st,
+                        &layout,
+                        grid,
+                        shape,
+                        transfer,
+                        !transfer.is_mls(),
+                        v_hat,
+                        old,
+                    );
+                    let mut input = Packed::<f64>::default();
+                    input.vector(&g.v);
+                    input.vector(&g.dv);
+                    input.tensor(&g.grad_v);
+                    input.tensor(&g.affine);
+                    input.vector(&p.x[i]);
+                    input.vector(&p.v[i]);
+                    pack_end(p, i, &mut input);
+                    let mut y_bar = Packed::<f64>::default();
+                    y_bar.vector(&adjoint.x[i]);
+                    y_bar.vector(&adjoint.v[i]);
+                    y_bar.tensor(&adjoint.c[i]);
+                    pack_end_adjoint(adjoint, i, &mut y_bar);
+                    let mut x_bar = [0.0; MAX_LANES];
+                    let material = &self.base.materials[mat];
+                    vjp(
+                        input.as_slice(),
+                        lanes[mat].iter().copied(),
+                        y_bar.as_slice(),
+                        &mut x_bar,
+                        |i, out| kernels::usl_particle(transfer, dtd, &end, material, i, out),
+                    );
+                    let constant = constants(input.as_slice());
+                    for (index, m, seeded) in &self.particle_params {
+                        if *m == mat {
+                            let mut out = Packed::default();
+                            kernels::usl_particle(
+                                transfer,
+                                dtd,
+                                &end,
+                                seeded,
+                                constant.as_slice(),
+                                &mut out,
+                            );
+                            grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
+                        }
+                    }
+                    let mut u = Unpack::new(&x_bar[..Motion::<D>::END + End::len(D)]);
+                    let g_bar = Gathered {
+                        v: u.vector::<D>(),
+                        dv: u.vector::<D>(),
+                        grad_v: u.tensor::<D>(),
+                        affine: u.tensor::<D>(),
+                    };
+                    share.x = u.vector::<D>();
+                    share.v = u.vector::<D>();
+                    share.read_end(&mut u);
+                    let out = &mut scatter[k * stencil_len..(k + 1) * stencil_len];
+                    share.x += gather_adjoint(&site, form, &g_bar, v_hat, old, out);
+                }
+                grad
+            })
+            .collect();
+        add_parts(gradient, parts);
+        let g = &mut self.grid;
+        Self::add_scatter(
+            &scatter,
+            &mut g.adj_v_hat,
+            flip.then_some(&mut g.adj_v_old[..]),
+        );
+        cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_hat);
+        if flip {
+            cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_old);
+        }
+        shares
+    }
+}
