@@ -1,9 +1,10 @@
 //! Wall-clock cost of the pieces of one Newton iteration of the implicit path: a residual
 //! evaluation, the two tangent assemblies, and the sparse LU factorisation + solve.
 //!
-//! Scenes (see `loam_benches`): the reference cantilever at three cell sizes (2D, 5,760 /
-//! 23,040 / 92,160 particles) and a Hencky block settling under gravity on a fixed floor (3D,
-//! 27,000 particles). Each bench builds an `ImplicitSolver` and the system of the first load
+//! Scenes (scene files, see `loam_benches`): the quadratic-B-spline cantilever of
+//! `benches/scenes/cantilever_2d.toml` at three cell sizes (2D, 0.25 / 0.125 / 0.0625 m: 5,760 /
+//! 23,040 / 92,160 particles) and the Hencky block of `benches/scenes/hencky_block_3d_27k.toml`
+//! settling under gravity on a fixed floor (3D, 27,000 particles). Each bench builds an `ImplicitSolver` and the system of the first load
 //! step, `solver.system(&particles, 0.0, 0.02)` (load factor 0 → 0.02), and evaluates
 //! everything at one non-zero trial increment `x`: the first Newton correction, i.e. the
 //! solution of `K(0) δ = −R(0)` by LU. That is the state the second Newton iteration of the
@@ -31,7 +32,7 @@ use criterion::measurement::WallTime;
 use criterion::{
     BenchmarkGroup, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main,
 };
-use loam_benches::{cantilever_2d, hencky_block_3d};
+use loam_benches::{cantilever_2d, implicit_scene};
 use loam_core::Particles;
 use loam_implicit::linear::{LinearSolver, LinearSolverKind};
 use loam_implicit::{ImplicitConfig, ImplicitSolver};
@@ -118,7 +119,11 @@ fn implicit_tangent(c: &mut Criterion) {
     bench_scene(&mut group, "2d_6k", cantilever_2d(0.25));
     bench_scene(&mut group, "2d_23k", cantilever_2d(0.125));
     bench_scene(&mut group, "2d_92k", cantilever_2d(0.0625));
-    bench_scene(&mut group, "3d_27k", hencky_block_3d(25_000));
+    bench_scene(
+        &mut group,
+        "3d_27k",
+        implicit_scene::<3>("hencky_block_3d_27k"),
+    );
     group.finish();
 }
 

@@ -18,20 +18,21 @@
 //!   the smallest size, at 1×, 4× and 13× the resolution.
 //! - `column_3d_93k`: a Drucker–Prager granular column collapse in 3D (93,312 particles).
 //!
-//! The implicit benches use two quasi-static scenes ([`cantilever_2d`] and
-//! [`hencky_block_3d`]), built here and returned as `ImplicitConfig` + `Particles`.
+//! The implicit bench scenes are scene files too ([`IMPLICIT_SCENES`]): the reference
+//! cantilever `examples/cantilever.toml` (cpGIMP), its quadratic-B-spline twin
+//! `benches/scenes/cantilever_2d.toml`, which [`cantilever_2d`] builds at other cell sizes,
+//! and the 3D block `benches/scenes/hencky_block_3d_27k.toml`. [`implicit_scene`] builds one
+//! the same way through `Built::implicit_config`, in `f64`.
 
-use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Scalar, Shape, Wall, WallKind};
+use loam_core::{Particles, Scalar};
 use loam_explicit::Config;
-use loam_implicit::{ImplicitConfig, NewtonSettings};
-use loam_scene::Scene;
-use loam_verification::cantilever;
+use loam_implicit::ImplicitConfig;
+use loam_scene::{Scene, SceneFormat};
 
-/// An explicit bench scene: a scene file of the repository, compiled into the crate.
+/// A bench scene: a scene file of the repository, compiled into the crate.
 #[derive(Clone, Copy, Debug)]
 pub struct BenchScene {
-    /// The file's stem, which [`explicit_scene`] takes.
+    /// The file's stem, which [`explicit_scene`] or [`implicit_scene`] takes.
     pub name: &'static str,
     /// The file, relative to the repository root.
     pub path: &'static str,
@@ -77,13 +78,7 @@ pub const EXPLICIT_SCENES: [BenchScene; 7] = [
 /// When `name` is not a bench scene or the scene is not `D`-dimensional: the names and
 /// dimensions are fixed by the callers, and the tests build every scene.
 pub fn explicit_scene<T: Scalar, const D: usize>(name: &str) -> (Config<T, D>, Particles<T, D>) {
-    let Some(scene) = EXPLICIT_SCENES.iter().find(|s| s.name == name) else {
-        let known: Vec<&str> = EXPLICIT_SCENES.iter().map(|s| s.name).collect();
-        panic!(
-            "no bench scene `{name}`; expected one of {}",
-            known.join(", ")
-        );
-    };
+    let scene = find(&EXPLICIT_SCENES, name);
     let built = Scene::from_toml_str(scene.toml)
         .and_then(|s| s.build::<D>())
         .unwrap_or_else(|e| panic!("{}: {e}", scene.path));
@@ -93,106 +88,97 @@ pub fn explicit_scene<T: Scalar, const D: usize>(name: &str) -> (Config<T, D>, P
     (config.lift(), built.particles.lift())
 }
 
-/// Mass density of the implicit 3D block (kg/m³).
-const DENSITY: f64 = 1000.0;
-/// Side length of the implicit 3D block (m).
-const BLOCK_SIDE: f64 = 1.0;
-/// Particles per cell along each axis of the implicit 3D block.
-const PARTICLES_PER_CELL_AXIS: usize = 2;
-
-/// The reference large-deflection cantilever of the implicit benchmark
-/// (`loam_verification::cantilever::Setup::reference` with quadratic B-splines) at cell size
-/// `cell` (m), 6 × 6 particles per cell.
+/// The implicit bench scenes (quasi-static load stepping, `f64` only).
 ///
-/// The 10 m × 1 m Hencky beam (E = 12 MPa, ν = 0.2) is held at its root and loaded by a tip
-/// load on the two particles nearest the tip's neutral axis, over 50 load steps. `cell = 0.25`
-/// is the reference (5,760 particles); 0.125 gives 23,040 and 0.0625 gives 92,160 particles.
-/// `cell` must divide 15 m and put a node row on the neutral axis y = 9.5 m.
+/// - `cantilever` (`examples/cantilever.toml`): the reference large-deflection cantilever
+///   with cpGIMP, 5,760 particles, 50 load steps; `loam bench cantilever` and the
+///   `cantilever` bench run it end to end.
+/// - `cantilever_2d`: the same beam with quadratic B-splines, 5,760 particles at its cell
+///   size of 0.25 m; [`cantilever_2d`] builds it at other cell sizes.
+/// - `hencky_block_3d_27k`: a 1 m Hencky cube settling under gravity on a fixed floor
+///   between slip walls, 27,000 particles, 10 load steps.
+pub const IMPLICIT_SCENES: [BenchScene; 3] = [
+    bench_scene!("cantilever", "examples/cantilever.toml"),
+    bench_scene!("cantilever_2d", "benches/scenes/cantilever_2d.toml"),
+    bench_scene!(
+        "hencky_block_3d_27k",
+        "benches/scenes/hencky_block_3d_27k.toml"
+    ),
+];
+
+/// The solver inputs of the implicit bench scene `name` (a stem of [`IMPLICIT_SCENES`]) in
+/// `D` dimensions: the scene is parsed, validated and built by `loam-scene`
+/// (`Built::implicit_config` and `Built::particles`), as `loam run` does.
+///
+/// # Panics
+///
+/// When `name` is not an implicit bench scene or the scene is not `D`-dimensional (fixed by
+/// the callers; the tests build every scene).
+pub fn implicit_scene<const D: usize>(name: &str) -> (ImplicitConfig<D>, Particles<f64, D>) {
+    let scene = find(&IMPLICIT_SCENES, name);
+    let parsed = Scene::from_toml_str(scene.toml).unwrap_or_else(|e| panic!("{}: {e}", scene.path));
+    build_implicit(&parsed, scene.path)
+}
+
+/// The quadratic-B-spline cantilever of `benches/scenes/cantilever_2d.toml` at cell size
+/// `cell` (m): the file's scene with `grid.cell_size = cell`, validated and built through
+/// `loam-scene`.
+///
+/// The beam, its support boxes and its tip load are given in metres, so only the
+/// resolution changes: 6 × 6 particles per cell make `(10 / cell) · (6 / cell)` particles,
+/// 5,760 at the file's 0.25 m, 23,040 at 0.125 m and 92,160 at 0.0625 m. `cell` must divide
+/// 15 m and 0.25 m, so that the beam's ends and the neutral axis y = 9.5 m lie on node lines.
+///
+/// # Panics
+///
+/// When the scene is not valid at that cell size.
 pub fn cantilever_2d(cell: f64) -> (ImplicitConfig<2>, Particles<f64, 2>) {
-    let setup = cantilever::Setup {
-        cell,
-        ..cantilever::Setup::reference(Shape::QuadraticBspline)
-    };
-    let (config, particles, _loaded) = setup.build();
-    (config, particles)
+    let file = find(&IMPLICIT_SCENES, "cantilever_2d");
+    let mut scene = Scene::parse_str(file.toml, SceneFormat::Toml)
+        .unwrap_or_else(|e| panic!("{}: {e}", file.path));
+    scene.grid.cell_size = cell;
+    scene
+        .validate()
+        .unwrap_or_else(|e| panic!("{} at cell size {cell} m: {e}", file.path));
+    build_implicit(&scene, file.path)
 }
 
-/// Young's modulus of the implicit 3D block (Pa).
-const BLOCK_YOUNG: f64 = 1.0e6;
-/// Poisson's ratio of the implicit 3D block.
-const BLOCK_POISSON: f64 = 0.3;
-/// Load steps of the implicit 3D block (gravity is ramped over them).
-const BLOCK_LOAD_STEPS: usize = 10;
-
-/// A quasi-static 3D block settling under gravity, with at least `target_particles` particles.
+/// The bench scene `name` of `scenes`.
 ///
-/// A 1 m cube of Hencky material (E = 1 MPa, ν = 0.3, ρ = 1000 kg/m³) rests on a fixed floor
-/// (y = 0) between frictionless (slip) walls on the four sides, which coincide with the block's
-/// faces; the top is free and the grid is one cell taller than the block. Gravity 9.81 m/s²
-/// along −y is ramped over 10 load steps (vertical strain ≈ ρgH/E ≈ 1 % at the bottom).
-/// Quadratic B-splines, 2 × 2 × 2 particles per cell; the block side in particles is the
-/// smallest even `n` with `n³ ≥ target_particles`: 25,000 gives 30³ = 27,000 particles on
-/// 15 × 16 × 15 cells.
-pub fn hencky_block_3d(target_particles: usize) -> (ImplicitConfig<3>, Particles<f64, 3>) {
-    const D: usize = 3;
-    let per_axis = particles_per_axis(target_particles, D);
-    let block_cells = per_axis / PARTICLES_PER_CELL_AXIS;
-    let h = BLOCK_SIDE / block_cells as f64;
-    let shape = Shape::QuadraticBspline;
-    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-    boundary.walls[1][0] = Wall::new(WallKind::Fixed);
-    boundary.walls[1][1] = Wall::new(WallKind::Free);
-    let config = ImplicitConfig {
-        grid: Grid::new(
-            [0.0; D],
-            [block_cells, block_cells + 1, block_cells],
-            h,
-            shape.ghost_cells(),
-        ),
-        shape,
-        boundary,
-        materials: vec![Material::elastic(
-            ModelKind::Hencky,
-            BLOCK_YOUNG,
-            BLOCK_POISSON,
-            DENSITY,
-        )],
-        gravity: Vector::<f64, D>::new(0.0, -9.81, 0.0),
-        constraints: Vec::new(),
-        point_loads: Vec::new(),
-        load_steps: BLOCK_LOAD_STEPS,
-        newton: NewtonSettings::default(),
-        dynamics: None,
-        min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
-    };
-    let dp = h / PARTICLES_PER_CELL_AXIS as f64;
-    let half_width = Vector::<f64, D>::repeat(0.5 * dp);
-    let mut particles = Particles::default();
-    for k in 0..per_axis.pow(D as u32) {
-        let x = Vector::<f64, D>::from_fn(|a, _| {
-            let i = k / per_axis.pow(a as u32) % per_axis;
-            (i as f64 + 0.5) * dp
-        });
-        particles.push(x, Vector::zeros(), DENSITY, half_width, 0);
-    }
-    (config, particles)
+/// # Panics
+///
+/// When there is none, listing the known names.
+fn find<'a>(scenes: &'a [BenchScene], name: &str) -> &'a BenchScene {
+    scenes.iter().find(|s| s.name == name).unwrap_or_else(|| {
+        let known: Vec<&str> = scenes.iter().map(|s| s.name).collect();
+        panic!(
+            "no bench scene `{name}`; expected one of {}",
+            known.join(", ")
+        )
+    })
 }
 
-/// The smallest even `n ≥ 2` with `n^dim ≥ target`.
-fn particles_per_axis(target: usize, dim: usize) -> usize {
-    (PARTICLES_PER_CELL_AXIS..)
-        .step_by(PARTICLES_PER_CELL_AXIS)
-        .find(|n| {
-            n.checked_pow(dim as u32)
-                .is_none_or(|count| count >= target)
-        })
-        .expect("the search stops at the latest when n^dim overflows")
+/// Builds the validated implicit scene `scene` (read from `path`) in `D` dimensions.
+fn build_implicit<const D: usize>(
+    scene: &Scene,
+    path: &str,
+) -> (ImplicitConfig<D>, Particles<f64, D>) {
+    let built = scene.build::<D>().unwrap_or_else(|e| panic!("{path}: {e}"));
+    let config = built
+        .implicit_config()
+        .unwrap_or_else(|| panic!("{path}: not an implicit scene"));
+    (config, built.particles)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use loam_core::{FrictionSegment, Scheme, TimeStep, Transfer};
+    use loam_core::tensor::Vector;
+    use loam_core::{
+        Boundary, FrictionSegment, Material, ModelKind, NodeConstraint, Scheme, Shape, TimeStep,
+        Transfer, Wall, WallKind,
+    };
+    use loam_implicit::{ImplicitSolver, NewtonSettings};
 
     /// Builds the bench scene `name` in f64 through the loader.
     fn load<const D: usize>(name: &str) -> (Config<f64, D>, Particles<f64, D>) {
@@ -200,19 +186,25 @@ mod tests {
     }
 
     /// Checks that `p` is the block of `n[0] × … × n[D−1]` particles of spacing `dp` and
-    /// density `density` from the origin, at `(i + ½) dp` per axis, axis 0 fastest, at rest:
-    /// the lattice the benches used to build by hand.
-    fn assert_lattice<const D: usize>(p: &Particles<f64, D>, n: [usize; D], dp: f64, density: f64) {
+    /// density `density` from the corner `lo`, at `lo + (i + ½) dp` per axis, axis 0 fastest,
+    /// at rest: the lattice the benches used to build by hand.
+    fn assert_lattice<const D: usize>(
+        p: &Particles<f64, D>,
+        lo: [f64; D],
+        n: [usize; D],
+        dp: f64,
+        density: f64,
+    ) {
         assert_eq!(p.len(), n.iter().product::<usize>());
         let volume = dp.powi(D as i32);
         let mut k = 0;
         let mut index = [0usize; D];
         loop {
             for a in 0..D {
-                // Round-off: the coordinates are at most 2 m and come from a few operations
-                // (~1e-16 m each); 1e-12 m is far below the smallest spacing (3.8e-4 m), so a
-                // particle one site off fails.
-                let expected = (index[a] as f64 + 0.5) * dp;
+                // Round-off: the coordinates are at most 10.25 m and come from a few
+                // operations (~2e-15 m each); 1e-12 m is far below the smallest spacing
+                // (3.8e-4 m), so a particle one site off fails.
+                let expected = lo[a] + (index[a] as f64 + 0.5) * dp;
                 assert!(
                     (p.x[k][a] - expected).abs() < 1e-12,
                     "particle {k} axis {a}"
@@ -286,7 +278,7 @@ mod tests {
                 1000.0
             )]
         );
-        assert_lattice(&particles, [n; D], 0.5 * h, 1000.0);
+        assert_lattice(&particles, [0.0; D], [n; D], 0.5 * h, 1000.0);
     }
 
     #[test]
@@ -333,7 +325,13 @@ mod tests {
                 assert!((s.to[0] - 0.4 * (k + 1) as f64).abs() < 1e-12);
                 assert_eq!((s.from[1], s.to[1]), (0.0, 0.0));
             }
-            assert_lattice(&particles, [100 * scale, 60 * scale], 0.5 * h, 1000.0);
+            assert_lattice(
+                &particles,
+                [0.0; 2],
+                [100 * scale, 60 * scale],
+                0.5 * h,
+                1000.0,
+            );
         }
     }
 
@@ -379,7 +377,7 @@ mod tests {
                 mu: phi.tan(),
             }]
         );
-        assert_lattice(&particles, [36, 72, 36], 0.5 * h, 2650.0);
+        assert_lattice(&particles, [0.0; 3], [36, 72, 36], 0.5 * h, 2650.0);
     }
 
     #[test]
@@ -403,27 +401,127 @@ mod tests {
         explicit_scene::<f64, 2>("block_2d_1m");
     }
 
-    #[test]
-    fn implicit_particle_counts() {
-        assert_eq!(cantilever_2d(0.25).1.len(), 5_760);
-        assert_eq!(cantilever_2d(0.125).1.len(), 23_040);
-        assert_eq!(cantilever_2d(0.0625).1.len(), 92_160);
-        assert_eq!(hencky_block_3d(25_000).1.len(), 27_000);
+    /// Checks the cantilever of `examples/cantilever.toml` and `benches/scenes/cantilever_2d.toml`
+    /// at cell size `h` with shape functions `shape`: the 10 m × 1 m Hencky beam from
+    /// (0.25, 9) m at 6 × 6 particles per cell on 15 m × 15 m, held on the nodes of
+    /// x ∈ [0, 0.25] m, 100 kN on the two particles nearest (10.25, 9.5) m, 50 load steps.
+    fn assert_cantilever(
+        (config, particles): &(ImplicitConfig<2>, Particles<f64, 2>),
+        h: f64,
+        shape: Shape,
+    ) {
+        let cells = (15.0 / h).round() as usize;
+        assert_eq!(config.grid.cells, [cells; 2]);
+        assert!(
+            (config.grid.h / h - 1.0).abs() < 1e-15,
+            "h = {}",
+            config.grid.h
+        );
+        assert_eq!(config.grid.lo, [0.0; 2]);
+        assert_eq!(config.grid.pad, shape.ghost_cells());
+        assert_eq!(config.shape, shape);
+        assert_eq!(config.boundary, Boundary::all(Wall::new(WallKind::Free)));
+        assert_eq!(
+            config.materials,
+            vec![Material::elastic(ModelKind::Hencky, 12.0e6, 0.2, 1.0)]
+        );
+        assert_eq!(config.gravity, Vector::<f64, 2>::zeros());
+        assert_eq!(
+            config.constraints,
+            vec![
+                NodeConstraint {
+                    lo: [0.0, -1.0e9],
+                    hi: [0.25, 1.0e9],
+                    displacement: [Some(0.0), None],
+                },
+                NodeConstraint {
+                    lo: [0.0, 9.5],
+                    hi: [0.25, 9.5],
+                    displacement: [None, Some(0.0)],
+                },
+            ]
+        );
+        // The last particle column, either side of the neutral axis (in either order: which
+        // is nearer is decided by round-off), 50 kN down each.
+        let dp = h / 6.0;
+        assert_eq!(config.point_loads.len(), 2);
+        let mut loaded: Vec<Vector<f64, 2>> = config
+            .point_loads
+            .iter()
+            .map(|load| {
+                assert_eq!(load.force, [0.0, -50.0e3]);
+                particles.x[load.particle]
+            })
+            .collect();
+        loaded.sort_by(|a, b| a[1].total_cmp(&b[1]));
+        for (x, y) in loaded.iter().zip([9.5 - 0.5 * dp, 9.5 + 0.5 * dp]) {
+            assert!(
+                (x - Vector::<f64, 2>::new(10.25 - 0.5 * dp, y)).norm() < 1e-12,
+                "{x}"
+            );
+        }
+        assert_eq!(config.load_steps, 50);
+        assert_eq!(config.newton, NewtonSettings::default());
+        assert_eq!(config.dynamics, None);
+        let n = [(10.0 / dp).round() as usize, (1.0 / dp).round() as usize];
+        assert_lattice(particles, [0.25, 9.0], n, dp, 1.0);
     }
 
     #[test]
-    fn implicit_scenes_make_solvers() {
-        let (config, particles) = cantilever_2d(0.25);
-        loam_implicit::ImplicitSolver::new(config, &particles).expect("valid cantilever");
-        let (config, particles) = hencky_block_3d(1000);
-        assert_eq!(config.grid.cells, [5, 6, 5]);
-        let solver =
-            loam_implicit::ImplicitSolver::new(config, &particles).expect("valid 3D block");
+    fn cantilever_scenes_are_the_reference_beam_at_their_cell_size() {
+        let reference = implicit_scene::<2>("cantilever");
+        assert_cantilever(&reference, 0.25, Shape::Cpgimp);
+        assert_eq!(reference.1.len(), 5_760);
+        for (h, count) in [(0.25, 5_760), (0.125, 23_040), (0.0625, 92_160)] {
+            let scene = cantilever_2d(h);
+            assert_cantilever(&scene, h, Shape::QuadraticBspline);
+            assert_eq!(scene.1.len(), count);
+        }
+        let (config, particles) = implicit_scene::<2>("cantilever_2d");
+        assert_eq!(config.grid.h, 0.25);
+        assert_eq!(particles.x, cantilever_2d(0.25).1.x);
+        ImplicitSolver::new(config, &particles).expect("valid cantilever");
+    }
+
+    #[test]
+    fn block_scene_is_the_hencky_block_settling_on_a_fixed_floor() {
+        let (config, particles) = implicit_scene::<3>("hencky_block_3d_27k");
+        let h = 1.0 / 15.0;
+        assert_eq!(config.grid.cells, [15, 16, 15]);
+        assert!(
+            (config.grid.h / h - 1.0).abs() < 1e-15,
+            "h = {}",
+            config.grid.h
+        );
+        assert_eq!(config.grid.lo, [0.0; 3]);
+        assert_eq!(config.grid.pad, Shape::QuadraticBspline.ghost_cells());
+        assert_eq!(config.shape, Shape::QuadraticBspline);
+        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+        boundary.walls[1] = [Wall::new(WallKind::Fixed), Wall::new(WallKind::Free)];
+        assert_eq!(config.boundary, boundary);
+        assert_eq!(
+            config.materials,
+            vec![Material::elastic(ModelKind::Hencky, 1.0e6, 0.3, 1000.0)]
+        );
+        assert_eq!(config.gravity, Vector::<f64, 3>::new(0.0, -9.81, 0.0));
+        assert!(config.constraints.is_empty() && config.point_loads.is_empty());
+        assert_eq!(config.load_steps, 10);
+        assert_eq!(config.newton, NewtonSettings::default());
+        assert_eq!(config.dynamics, None);
+        assert_lattice(&particles, [0.0; 3], [30; 3], 0.5 * h, 1000.0);
+
+        let solver = ImplicitSolver::new(config, &particles).expect("valid 3D block");
         let system = solver
             .system(&particles, 0.0, 0.1)
             .expect("block on the grid");
         assert!(!system.is_empty());
         // Gravity pushes down: the external force on the unknowns sums to −ρ g V λ along y.
         assert!(system.f_ext.iter().sum::<f64>() < 0.0);
+    }
+
+    #[test]
+    #[should_panic(expected = "no bench scene `cantilever_3d`; expected one of cantilever")]
+    fn an_unknown_implicit_scene_is_refused_with_the_known_ones() {
+        implicit_scene::<3>("cantilever_3d");
     }
 }

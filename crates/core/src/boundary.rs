@@ -2,8 +2,9 @@
 
 use crate::grid::Grid;
 use crate::scalar::Scalar;
+use crate::serde_form::name_or_table;
 use crate::tensor::Vector;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
 use std::ops::Range;
 
 /// What a wall does to the velocity `v` of a node on or beyond it (outward normal `n`).
@@ -22,15 +23,35 @@ pub enum WallKind {
 }
 
 /// One face's condition.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+///
+/// Written as its kind, `"slip"`, or as a table `{ kind = "slip", separable = true }`
+/// (`separable` defaults to `false`); an unknown key is an error. `Deserialize` is written by
+/// hand for that (see [`crate::serde_form`]); `Serialize` writes the table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct Wall {
     /// The kind of wall.
     pub kind: WallKind,
     /// For `slip` and `no_slip`: apply the condition only while the node moves into the wall
     /// (`v·n > 0`), so material may leave the wall (free-surface flows). Without it the
     /// condition is bilateral (and `no_slip` is the same as `fixed`).
-    #[serde(default)]
     pub separable: bool,
+}
+
+/// The strict table form of [`Wall`].
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WallTable {
+    kind: WallKind,
+    #[serde(default)]
+    separable: bool,
+}
+
+impl<'de> Deserialize<'de> for Wall {
+    /// Reads the kind (`"slip"`, the table `{ kind = "slip" }`) or the table.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let WallTable { kind, separable } = name_or_table(d, "kind")?;
+        Ok(Self { kind, separable })
+    }
 }
 
 impl Wall {

@@ -12,6 +12,7 @@ pub mod energy;
 pub mod grid;
 pub mod particles;
 pub mod scalar;
+pub mod serde_form;
 pub mod shape;
 pub mod spectral;
 pub mod stencil;

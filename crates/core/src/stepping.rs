@@ -15,8 +15,12 @@ pub enum Scheme {
 }
 
 /// How the time step is chosen.
+///
+/// Written as a table tagged by `type`, `{ type = "fixed", dt = 1e-4 }` or
+/// `{ type = "adaptive", cfl = 0.4, max_dt = 1e-3 }`; an unknown key is an error (see
+/// [`crate::serde_form`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum TimeStep {
     /// A constant `Δt`; the run stops if it exceeds the stability bound
     /// `h / (c + |v|_max)` (`c` the elastic P-wave speed).

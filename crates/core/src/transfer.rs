@@ -17,13 +17,19 @@
 
 use crate::grid::Grid;
 use crate::scalar::Scalar;
+use crate::serde_form::name_or_table;
 use crate::shape::Shape;
 use crate::stencil::{Layout, Stencil};
 use crate::tensor::{Tensor, Vector};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
 
 /// The particle-velocity update scheme.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+///
+/// Written as its name, `"pic"`, `"apic"`, `"tpic"` or `"mls"`, or as a table tagged by
+/// `type`, `{ type = "flip", alpha = 0.95 }` (FLIP needs the table); an unknown key is an
+/// error. `Deserialize` is written by hand for that (see [`crate::serde_form`]); `Serialize`
+/// writes the table.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Transfer {
     /// Particle-in-cell: `v_p = Σ w v_i` (dissipative, stable).
@@ -46,6 +52,37 @@ pub enum Transfer {
     /// it the cheapest affine transfer; it is the discretisation of JAX-MPM and Taichi's
     /// MLS-MPM.
     Mls,
+}
+
+/// The strict table form of [`Transfer`]: empty struct variants in place of the unit
+/// variants, so that `deny_unknown_fields` rejects an extra key on every variant.
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+enum TransferTable {
+    Pic {},
+    Flip { alpha: f64 },
+    Apic {},
+    Tpic {},
+    Mls {},
+}
+
+impl From<TransferTable> for Transfer {
+    fn from(t: TransferTable) -> Self {
+        match t {
+            TransferTable::Pic {} => Self::Pic,
+            TransferTable::Flip { alpha } => Self::Flip { alpha },
+            TransferTable::Apic {} => Self::Apic,
+            TransferTable::Tpic {} => Self::Tpic,
+            TransferTable::Mls {} => Self::Mls,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Transfer {
+    /// Reads the name (`"apic"`, the table `{ type = "apic" }`) or the table.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        name_or_table::<D, TransferTable>(d, "type").map(Self::from)
+    }
 }
 
 impl Transfer {

@@ -60,12 +60,12 @@ pub mod checkpoint;
 mod contact;
 mod error;
 mod estimate;
+mod forms;
 mod geometry;
 mod initial;
 mod load;
 pub mod output;
 mod schema;
-mod strict;
 mod validate;
 
 pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, SolverPlan};

@@ -7,8 +7,8 @@
 //! The implicit solver's settings ([`NewtonSpec`], [`LinearSpec`]) are plain types of this
 //! crate, which depends on `loam-core` only: a front end maps them to the solver's own.
 
+use crate::forms;
 use crate::output::Field;
-use crate::strict;
 use loam_core::{ModelKind, Scheme, Shape, TimeStep, Transfer, Wall};
 use loam_implicit::TangentMethod;
 use loam_implicit::linear::Preconditioner;
@@ -189,7 +189,7 @@ pub struct BodySpec {
 pub struct RotationSpec {
     /// Angular velocity ω (rad/s): a number in 2D (counter-clockwise positive), three
     /// components in 3D.
-    #[serde(with = "strict::angular_velocity")]
+    #[serde(with = "forms::angular_velocity")]
     pub angular_velocity: Vec<f64>,
     /// The point x₀ on the axis of rotation (default: the body's centre of mass).
     #[serde(default, alias = "center", skip_serializing_if = "Option::is_none")]
@@ -301,46 +301,22 @@ pub enum BodyShape {
 #[serde(deny_unknown_fields)]
 pub struct BoundarySpec {
     /// Face `x = lo[0]`.
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub x_min: Option<Wall>,
     /// Face `x = hi[0]`.
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub x_max: Option<Wall>,
     /// Face `y = lo[1]`.
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub y_min: Option<Wall>,
     /// Face `y = hi[1]`.
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub y_max: Option<Wall>,
     /// Face `z = lo[2]` (3D only).
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub z_min: Option<Wall>,
     /// Face `z = hi[2]` (3D only).
-    #[serde(
-        default,
-        deserialize_with = "strict::wall",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub z_max: Option<Wall>,
 }
 
@@ -409,19 +385,11 @@ pub struct SolverSpec {
     pub scheme: Option<Scheme>,
     /// Explicit: particle–grid velocity transfer, `"pic"`, `"apic"` or a table such as
     /// `{ type = "flip", alpha = 0.95 }` (default `apic`).
-    #[serde(
-        default,
-        deserialize_with = "strict::transfer",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub transfer: Option<Transfer>,
     /// Explicit (required): time-step control, `{ type = "fixed", dt = .. }` or
     /// `{ type = "adaptive", cfl = .., max_dt = .. }`.
-    #[serde(
-        default,
-        deserialize_with = "strict::time_step",
-        skip_serializing_if = "Option::is_none"
-    )]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_step: Option<TimeStep>,
     /// Explicit (required): simulated time at which the run stops (s), positive.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -441,7 +409,7 @@ pub struct SolverSpec {
     /// name such as `"lu"` (default `lu`).
     #[serde(
         default,
-        deserialize_with = "strict::linear",
+        deserialize_with = "forms::linear",
         skip_serializing_if = "Option::is_none"
     )]
     pub linear: Option<LinearSpec>,
@@ -570,7 +538,7 @@ pub struct ConstraintSpec {
     /// Upper corner of the box (m), `≥ lo` on every axis (equal for a plane or a point).
     pub hi: Vec<f64>,
     /// Per component, the total displacement (m) or `"free"` (`None`); at least one number.
-    #[serde(with = "strict::displacement")]
+    #[serde(with = "forms::displacement")]
     pub displacement: Vec<Option<f64>>,
 }
 

@@ -74,6 +74,10 @@ const BAD: &[(&str, &[&str])] = &[
         &["solver.transfer: unknown variant `sph`", "`apic`"],
     ),
     (
+        "transfer_unknown_field.toml",
+        &["solver.transfer: unknown field `alpha`, there are no fields"],
+    ),
+    (
         "mls_with_gimp.toml",
         &["solver.transfer: MLS-MPM needs a B-spline shape function"],
     ),
