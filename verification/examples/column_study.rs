@@ -3,14 +3,13 @@
 //!
 //! `cargo run --release -p loam-verification --example column_study [CELLS]`
 
-use loam_core::{Material, ModelKind, Shape};
-use loam_verification::column::{DENSITY, Setup, YOUNG, error_norm, exact_stress};
+use loam_core::Shape;
+use loam_verification::column::{Setup, Soil, error_norm, exact_stress};
 
 fn main() {
     let cells = std::env::args()
         .nth(1)
         .map_or(64, |s| s.parse().expect("CELLS is a whole number"));
-    let hencky = Material::elastic(ModelKind::Hencky, YOUNG, 0.0, DENSITY);
     println!(
         "| shape | particles per cell | error at {cells} cells | Newton iterations | wall (s) |"
     );
@@ -28,7 +27,7 @@ fn main() {
                 ..Setup::new(cells)
             };
             let t = std::time::Instant::now();
-            let (stress, its) = setup.run(hencky.clone()).expect("the column converges");
+            let (stress, its) = setup.run(Soil::Elastic).expect("the column converges");
             let e = error_norm(stress.iter().map(|&(y0, s, _)| (s, exact_stress(y0))));
             println!(
                 "| {shape:?} | {ppc} × {ppc} | {e:.3e} | {its} | {:.1} |",

@@ -6,13 +6,13 @@
 //! cell high between slip walls (so `v_y = 0` everywhere) with `ν = 0`, where the plane-strain
 //! constrained modulus equals `E`.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Grid, Material, ModelKind, Particles, Scalar, Scheme, Shape, TimeStep, Transfer,
-    Wall, WallKind,
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
 };
+use loam_core::tensor::Vector;
+use loam_core::{Material, Particles, Scalar, Scheme, Shape, TimeStep, Transfer};
 use loam_explicit::{Config, Solver, StepError};
+use loam_scene::{BodyShape, Scene};
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -49,6 +49,13 @@ pub fn vcm_amplitude() -> f64 {
 /// The exact centre-of-mass velocity `v_cm(t) = v₀/(β₁ L) cos(ω₁ t)`.
 pub fn exact_vcm(t: f64) -> f64 {
     vcm_amplitude() * (omega1() * t).cos()
+}
+
+/// Sets the first-mode velocity `v(x, 0) = v₀ sin(β₁ x)` on every particle.
+pub fn first_mode_velocity(particles: &mut Particles<f64, 2>) {
+    for (x, v) in particles.x.iter().zip(&mut particles.v) {
+        *v = Vector::<f64, 2>::new(V0 * (beta1() * x[0]).sin(), 0.0);
+    }
 }
 
 /// Discretisation of the bar.
@@ -91,49 +98,57 @@ impl Setup {
         self.cfl * self.h() / (YOUNG / DENSITY).sqrt()
     }
 
-    /// Solver configuration and particles, with Young's modulus `young` of scalar type `T`
-    /// (a dual `young` gives derivatives of the whole run with respect to `E`).
-    pub fn build<T: Scalar>(&self, young: T) -> (Config<T, 2>, Particles<T, 2>) {
+    /// The scene of this discretisation: `verification/scenes/axial_bar.toml` as
+    /// [`Setup::discretise`] changes it, with the transfer, the scheme and the time step of the
+    /// set-up.
+    pub fn scene(&self) -> Scene {
+        let mut scene = scenes::scene("axial_bar");
+        self.discretise(&mut scene);
+        scene.solver.transfer = Some(self.transfer);
+        scene.solver.scheme = Some(self.scheme);
+        scene.solver.time_step = Some(TimeStep::Fixed { dt: self.dt() });
+        scene
+    }
+
+    /// Sets the cell size, the domain (two spare cells beyond the free end leave room for its
+    /// motion, amplitude ~ 6e-4 L), the shape functions and the particles per cell of a bar
+    /// scene (`axial_bar.toml`, `axial_bar_newmark.toml`), and removes its velocity file: the
+    /// first-mode velocity is set on the built particles ([`first_mode_velocity`]) at every
+    /// resolution.
+    pub fn discretise(&self, scene: &mut Scene) {
         let h = self.h();
-        // Two spare cells beyond the free end leave room for its motion (amplitude ~ 6e-4 L).
-        let grid = Grid::new([0.0, 0.0], [self.cells + 2, 1], h, self.shape.ghost_cells());
-        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-        boundary.walls[0][0] = Wall::new(WallKind::Fixed);
-        boundary.walls[0][1] = Wall::new(WallKind::Free);
-        let config = Config {
-            grid,
-            shape: self.shape,
-            transfer: self.transfer,
-            scheme: self.scheme,
-            boundary,
-            contact: Default::default(),
-            gravity: Vector::zeros(),
-            materials: vec![Material::elastic(
-                ModelKind::LinearElastic,
-                young,
-                T::zero(),
-                T::cst(DENSITY),
-            )],
-            time_step: TimeStep::Fixed { dt: self.dt() },
+        scene.grid.cell_size = h;
+        scene.grid.hi = vec![(self.cells + 2) as f64 * h, h];
+        scene.grid.shape_function = self.shape;
+        let body = &mut scene.bodies[0];
+        body.shape = BodyShape::Box {
+            lo: vec![0.0, 0.0],
+            hi: vec![LENGTH, h],
         };
-        let mut particles = Particles::default();
-        let dp = h / self.ppc as f64;
-        let hw = Vector::<T, 2>::repeat(T::cst(dp / 2.0));
-        for i in 0..self.cells * self.ppc {
-            for j in 0..self.ppc {
-                let x = (i as f64 + 0.5) * dp;
-                let y = (j as f64 + 0.5) * dp;
-                let v = Vector::<T, 2>::new(T::cst(V0 * (beta1() * x).sin()), T::zero());
-                particles.push(
-                    Vector::<T, 2>::new(T::cst(x), T::cst(y)),
-                    v,
-                    T::cst(DENSITY),
-                    hw,
-                    0,
-                );
-            }
-        }
-        (config, particles)
+        body.particles_per_cell = self.ppc as u32;
+        body.velocity_file = None;
+    }
+
+    /// Solver configuration and particles, with Young's modulus `young` of scalar type `T`
+    /// (a dual `young` gives derivatives of the whole run with respect to `E`): the
+    /// [scene](Setup::scene) built by `loam-scene`, lifted to `T`, with the first-mode
+    /// velocity `v₀ sin(β₁ x)` on every particle.
+    pub fn build<T: Scalar>(&self, young: T) -> (Config<T, 2>, Particles<T, 2>) {
+        let scene = self.scene();
+        let mut built = scenes::build::<2>(&scene);
+        first_mode_velocity(&mut built.particles);
+        let mut config = built
+            .explicit_config()
+            .expect("the axial bar is an explicit scene")
+            .lift::<T>();
+        let bar = &scene.materials[0];
+        config.materials[0] = Material::elastic(
+            bar.model,
+            young,
+            T::cst(bar.poisson_ratio.unwrap_or_default()),
+            T::cst(bar.density),
+        );
+        (config, built.particles.lift())
     }
 
     /// Runs until the first step that reaches or passes `t_end` (the step is fixed and never

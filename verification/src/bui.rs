@@ -30,7 +30,7 @@
 
 use crate::granular::{self, Collapse, G, Granular, MIN_THICKNESS, Outcome};
 use crate::runout::{lajeunesse, lube};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_plot, write_text};
+use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_plot, write_text};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -39,24 +39,20 @@ pub const L0: f64 = 0.2;
 /// Column height `H₀` (m).
 pub const H0: f64 = 0.1;
 
-/// The aluminium bars and the floor.
+/// The aluminium bars and the floor, from `verification/scenes/bui_collapse.toml`.
 pub fn material() -> Granular {
-    let friction_deg: f64 = 19.8;
-    Granular {
-        density: 2650.0,
-        young: 0.84e6,
-        poisson: 0.3,
-        friction_deg,
-        dilation_deg: 0.0,
-        floor_mu: friction_deg.to_radians().tan(),
-    }
+    Granular::from_scene(&scenes::scene(SCENE))
 }
+
+/// The case's scene file, `verification/scenes/bui_collapse.toml`.
+const SCENE: &str = "bui_collapse";
 
 /// The collapse with cell size `h` (a divisor of 0.01 m): a 0.7 m × 0.12 m box (long enough
 /// for the upper runout bound, 0.63 m, to lie inside it), 2 × 2 particles per cell, 1 s (the
 /// pile is at rest by about 0.6 s).
 pub fn collapse(h: f64) -> Collapse {
     Collapse {
+        scene: SCENE,
         material: material(),
         l0: L0,
         h0: H0,

@@ -16,13 +16,13 @@
 
 use crate::elastica::{tip_displacement, tip_displacement_reissner};
 use crate::fe_beam::{FeBeam, FeError, LoadDistribution, Support};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
-use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::{
-    ImplicitConfig, ImplicitError, ImplicitSolver, NewtonSettings, NodeConstraint, PointLoad,
-    StepReport,
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
 };
+use loam_core::tensor::Vector;
+use loam_core::{Particles, Shape, Wall, WallKind};
+use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NewtonSettings, StepReport};
+use loam_scene::{ConstraintSpec, Scene};
 use std::path::Path;
 
 /// Beam length (m).
@@ -88,95 +88,53 @@ impl Setup {
         }
     }
 
-    /// Configuration, particles and the ids of the two loaded tip particles.
-    pub fn build(&self) -> (ImplicitConfig<2>, Particles<f64, 2>, [usize; 2]) {
-        let h = self.cell;
-        let cells = (15.0 / h).round() as usize;
-        let (x0, y0) = (0.25, 9.0);
-        let grid_lo = match self.root {
-            Root::Reference => 0.0,
-            Root::Symmetry | Root::Clamped => x0,
-        };
-        let grid = Grid::new([grid_lo, 0.0], [cells, cells], h, self.shape.ghost_cells());
-        let mut particles = Particles::default();
-        let dp = h / self.ppc as f64;
-        let nx = (LENGTH / dp).round() as usize;
-        let ny = (DEPTH / dp).round() as usize;
-        let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-        for i in 0..nx {
-            for j in 0..ny {
-                let x =
-                    Vector::<f64, 2>::new(x0 + (i as f64 + 0.5) * dp, y0 + (j as f64 + 0.5) * dp);
-                particles.push(x, Vector::zeros(), 1.0, hw, 0);
-            }
+    /// The scene: `verification/scenes/cantilever.toml` (the reference root) with the root,
+    /// cell size, particles per cell, shape functions, load steps and load of this set-up.
+    pub fn scene(&self) -> Scene {
+        let mut scene = scenes::scene("cantilever");
+        scene.grid.cell_size = self.cell;
+        scene.grid.shape_function = self.shape;
+        scene.bodies[0].particles_per_cell = self.ppc as u32;
+        scene.point_loads[0].force = vec![0.0, -self.load];
+        scene.solver.load_steps = Some(self.steps);
+        // The root face of the beam and its neutral axis.
+        let (x0, neutral) = (0.25, 9.0 + DEPTH / 2.0);
+        if self.root != Root::Reference {
+            // The grid starts at the root, with a wall there.
+            scene.grid.lo[0] = x0;
+            scene.grid.hi[0] += x0;
         }
-        // The two particles nearest the tip's neutral axis (x0 + L, y0 + d/2).
-        let tip = Vector::<f64, 2>::new(x0 + LENGTH, y0 + DEPTH / 2.0);
-        let mut ids: Vec<usize> = (0..particles.len()).collect();
-        ids.sort_by(|&a, &b| {
-            (particles.x[a] - tip)
-                .norm()
-                .total_cmp(&(particles.x[b] - tip).norm())
-                .then(a.cmp(&b))
-        });
-        let loaded = [ids[0], ids[1]];
-        let neutral = y0 + DEPTH / 2.0;
-        let (boundary, constraints) = match self.root {
-            Root::Reference => (
-                Boundary::all(Wall::new(WallKind::Free)),
-                vec![
-                    // x fixed on the first two grid columns …
-                    NodeConstraint {
-                        lo: [0.0, f64::NEG_INFINITY],
-                        hi: [0.25, f64::INFINITY],
-                        displacement: [Some(0.0), None],
-                    },
-                    // … and y fixed on them at the neutral axis.
-                    NodeConstraint {
-                        lo: [0.0, neutral],
-                        hi: [0.25, neutral],
-                        displacement: [None, Some(0.0)],
-                    },
-                ],
-            ),
+        match self.root {
+            Root::Reference => {}
             Root::Symmetry => {
-                let mut b = Boundary::all(Wall::new(WallKind::Free));
-                b.walls[0][0] = Wall::new(WallKind::Slip);
-                (
-                    b,
-                    vec![NodeConstraint {
-                        lo: [x0, neutral],
-                        hi: [x0, neutral],
-                        displacement: [None, Some(0.0)],
-                    }],
-                )
+                scene.boundaries.x_min = Some(Wall::new(WallKind::Slip));
+                scene.constraints = vec![ConstraintSpec {
+                    lo: vec![x0, neutral],
+                    hi: vec![x0, neutral],
+                    displacement: vec![None, Some(0.0)],
+                }];
             }
             Root::Clamped => {
-                let mut b = Boundary::all(Wall::new(WallKind::Free));
-                b.walls[0][0] = Wall::new(WallKind::Fixed);
-                (b, Vec::new())
+                scene.boundaries.x_min = Some(Wall::new(WallKind::Fixed));
+                scene.constraints.clear();
             }
-        };
-        let config = ImplicitConfig {
-            grid,
-            shape: self.shape,
-            boundary,
-            materials: vec![Material::elastic(ModelKind::Hencky, YOUNG, POISSON, 1.0)],
-            gravity: Vector::zeros(),
-            constraints,
-            point_loads: loaded
-                .iter()
-                .map(|&p| PointLoad {
-                    particle: p,
-                    force: [0.0, -self.load / 2.0],
-                })
-                .collect(),
-            load_steps: self.steps,
-            newton: self.newton,
-            dynamics: None,
-            min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
-        };
-        (config, particles, loaded)
+        }
+        scene
+    }
+
+    /// Configuration, particles and the ids of the two loaded tip particles, from the
+    /// [scene](Setup::scene) with the Newton settings of this set-up.
+    pub fn build(&self) -> (ImplicitConfig<2>, Particles<f64, 2>, [usize; 2]) {
+        let built = scenes::build::<2>(&self.scene());
+        let mut config = built
+            .implicit_config()
+            .expect("the cantilever is an implicit scene");
+        config.newton = self.newton;
+        let loaded = [
+            config.point_loads[0].particle,
+            config.point_loads[1].particle,
+        ];
+        (config, built.particles, loaded)
     }
 
     /// Runs all load steps; returns the tip displacement (mean of the loaded particles,

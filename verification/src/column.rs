@@ -7,10 +7,12 @@
 //! stress at a particle that started at height Y₀: `σ_yy = −ρ₀ g (H − Y₀)`. The error norm is
 //! `Σ_p |σ_yy − σ_exact| V⁰_p / Σ_p ρ₀ g H V⁰_p`.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
-use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
+};
+use loam_core::{ModelKind, Particles, Shape};
+use loam_implicit::{ImplicitConfig, ImplicitSolver};
+use loam_scene::{BodyShape, Scene};
 use std::path::Path;
 
 /// Column height (m).
@@ -24,6 +26,15 @@ pub const GRAVITY: f64 = 10.0;
 
 /// A particle's reference height `Y₀` and its final `σ_yy`, `σ_xx` (Pa).
 pub type Sample = (f64, f64, f64);
+
+/// The column's material.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Soil {
+    /// Hencky elasticity, the scene file's material.
+    Elastic,
+    /// The same moduli, perfectly plastic J2 with `σ_y =` [`j2_yield_stress`].
+    Plastic,
+}
 
 /// Discretisation of the column.
 #[derive(Clone, Copy, Debug)]
@@ -56,44 +67,43 @@ impl Setup {
         }
     }
 
-    /// Configuration and particles: one cell wide, the grid one cell taller than the column.
-    pub fn build(&self, material: Material<f64>) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    /// The scene: `verification/scenes/column_compaction.toml` (one cell wide, the grid one
+    /// cell taller than the column) with the cell size, particles per cell, load steps, shape
+    /// functions and soil of this set-up.
+    pub fn scene(&self, soil: Soil) -> Scene {
+        let mut scene = scenes::scene("column_compaction");
         let h = HEIGHT / self.cells as f64;
-        let grid = Grid::new([0.0, 0.0], [1, self.cells + 1], h, self.shape.ghost_cells());
-        let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-        boundary.walls[1][0] = Wall::new(WallKind::Fixed);
-        boundary.walls[1][1] = Wall::new(WallKind::Free);
-        let config = ImplicitConfig {
-            grid,
-            shape: self.shape,
-            boundary,
-            materials: vec![material],
-            gravity: Vector::<f64, 2>::new(0.0, -GRAVITY),
-            constraints: Vec::new(),
-            point_loads: Vec::new(),
-            load_steps: self.steps,
-            newton: NewtonSettings::default(),
-            dynamics: None,
-            min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
+        scene.grid.cell_size = h;
+        scene.grid.hi = vec![h, (self.cells + 1) as f64 * h];
+        scene.grid.shape_function = self.shape;
+        let body = &mut scene.bodies[0];
+        body.shape = BodyShape::Box {
+            lo: vec![0.0, 0.0],
+            hi: vec![h, HEIGHT],
         };
-        let mut particles = Particles::default();
-        let dp = h / self.ppc as f64;
-        let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-        for j in 0..self.cells * self.ppc {
-            for i in 0..self.ppc {
-                let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-                particles.push(x, Vector::zeros(), DENSITY, hw, 0);
-            }
+        body.particles_per_cell = self.ppc as u32;
+        if soil == Soil::Plastic {
+            let m = &mut scene.materials[0];
+            m.model = ModelKind::J2;
+            m.yield_stress = Some(j2_yield_stress());
+            m.hardening = Some(0.0);
         }
-        (config, particles)
+        scene.solver.load_steps = Some(self.steps);
+        scene
+    }
+
+    /// Configuration and particles of the [scene](Setup::scene).
+    pub fn build(&self, soil: Soil) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+        let built = scenes::build::<2>(&self.scene(soil));
+        let config = built
+            .implicit_config()
+            .expect("the column is an implicit scene");
+        (config, built.particles)
     }
 
     /// Runs all load steps; returns `(Y₀, σ_yy, σ_xx)` per particle and the Newton iterations.
-    pub fn run(
-        &self,
-        material: Material<f64>,
-    ) -> Result<(Vec<Sample>, usize), loam_implicit::ImplicitError> {
-        let (config, mut particles) = self.build(material);
+    pub fn run(&self, soil: Soil) -> Result<(Vec<Sample>, usize), loam_implicit::ImplicitError> {
+        let (config, mut particles) = self.build(soil);
         let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
         let mut solver = ImplicitSolver::new(config, &particles)?;
         let mut iterations = 0;
@@ -174,7 +184,6 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         case: CASE.into(),
         source,
     };
-    let hencky = Material::elastic(ModelKind::Hencky, YOUNG, 0.0, DENSITY);
     let levels: &[usize] = match size {
         Size::Reduced => &[8, 16, 32],
         Size::Full => &[8, 16, 32, 64, 128],
@@ -191,7 +200,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let mut errors = Vec::new();
     for &n in levels {
         let s = Setup::new(n);
-        let (stress, its) = s.run(hencky.clone()).map_err(err)?;
+        let (stress, its) = s.run(Soil::Elastic).map_err(err)?;
         let e = error_norm(stress.iter().map(|&(y0, syy, _)| (syy, exact_stress(y0))));
         let rate = prev.map(|p| (p / e).log2());
         errors.push((HEIGHT / n as f64, e));
@@ -213,8 +222,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     ));
     // The same column, perfectly plastic J2 (κ = 5 kPa): σ_yy is still fixed by equilibrium,
     // σ_xx follows the closed form of `j2_lateral_stress`.
-    let j2 = Material::j2(YOUNG, 0.0, j2_yield_stress(), 0.0, DENSITY);
-    let (plastic, _) = Setup::new(main_cells).run(j2).map_err(err)?;
+    let (plastic, _) = Setup::new(main_cells).run(Soil::Plastic).map_err(err)?;
     let j2_yy = error_norm(plastic.iter().map(|&(y0, syy, _)| (syy, exact_stress(y0))));
     let j2_xx = error_norm(
         plastic

@@ -33,13 +33,10 @@
 //! the fine run's error is held to a bound, and it must be smaller than the coarse run's.
 
 use crate::{
-    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, write_csv, write_plot,
-    write_text,
+    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, scenes, write_csv,
+    write_plot, write_text,
 };
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Grid, Material, Particles, Scheme, Shape, TimeStep, Transfer, Wall, WallKind,
-};
+use loam_core::{Particles, TimeStep, Transfer};
 use loam_explicit::Config;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -110,38 +107,21 @@ impl Setup {
     }
 }
 
-/// Builds the tank and the water column (at rest, stress-free).
+/// Builds the tank and the water column (at rest, stress-free):
+/// `verification/scenes/dambreak_2d.toml` with the cell size, particles per cell, time step,
+/// transfer and sound speed of the set-up.
 pub fn build(setup: &Setup) -> (Config<f64, 2>, Particles<f64, 2>) {
-    let h = setup.h;
-    let cells = |len: f64| (len / h).round() as usize;
-    let config = Config {
-        grid: Grid::new([0.0, 0.0], [cells(TANK_LENGTH), cells(TANK_HEIGHT)], h, 2),
-        shape: Shape::QuadraticBspline,
-        transfer: setup.transfer,
-        scheme: Scheme::Musl,
-        // Bilateral slip walls: frictionless symmetry planes (docs/architecture.md).
-        boundary: Boundary::all(Wall::new(WallKind::Slip)),
-        contact: Default::default(),
-        gravity: Vector::<f64, 2>::new(0.0, -G),
-        materials: vec![Material::fluid(
-            DENSITY * setup.sound_speed * setup.sound_speed,
-            GAMMA,
-            0.0,
-            DENSITY,
-        )],
-        time_step: TimeStep::Fixed { dt: setup.dt },
-    };
-    let dp = setup.spacing();
-    let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-    let (nx, ny) = ((L0 / dp).round() as usize, (H0 / dp).round() as usize);
-    let mut particles = Particles::default();
-    for j in 0..ny {
-        for i in 0..nx {
-            let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-            particles.push(x, Vector::zeros(), DENSITY, hw, 0);
-        }
-    }
-    (config, particles)
+    let mut scene = scenes::scene("dambreak_2d");
+    scene.grid.cell_size = setup.h;
+    scene.bodies[0].particles_per_cell = setup.ppc as u32;
+    scene.materials[0].sound_speed = Some(setup.sound_speed);
+    scene.solver.time_step = Some(TimeStep::Fixed { dt: setup.dt });
+    scene.solver.transfer = Some(setup.transfer);
+    let built = scenes::build::<2>(&scene);
+    let config = built
+        .explicit_config()
+        .expect("the dam break is an explicit scene");
+    (config, built.particles)
 }
 
 /// The surge front: the largest `x` of a particle with another particle within `radius`,

@@ -6,55 +6,28 @@
 //! drift of the total measures the scheme's numerical dissipation through the impact.
 
 use crate::{
-    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, write_csv, write_plot,
+    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, scenes, write_csv,
+    write_plot,
 };
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Grid, Material, ModelKind, Particles, Scheme, Shape, TimeStep, Transfer, Wall,
-    WallKind,
-};
+use loam_core::{Particles, Transfer};
 use loam_explicit::Config;
 use std::path::Path;
 
-/// Builds the two-disk problem with `cells` cells per side and `ppc` particles per cell per axis.
+/// Builds the two-disk problem with `cells` cells per side and `ppc` particles per cell per
+/// axis: `verification/scenes/disk_collision.toml` with that cell size, particle density and
+/// transfer.
 pub fn build(cells: usize, ppc: usize, transfer: Transfer) -> (Config<f64, 2>, Particles<f64, 2>) {
-    let h = 1.0 / cells as f64;
-    let config = Config {
-        grid: Grid::new([0.0, 0.0], [cells, cells], h, 2),
-        shape: Shape::QuadraticBspline,
-        transfer,
-        scheme: Scheme::Musl,
-        // The disks start tangent to the domain edges and move inward: no walls (as in the
-        // original problem); the ghost layer gives their supports room.
-        boundary: Boundary::all(Wall::new(WallKind::Free)),
-        contact: Default::default(),
-        gravity: Vector::zeros(),
-        materials: vec![Material::elastic(
-            ModelKind::NeoHookean,
-            1000.0,
-            0.3,
-            1000.0,
-        )],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.3,
-            max_dt: 1e-2,
-        },
-    };
-    let mut particles = Particles::default();
-    let dp = h / ppc as f64;
-    let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-    let n = cells * ppc;
-    for (centre, vel) in [([0.2, 0.2], 0.1), ([0.8, 0.8], -0.1)] {
-        for i in 0..n {
-            for j in 0..n {
-                let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-                if (x - Vector::<f64, 2>::from(centre)).norm() < 0.2 {
-                    particles.push(x, Vector::<f64, 2>::repeat(vel), 1000.0, hw, 0);
-                }
-            }
-        }
+    let mut scene = scenes::scene("disk_collision");
+    scene.grid.cell_size = 1.0 / cells as f64;
+    for body in &mut scene.bodies {
+        body.particles_per_cell = ppc as u32;
     }
-    (config, particles)
+    scene.solver.transfer = Some(transfer);
+    let built = scenes::build::<2>(&scene);
+    let config = built
+        .explicit_config()
+        .expect("the disk collision is an explicit scene");
+    (config, built.particles)
 }
 
 /// Runs the case: energy history to t = 4 s (contact ≈ 1.6–2.6 s).

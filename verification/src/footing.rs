@@ -8,10 +8,9 @@
 //! surface row and the row above it, which the surface particles' B-spline supports reach); the
 //! pressure is the reaction of those nodes over b.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot};
-use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, NodeConstraint, Particles, Shape, Wall, WallKind};
-use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
+use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot};
+use loam_implicit::ImplicitSolver;
+use loam_scene::Scene;
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -22,46 +21,35 @@ pub const CU: f64 = 10.0e3;
 /// Young's modulus (Pa): E / c_u = 1000.
 pub const YOUNG: f64 = 10.0e6;
 
+/// The footing with `n` cells per half-width pushed `settlement` into the soil in `steps`
+/// load steps: `verification/scenes/footing_prandtl.toml` with that cell size (the grid two
+/// cells taller than the soil) and the footing's node rows (the surface row and the one above
+/// it) moved with it.
+pub fn scene(n: usize, steps: usize, settlement: f64) -> Scene {
+    let mut scene = scenes::scene("footing_prandtl");
+    let h = HALF_WIDTH / n as f64;
+    let depth = 5.0 * HALF_WIDTH;
+    scene.grid.cell_size = h;
+    scene.grid.hi = vec![depth, (5 * n + 2) as f64 * h];
+    let footing = &mut scene.constraints[0];
+    footing.lo = vec![0.0, depth];
+    footing.hi = vec![HALF_WIDTH, depth + h];
+    footing.displacement = vec![None, Some(-settlement)];
+    scene.solver.load_steps = Some(steps);
+    scene
+}
+
 /// Runs the footing with `n` cells per half-width; returns (settlement, pressure / c_u) per step.
 pub fn load_curve(
     n: usize,
     steps: usize,
     settlement: f64,
 ) -> Result<Vec<(f64, f64)>, loam_implicit::ImplicitError> {
-    let h = HALF_WIDTH / n as f64;
-    let cells = 5 * n;
-    let shape = Shape::QuadraticBspline;
-    let grid = Grid::new([0.0, 0.0], [cells, cells + 2], h, shape.ghost_cells());
-    let depth = 5.0 * HALF_WIDTH;
-    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
-    boundary.walls[1][0] = Wall::new(WallKind::Fixed);
-    boundary.walls[1][1] = Wall::new(WallKind::Free);
-    let config = ImplicitConfig {
-        grid,
-        shape,
-        boundary,
-        materials: vec![Material::j2(YOUNG, 0.3, 3f64.sqrt() * CU, 0.0, 1.0)],
-        gravity: Vector::zeros(),
-        constraints: vec![NodeConstraint {
-            lo: [0.0, depth],
-            hi: [HALF_WIDTH, depth + h],
-            displacement: [None, Some(-settlement)],
-        }],
-        point_loads: Vec::new(),
-        load_steps: steps,
-        newton: NewtonSettings::default(),
-        dynamics: None,
-        min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
-    };
-    let mut particles = Particles::default();
-    let dp = h / 2.0;
-    let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-    for i in 0..cells * 2 {
-        for j in 0..cells * 2 {
-            let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-            particles.push(x, Vector::zeros(), 1.0, hw, 0);
-        }
-    }
+    let built = scenes::build::<2>(&scene(n, steps, settlement));
+    let config = built
+        .implicit_config()
+        .expect("the footing is an implicit scene");
+    let mut particles = built.particles;
     let mut solver = ImplicitSolver::new(config, &particles)?;
     let mut curve = vec![(0.0, 0.0)];
     while !solver.finished() {

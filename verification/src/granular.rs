@@ -6,14 +6,16 @@
 //! i.e. a symmetry plane: the column is the right half of a column `2L₀` wide, as in the
 //! channel experiments of Lube et al. (2005) and Lajeunesse et al. (2005), where the column is
 //! released from a back wall. The floor carries Coulomb friction `μ` over its whole length
-//! ([`FrictionSegment`]); the right wall and the lid are never reached (checked).
+//! (one `[[friction]]` segment); the right wall and the lid are never reached (checked).
 //!
 //! Quadratic B-splines, APIC, MUSL, 2 × 2 particles per cell, adaptive `Δt` (Courant number
-//! 0.4 on the elastic P-wave speed).
+//! 0.4 on the elastic P-wave speed). Each case's scene file (`verification/scenes/`) holds
+//! the reference set-up; [`Collapse::scene`] sets the box, column, cell size and material of a
+//! run on it, and `loam-scene` builds it.
 //!
 //! **Initial stress.** The column starts in the at-rest state, `σ_yy = −ρ₀ g (H₀ − y)`,
-//! `σ_xx = σ_zz = K₀ σ_yy` with Jaky's `K₀ = 1 − sin φ` ([`Granular::geostatic`]), as a column
-//! built in a box and held by a gate. A stress-free start with gravity switched on at `t = 0`
+//! `σ_xx = σ_zz = K₀ σ_yy` with Jaky's `K₀ = 1 − sin φ` (the scene's `geostatic` initial
+//! stress, depths measured from `y = H₀`), as a column built in a box and held by a gate. A stress-free start with gravity switched on at `t = 0`
 //! would load the column dynamically and, with ν = 0.3, towards the elastic
 //! `K₀ = ν/(1 − ν) = 0.43`, which lies outside the Drucker–Prager cone for any φ below about
 //! 34° (`(1 − K₀)/√3 > α (1 + 2K₀)`): the whole column would yield before the collapse starts.
@@ -56,14 +58,10 @@
 //! potential energy released, `ΔE_p = E_p(0) − E_p(t)`, and its toe has stopped moving
 //! ([`Outcome::rest_ratio`], [`Outcome::late_toe_motion`]).
 
-use crate::{Series, VerifyError, advance, explicit_solver, write_csv};
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Contact, FrictionSegment, Grid, Material, MaterialState, Particles, Scheme, Shape,
-    TimeStep, Transfer, Wall, WallKind,
-};
+use crate::{Series, VerifyError, advance, explicit_solver, scenes, write_csv};
+use loam_core::Particles;
 use loam_explicit::{Config, Solver};
-use nalgebra::{Matrix3, Vector3};
+use loam_scene::{BodyShape, InitialStressSpec, Scene};
 use std::path::Path;
 
 /// Deposit threshold `t_min` of [`toe`] (m): 4 mm, about three diameters of the 1–1.5 mm
@@ -100,17 +98,18 @@ pub struct Granular {
 }
 
 impl Granular {
-    /// The loam material (cohesion 0, tension cutoff at the apex: no tension).
-    pub fn material(&self) -> Material<f64> {
-        Material::drucker_prager(
-            self.young,
-            self.poisson,
-            self.friction_deg.to_radians(),
-            self.dilation_deg.to_radians(),
-            0.0,
-            None,
-            self.density,
-        )
+    /// The material and floor of a collapse scene: its first material (Drucker–Prager) and the
+    /// coefficient of its first friction segment (the floor).
+    pub fn from_scene(scene: &Scene) -> Self {
+        let m = &scene.materials[0];
+        Self {
+            density: m.density,
+            young: m.youngs_modulus.unwrap_or(f64::NAN),
+            poisson: m.poisson_ratio.unwrap_or(f64::NAN),
+            friction_deg: m.friction_angle.unwrap_or(f64::NAN),
+            dilation_deg: m.dilation_angle.unwrap_or(0.0),
+            floor_mu: scene.friction[0].mu,
+        }
     }
 
     /// P-wave modulus `M = E(1 − ν)/((1 + ν)(1 − 2ν))` (Pa).
@@ -123,34 +122,13 @@ impl Granular {
     pub fn elastic_strain(&self, h0: f64) -> f64 {
         self.density * G * h0 / self.p_wave_modulus()
     }
-
-    /// Jaky's coefficient of earth pressure at rest, `K₀ = 1 − sin φ`.
-    pub fn k0(&self) -> f64 {
-        1.0 - self.friction_deg.to_radians().sin()
-    }
-
-    /// The at-rest stress at depth `depth`: `σ_yy = −ρ₀ g d`, `σ_xx = σ_zz = K₀ σ_yy`, and the
-    /// material state that stands for it (`tensor = I + 2 C⁻¹:σ`, so that the stored energy is
-    /// consistent).
-    pub fn geostatic(&self, depth: f64) -> (Matrix3<f64>, MaterialState<f64>) {
-        let sv = -self.density * G * depth;
-        let sigma = Matrix3::from_diagonal(&Vector3::new(self.k0() * sv, sv, self.k0() * sv));
-        let shear = self.young / (2.0 * (1.0 + self.poisson));
-        let bulk = self.young / (3.0 * (1.0 - 2.0 * self.poisson));
-        let p = sigma.trace() / 3.0;
-        let dev = sigma - Matrix3::identity() * p;
-        let eps = dev / (2.0 * shear) + Matrix3::identity() * (p / (3.0 * bulk));
-        let state = MaterialState {
-            plastic_strain: 0.0,
-            tensor: Matrix3::identity() + eps * 2.0,
-        };
-        (sigma, state)
-    }
 }
 
 /// One collapse: column, box, discretisation and duration.
 #[derive(Clone, Copy, Debug)]
 pub struct Collapse {
+    /// The stem of the case's scene file in `verification/scenes/` ([`Collapse::scene`]).
+    pub scene: &'static str,
     /// Material and floor.
     pub material: Granular,
     /// Initial column length `L₀` (m), against the wall at `x = 0`.
@@ -191,53 +169,44 @@ fn count(len: f64, step: f64) -> usize {
     n as usize
 }
 
-/// Builds the box and the column (at rest, in the at-rest stress state).
-pub fn build(c: &Collapse) -> (Config<f64, 2>, Particles<f64, 2>) {
-    let slip = Wall::new(WallKind::Slip);
-    // The floor: a separable slip wall under the Coulomb segment, as scene files require.
-    let floor = Wall {
-        kind: WallKind::Slip,
-        separable: true,
-    };
-    let shape = Shape::QuadraticBspline;
-    let mut contact = Contact::new(shape);
-    contact
-        .segments
-        .push(FrictionSegment::whole_face(1, 0, c.material.floor_mu));
-    let config = Config {
-        grid: Grid::new(
-            [0.0, 0.0],
-            [count(c.length, c.h), count(c.height, c.h)],
-            c.h,
-            2,
-        ),
-        shape,
-        transfer: Transfer::Apic,
-        scheme: Scheme::Musl,
-        boundary: Boundary {
-            walls: [[slip, slip], [floor, slip]],
-        },
-        contact,
-        gravity: Vector::<f64, 2>::new(0.0, -G),
-        materials: vec![c.material.material()],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.4,
-            max_dt: 1e-3,
-        },
-    };
-    let dp = c.spacing();
-    let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-    let mut particles = Particles::default();
-    for j in 0..count(c.h0, dp) {
-        for i in 0..count(c.l0, dp) {
-            let x = Vector::<f64, 2>::new((i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-            particles.push(x, Vector::zeros(), c.material.density, hw, 0);
-            let (sigma, state) = c.material.geostatic(c.h0 - x[1]);
-            *particles.stress.last_mut().expect("just pushed") = sigma;
-            *particles.state.last_mut().expect("just pushed") = state;
-        }
+impl Collapse {
+    /// The scene of the collapse: the case's scene file with this box, cell size, particles
+    /// per cell, column (its at-rest stress measured from its top, `y = H₀`), material, floor
+    /// friction and end time.
+    pub fn scene(&self) -> Scene {
+        let mut scene = scenes::scene(self.scene);
+        scene.grid.cell_size = self.h;
+        scene.grid.hi = vec![self.length, self.height];
+        let m = &mut scene.materials[0];
+        m.density = self.material.density;
+        m.youngs_modulus = Some(self.material.young);
+        m.poisson_ratio = Some(self.material.poisson);
+        m.friction_angle = Some(self.material.friction_deg);
+        m.dilation_angle = Some(self.material.dilation_deg);
+        scene.friction[0].mu = self.material.floor_mu;
+        let body = &mut scene.bodies[0];
+        body.shape = BodyShape::Box {
+            lo: vec![0.0, 0.0],
+            hi: vec![self.l0, self.h0],
+        };
+        body.particles_per_cell = self.ppc as u32;
+        body.initial_stress = Some(InitialStressSpec::Geostatic {
+            k0: None,
+            surface: Some(self.h0),
+        });
+        scene.solver.end_time = Some(self.end_time);
+        scene
     }
-    (config, particles)
+}
+
+/// Builds the box and the column (at rest, in the at-rest stress state) of
+/// [`Collapse::scene`].
+pub fn build(c: &Collapse) -> (Config<f64, 2>, Particles<f64, 2>) {
+    let built = scenes::build::<2>(&c.scene());
+    let config = built
+        .explicit_config()
+        .expect("a collapse is an explicit scene");
+    (config, built.particles)
 }
 
 /// The column of width `width` from the wall that holds `x` (the last one for `x` beyond).

@@ -34,12 +34,10 @@
 //! sticking metric therefore uses PIC; the APIC creep is measured and tabulated
 //! (`incline_friction.md`), not asserted.
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Contact, FrictionSegment, Grid, Material, ModelKind, Particles, Scheme, Shape,
-    TimeStep, Transfer, Wall, WallKind,
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
 };
+use loam_core::{Particles, Scheme, Transfer};
 use loam_explicit::{Config, Solver, StepError};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -87,52 +85,19 @@ pub struct Setup {
     pub scheme: Scheme,
 }
 
-/// Builds the tilted-gravity problem of `setup`: quadratic B-splines, 2 × 2 particles per
-/// cell, adaptive `Δt` (CFL 0.4).
+/// Builds the tilted-gravity problem of `setup`: `verification/scenes/incline_friction.toml`
+/// with the friction coefficient, cell size, transfer and scheme of the set-up.
 pub fn build(setup: &Setup) -> (Config<f64, 2>, Particles<f64, 2>) {
-    let alpha = ALPHA_DEG.to_radians();
-    let h = setup.h;
-    let shape = Shape::QuadraticBspline;
-    let mut boundary = Boundary::all(Wall::new(WallKind::Free));
-    // Friction faces are unilateral: a separable slip wall under the friction segment.
-    boundary.walls[1][0] = Wall {
-        kind: WallKind::Slip,
-        separable: true,
-    };
-    let mut contact = Contact::new(shape);
-    contact
-        .segments
-        .push(FrictionSegment::whole_face(1, 0, setup.mu));
-    let cells = |len: f64| (len / h).round() as usize;
-    let config = Config {
-        grid: Grid::new(
-            [0.0, 0.0],
-            [cells(DOMAIN_LENGTH), cells(DOMAIN_HEIGHT)],
-            h,
-            shape.ghost_cells(),
-        ),
-        shape,
-        transfer: setup.transfer,
-        scheme: setup.scheme,
-        boundary,
-        contact,
-        gravity: Vector::<f64, 2>::new(G * alpha.sin(), -G * alpha.cos()),
-        materials: vec![Material::elastic(ModelKind::NeoHookean, 1.0e6, 0.3, 1000.0)],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.4,
-            max_dt: 1e-3,
-        },
-    };
-    let mut particles = Particles::default();
-    let dp = h / 2.0;
-    for i in 0..(BLOCK_LENGTH / dp).round() as usize {
-        for j in 0..(BLOCK_HEIGHT / dp).round() as usize {
-            let x =
-                Vector::<f64, 2>::new(BLOCK_START + (i as f64 + 0.5) * dp, (j as f64 + 0.5) * dp);
-            particles.push(x, Vector::zeros(), 1000.0, Vector::repeat(dp / 2.0), 0);
-        }
-    }
-    (config, particles)
+    let mut scene = scenes::scene("incline_friction");
+    scene.grid.cell_size = setup.h;
+    scene.friction[0].mu = setup.mu;
+    scene.solver.transfer = Some(setup.transfer);
+    scene.solver.scheme = Some(setup.scheme);
+    let built = scenes::build::<2>(&scene);
+    let config = built
+        .explicit_config()
+        .expect("the incline is an explicit scene");
+    (config, built.particles)
 }
 
 /// What one run measured.

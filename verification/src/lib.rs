@@ -1,8 +1,9 @@
 //! # loam-verification
 //!
 //! Verification of loam against analytical and classic reference solutions. Each case builds
-//! its problem, runs it, measures an error norm against the reference, and writes a CSV of the
-//! histories and a PNG plot of simulated vs reference. `loam verify` runs the cases at full
+//! its problem (from its reference scene file through `loam-scene`, see [`scenes`], where the
+//! problem is a scene), runs it, measures an error norm against the reference, and writes a
+//! CSV of the histories and a PNG plot of simulated vs reference. `loam verify` runs the cases at full
 //! size; the test suite runs them at reduced size.
 
 pub mod axial_bar;
@@ -22,6 +23,7 @@ pub mod newton_quadratic;
 pub mod obstacles;
 mod output;
 pub mod runout;
+pub mod scenes;
 pub mod tangent_fd;
 
 pub use output::{Series, write_csv, write_plot, write_text};

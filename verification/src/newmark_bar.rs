@@ -4,31 +4,36 @@
 //! The trapezoidal rule is unconditionally stable and conserves the energy of a linear system;
 //! its period error is O((ωΔt)²), so the error must fall with Δt at a fixed grid.
 
-use crate::axial_bar::{DENSITY, Setup, YOUNG, duration, max_relative_error, write_history};
-use crate::{CaseReport, Metric, Size, VerifyError};
-use loam_core::tensor::Vector;
-use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NewtonSettings};
+use crate::axial_bar::{
+    DENSITY, Setup, YOUNG, duration, first_mode_velocity, max_relative_error, write_history,
+};
+use crate::{CaseReport, Metric, Size, VerifyError, scenes};
+use loam_implicit::{ImplicitError, ImplicitSolver};
+use loam_scene::Scene;
 use std::path::Path;
+
+/// The scene of the bar with `cells` cells and `Δt = courant · h/c` over 2.5 periods:
+/// `verification/scenes/axial_bar_newmark.toml` discretised as the explicit bar
+/// ([`Setup::discretise`]), with that Newmark step and step count.
+pub fn scene(cells: usize, courant: f64) -> Scene {
+    let setup = Setup::new(cells);
+    let mut scene = scenes::scene("axial_bar_newmark");
+    setup.discretise(&mut scene);
+    let dt = courant * setup.h() / (YOUNG / DENSITY).sqrt();
+    scene.solver.newmark_dt = Some(dt);
+    scene.solver.load_steps = Some((duration() / dt).round() as usize);
+    scene
+}
 
 /// Centre-of-mass velocity history of the bar with `cells` cells and `Δt = courant · h/c`.
 pub fn history(cells: usize, courant: f64) -> Result<(Vec<(f64, f64)>, usize), ImplicitError> {
-    let setup = Setup::new(cells);
-    let (explicit, mut particles) = setup.build(YOUNG);
-    let dt = courant * setup.h() / (YOUNG / DENSITY).sqrt();
-    let steps = (duration() / dt).round() as usize;
-    let config = ImplicitConfig {
-        grid: explicit.grid,
-        shape: explicit.shape,
-        boundary: explicit.boundary,
-        materials: explicit.materials,
-        gravity: Vector::zeros(),
-        constraints: Vec::new(),
-        point_loads: Vec::new(),
-        load_steps: steps,
-        newton: NewtonSettings::default(),
-        dynamics: Some(dt),
-        min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
-    };
+    let mut built = scenes::build::<2>(&scene(cells, courant));
+    first_mode_velocity(&mut built.particles);
+    let config = built
+        .implicit_config()
+        .expect("the Newmark bar is an implicit scene");
+    let dt = config.dynamics.expect("the Newmark bar runs dynamics");
+    let mut particles = built.particles;
     let mut solver = ImplicitSolver::new(config, &particles)?;
     let mut out = vec![(0.0, particles.centre_of_mass_velocity()[0])];
     let mut iterations = 0;

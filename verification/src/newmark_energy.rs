@@ -19,13 +19,14 @@
 //! (Hencky; finite rotations), O(Δt²) and growing with the amplitude.
 
 use crate::cantilever::{DEPTH, LENGTH, POISSON, YOUNG};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
+};
+use loam_core::Particles;
 use loam_core::energy::energy;
 use loam_core::tensor::Vector;
-use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::{
-    ImplicitConfig, ImplicitError, ImplicitSolver, NewtonSettings, NodeConstraint,
-};
+use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver};
+use loam_scene::{BodyShape, Scene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -129,61 +130,42 @@ impl Setup {
         period() / self.steps_per_period as f64
     }
 
-    /// Configuration and particles; the beam starts at `x₀ = h`.
-    pub fn build(&self) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    /// The scene: `verification/scenes/newmark_energy.toml` with the cell size, particles per
+    /// cell, time step and step count of this set-up, the beam starting at `x₀ = h` (the root
+    /// constraints on the node columns `x = 0` and `x = h`), and without the velocity file
+    /// (the first mode is set by [`Setup::build`]).
+    pub fn scene(&self) -> Scene {
+        let mut scene = scenes::scene("newmark_energy");
         let h = self.cell;
-        let shape = Shape::QuadraticBspline;
-        let cells = (15.0 / h).round() as usize;
-        let grid = Grid::new([0.0, 0.0], [cells, cells], h, shape.ghost_cells());
-        let (x0, y0) = (h, 9.0);
-        let dp = h / self.ppc as f64;
-        let hw = Vector::<f64, 2>::repeat(dp / 2.0);
-        let tip_speed = omega1() * self.amplitude / mode_shape(1.0);
-        let mut particles = Particles::default();
-        for i in 0..(LENGTH / dp).round() as usize {
-            for j in 0..(DEPTH / dp).round() as usize {
-                let x = x0 + (i as f64 + 0.5) * dp;
-                let v = -tip_speed * mode_shape((x - x0) / LENGTH);
-                particles.push(
-                    Vector::<f64, 2>::new(x, y0 + (j as f64 + 0.5) * dp),
-                    Vector::<f64, 2>::new(0.0, v),
-                    DENSITY,
-                    hw,
-                    0,
-                );
-            }
-        }
-        let neutral = y0 + DEPTH / 2.0;
-        let steps = self.steps_per_period * self.periods;
-        let config = ImplicitConfig {
-            grid,
-            shape,
-            boundary: Boundary::all(Wall::new(WallKind::Free)),
-            materials: vec![Material::elastic(
-                ModelKind::Hencky,
-                YOUNG,
-                POISSON,
-                DENSITY,
-            )],
-            gravity: Vector::zeros(),
-            constraints: vec![
-                NodeConstraint {
-                    lo: [0.0, f64::NEG_INFINITY],
-                    hi: [x0, f64::INFINITY],
-                    displacement: [Some(0.0), None],
-                },
-                NodeConstraint {
-                    lo: [0.0, neutral],
-                    hi: [x0, neutral],
-                    displacement: [None, Some(0.0)],
-                },
-            ],
-            point_loads: Vec::new(),
-            load_steps: steps,
-            newton: NewtonSettings::default(),
-            dynamics: Some(self.dt()),
-            min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
+        scene.grid.cell_size = h;
+        let body = &mut scene.bodies[0];
+        body.shape = BodyShape::Box {
+            lo: vec![h, 9.0],
+            hi: vec![h + LENGTH, 9.0 + DEPTH],
         };
+        body.particles_per_cell = self.ppc as u32;
+        body.velocity_file = None;
+        for root in &mut scene.constraints {
+            root.hi[0] = h;
+        }
+        scene.solver.load_steps = Some(self.steps_per_period * self.periods);
+        scene.solver.newmark_dt = Some(self.dt());
+        scene
+    }
+
+    /// Configuration and particles of the [scene](Setup::scene), every particle with the
+    /// first-mode velocity `v_y = −ω₁ A φ(ξ)/φ(1)`, `ξ = (x − x₀)/L`.
+    pub fn build(&self) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+        let built = scenes::build::<2>(&self.scene());
+        let config = built
+            .implicit_config()
+            .expect("the cantilever is an implicit scene");
+        let mut particles = built.particles;
+        let x0 = self.cell;
+        let tip_speed = omega1() * self.amplitude / mode_shape(1.0);
+        for (x, v) in particles.x.iter().zip(&mut particles.v) {
+            *v = Vector::<f64, 2>::new(0.0, -tip_speed * mode_shape((x[0] - x0) / LENGTH));
+        }
         (config, particles)
     }
 

@@ -27,12 +27,10 @@
 //!   the transfers and impacts only dissipate.
 //! - **The flow reaches and passes the columns** (so the checks above are not vacuous).
 
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
-use loam_core::tensor::Vector;
-use loam_core::{
-    Boundary, Contact, Grid, Material, Obstacle, ObstacleShape, Particles, Scheme, Shape, TimeStep,
-    Transfer, Wall, WallKind,
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
 };
+use loam_core::{Particles, Scheme, Transfer, WallKind};
 use loam_explicit::{Config, Solver, StepError};
 use std::path::Path;
 
@@ -57,67 +55,19 @@ pub const COLUMN_RADIUS: f64 = 0.06;
 /// End of the run (s).
 pub const END_TIME: f64 = 0.5;
 
-/// The two columns: frictionless vertical cylinders spanning the tank's height.
-pub fn columns() -> Vec<Obstacle<f64, 3>> {
-    COLUMN_Z
-        .iter()
-        .map(|&z| {
-            Obstacle::fixed(
-                ObstacleShape::cylinder([COLUMN_X, TANK[1] / 2.0, z], COLUMN_RADIUS, 1, TANK[1]),
-                0.0,
-            )
-        })
-        .collect()
-}
-
 /// Builds the tank, the columns and the water column (at rest, stress-free) for cell size `h`
-/// (must divide 0.1 m: 0.05, 0.04, 0.025, 0.02, …).
+/// (must divide 0.1 m: 0.05, 0.04, 0.025, 0.02, …): `verification/scenes/dambreak_obstacles_3d.toml`
+/// with that cell size, transfer and scheme.
 pub fn build(h: f64, transfer: Transfer, scheme: Scheme) -> (Config<f64, 3>, Particles<f64, 3>) {
-    let shape = Shape::QuadraticBspline;
-    let mut contact = Contact::new(shape);
-    contact.obstacles = columns();
-    let cells = |len: f64| (len / h).round() as usize;
-    let config = Config {
-        grid: Grid::new(
-            [0.0; 3],
-            [cells(TANK[0]), cells(TANK[1]), cells(TANK[2])],
-            h,
-            shape.ghost_cells(),
-        ),
-        shape,
-        transfer,
-        scheme,
-        // Bilateral slip walls: frictionless symmetry planes (docs/architecture.md).
-        boundary: Boundary::all(Wall::new(WallKind::Slip)),
-        contact,
-        gravity: Vector::<f64, 3>::new(0.0, -G, 0.0),
-        materials: vec![Material::fluid(
-            DENSITY * SOUND_SPEED * SOUND_SPEED,
-            GAMMA,
-            0.0,
-            DENSITY,
-        )],
-        time_step: TimeStep::Adaptive {
-            cfl: 0.3,
-            max_dt: 1e-3,
-        },
-    };
-    let dp = h / 2.0;
-    let n = WATER.map(|l| (l / dp).round() as usize);
-    let mut particles = Particles::default();
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                let x = Vector::<f64, 3>::new(
-                    (i as f64 + 0.5) * dp,
-                    (j as f64 + 0.5) * dp,
-                    (k as f64 + 0.5) * dp,
-                );
-                particles.push(x, Vector::zeros(), DENSITY, Vector::repeat(dp / 2.0), 0);
-            }
-        }
-    }
-    (config, particles)
+    let mut scene = scenes::scene("dambreak_obstacles_3d");
+    scene.grid.cell_size = h;
+    scene.solver.transfer = Some(transfer);
+    scene.solver.scheme = Some(scheme);
+    let built = scenes::build::<3>(&scene);
+    let config = built
+        .explicit_config()
+        .expect("the 3D dam break is an explicit scene");
+    (config, built.particles)
 }
 
 /// The sum of the nodal masses of the last P2G over the nodes that carry the body's mass:

@@ -41,7 +41,9 @@
 //!   dilation) as in Bui's analysis.
 
 use crate::granular::{self, Collapse, Granular, MIN_THICKNESS, Outcome};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, write_csv, write_plot, write_text};
+use crate::{
+    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -63,18 +65,13 @@ pub fn lajeunesse(a: f64) -> f64 {
 /// The columns `(L₀, H₀)` (m), of aspect ratios 0.5, 1, 2, 4.
 pub const COLUMNS: [(f64, f64); 4] = [(0.2, 0.1), (0.14, 0.14), (0.1, 0.2), (0.07, 0.28)];
 
-/// The material of every column.
+/// The material of every column and the floor, from `verification/scenes/column_runout.toml`.
 pub fn material() -> Granular {
-    let friction_deg: f64 = 32.0;
-    Granular {
-        density: 2650.0,
-        young: 0.84e6,
-        poisson: 0.3,
-        friction_deg,
-        dilation_deg: 0.0,
-        floor_mu: friction_deg.to_radians().tan(),
-    }
+    Granular::from_scene(&scenes::scene(SCENE))
 }
+
+/// The case's scene file, `verification/scenes/column_runout.toml` (the column of a = 0.5).
+const SCENE: &str = "column_runout";
 
 /// `x` rounded up to a whole number of `step`.
 fn round_up(x: f64, step: f64) -> f64 {
@@ -86,6 +83,7 @@ fn round_up(x: f64, step: f64) -> f64 {
 pub fn collapse(l0: f64, h0: f64, h: f64) -> Collapse {
     let a = h0 / l0;
     Collapse {
+        scene: SCENE,
         material: material(),
         l0,
         h0,

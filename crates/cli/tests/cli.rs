@@ -55,6 +55,28 @@ fn check_accepts_the_examples() {
     }
 }
 
+/// The reference scenes of the verification cases are scenes like any other: `loam check`
+/// accepts each of them (velocity files included).
+#[test]
+fn check_accepts_the_verification_scenes() {
+    let mut n = 0;
+    for entry in std::fs::read_dir(workspace().join("verification/scenes")).expect("scenes") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        n += 1;
+        let out = loam(&["check", path.to_str().expect("utf-8 path")]);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert!(n >= 12, "expected the 12 reference scenes, found {n}");
+}
+
 #[test]
 fn run_writes_a_paraview_series_and_a_summary() {
     let dir = tempfile::tempdir().expect("tempdir");
