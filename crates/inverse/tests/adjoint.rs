@@ -561,3 +561,26 @@ fn musl_neo_hookean_block_3d_with_tpic() {
     let params = [Param::Material(0, MaterialField::Young), Param::Gravity(1)];
     check::<3>(&musl(BLOCK_3D), 30, 5, [0.15, 0.0, 0.1], &params, &[]);
 }
+
+/// The gradient has the same bits with one worker thread and with two: the scatters add in
+/// particle order and the parameters' shares in chunk order.
+#[test]
+fn gradient_bits_do_not_depend_on_the_thread_count() {
+    let (config, particles) = scene::<2>(&musl(SAND_2D));
+    let obj = objective(particles.len(), 20, 5, [0.2, 0.0]);
+    let params = [
+        Param::Material(0, MaterialField::FrictionAngle),
+        Param::Friction(0),
+        Param::Gravity(1),
+    ];
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| gradient(&config, &particles, 20, &params, &obj, None).unwrap())
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.params, two.params);
+    assert_eq!(one.initial, two.initial);
+}

@@ -36,7 +36,7 @@ struct Clock {
 
 /// Steps until the frame point `at` is reached, recording the step sizes in `summary` and
 /// saving the state with `checkpoints`; stops on an error (a failed checkpoint included) or a
-/// signal (checked before every step).
+/// signal (checked before every step, after the test for the frame point).
 fn step_to<const D: usize>(
     solver: &mut Solver<f64, D>,
     particles: &mut Particles<f64, D>,
@@ -47,14 +47,16 @@ fn step_to<const D: usize>(
     clock: Clock,
 ) -> Result<(), Stop> {
     loop {
-        if interrupt::requested() {
-            return Err(Stop::Interrupted);
-        }
         let cap = match at {
             FrameAt::Step(s) => (solver.steps() < s).then_some(f64::INFINITY),
             FrameAt::Time(t) => solver.next_step_cap(t),
         };
+        // A frame whose steps are all done is written before a signal is looked at, so the
+        // frame at a checkpoint's step is never dropped while the checkpoint is kept.
         let Some(cap) = cap else { return Ok(()) };
+        if interrupt::requested() {
+            return Err(Stop::Interrupted);
+        }
         let info = solver
             .step(particles, cap)
             .map_err(|e| Stop::Failed(e.to_string()))?;
