@@ -30,7 +30,7 @@ struct Bench {
 
 /// The benches, in the order `loam bench` runs them. The default step counts keep each one
 /// to a few seconds on two cores, except `dambreak`, which runs the whole 0.4 s scene.
-const BENCHES: [Bench; 7] = [
+const BENCHES: [Bench; 8] = [
     Bench {
         name: "dambreak",
         description: "friction dam-break, 6,000 particles, the whole 0.4 s (13,333 steps of 3e-5 s)",
@@ -66,6 +66,11 @@ const BENCHES: [Bench; 7] = [
         description: "implicit reference cantilever, 5,760 particles, 50 load steps (f64 only)",
         steps: 0,
     },
+    Bench {
+        name: "gradient",
+        description: "gradient of the friction dam-break by the adjoint / its forward run (f64 only)",
+        steps: 1000,
+    },
 ];
 
 /// What one bench measured.
@@ -78,6 +83,8 @@ struct Measured {
     wall: f64,
     /// Newton iterations (implicit only).
     iterations: Option<usize>,
+    /// Gradient time over forward time, and the forward time (the gradient bench only).
+    ratio: Option<(f64, f64)>,
 }
 
 impl Measured {
@@ -139,12 +146,28 @@ pub fn bench(
                     return Outcome::Failed;
                 }
             },
+            ("gradient", true) => {
+                eprintln!("error: the gradient bench runs in f64 only (drop --f32)");
+                return Outcome::BadInput;
+            }
+            ("gradient", false) => match gradient(n) {
+                Ok(m) => m,
+                Err(e) => {
+                    eprintln!("error: gradient: {e}");
+                    return Outcome::Failed;
+                }
+            },
             (_, false) => explicit::<f64>(b.name, n),
             (_, true) => explicit::<f32>(b.name, n),
         };
-        let note = m
-            .iterations
-            .map_or(String::new(), |k| format!("{k} Newton iterations"));
+        let note = match (m.iterations, m.ratio) {
+            (Some(k), _) => format!("{k} Newton iterations"),
+            (_, Some((r, fwd))) => format!(
+                "gradient / forward {r:.2} (forward {fwd:.3} s; peak RSS {})",
+                peak_memory()
+            ),
+            _ => String::new(),
+        };
         let row = format!(
             "{:<14} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {note}",
             m.name,
@@ -205,7 +228,60 @@ fn time_steps<T: Scalar, const D: usize>(
         steps,
         wall: start.elapsed().as_secs_f64(),
         iterations: None,
+        ratio: None,
     }
+}
+
+/// One gradient of the friction dam-break over `steps` steps with respect to the friction
+/// coefficients of its first four floor segments (the loss: squared distance of every 12th
+/// particle, 500 of them, from its initial position at every 10th step), timed against one
+/// forward run of the same steps.
+fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
+    use loam_inverse::{Param, TrackedPositions};
+    let (config, particles) = explicit_scene::<f64, 2>("dambreak_friction");
+    let start = Instant::now();
+    let mut solver = Solver::new(config.clone(), &particles)?;
+    let mut p = particles.clone();
+    for _ in 0..steps {
+        solver.step(&mut p, f64::INFINITY)?;
+    }
+    let forward = start.elapsed().as_secs_f64();
+    let tracked: Vec<_> = (0..particles.len())
+        .step_by(12)
+        .map(|i| (i, particles.x[i]))
+        .collect();
+    let objective = TrackedPositions {
+        targets: (10..=steps)
+            .step_by(10)
+            .map(|s| (s, tracked.clone()))
+            .collect(),
+        weight: 1.0,
+    };
+    let params: Vec<Param> = (0..4).map(Param::Friction).collect();
+    let start = Instant::now();
+    loam_inverse::gradient(&config, &particles, steps, &params, &objective, None)?;
+    let wall = start.elapsed().as_secs_f64();
+    Ok(Measured {
+        name: "gradient",
+        precision: "f64",
+        particles: particles.len(),
+        steps,
+        wall,
+        iterations: None,
+        ratio: Some((wall / forward, forward)),
+    })
+}
+
+/// The peak resident memory of this process so far (`VmHWM` of `/proc/self/status`).
+fn peak_memory() -> String {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .map(|l| l["VmHWM:".len()..].trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".to_string())
 }
 
 /// The reference cantilever (`examples/cantilever.toml`, cpGIMP) end to end, every load
@@ -226,6 +302,7 @@ fn cantilever() -> Result<Measured, loam_implicit::ImplicitError> {
         steps,
         wall: start.elapsed().as_secs_f64(),
         iterations: Some(iterations),
+        ratio: None,
     })
 }
 
@@ -255,6 +332,7 @@ fn write_json(path: &Path, results: &[Measured]) -> std::io::Result<()> {
                 "wall_s": m.wall,
                 "particle_steps_per_s": m.rate(),
                 "newton_iterations": m.iterations,
+                "gradient_over_forward": m.ratio.map(|r| r.0),
                 "threads": rayon::current_num_threads(),
                 "cpu": cpu_model(),
             })
