@@ -6,6 +6,7 @@
 
 mod bench;
 mod check;
+mod invert;
 mod preflight;
 mod run;
 mod verify;
@@ -56,11 +57,34 @@ enum Command {
         #[arg(long, value_name = "DIR", conflicts_with = "scene")]
         resume: Option<PathBuf>,
     },
-    /// Validate a scene file and estimate its size, memory and steps: exit 0 if it can run,
-    /// 2 with the problems otherwise.
+    /// Validate a scene file and estimate its size, memory and steps (or validate an
+    /// inversion file, its scene and observations): exit 0 if it can run, 2 with the
+    /// problems otherwise.
     Check {
         /// Scene file (.toml or .json).
         scene: PathBuf,
+    },
+    /// Back-analysis: the loss of an inversion file and its gradient with respect to every
+    /// parameter, by the discrete adjoint.
+    Gradient {
+        /// Inversion file (.toml).
+        file: PathBuf,
+        /// Also print, per parameter, the forward-mode dual derivative, a central finite
+        /// difference and a Taylor test.
+        #[arg(long)]
+        check: bool,
+    },
+    /// Back-analysis: recover the parameters of an inversion file by optimisation, writing
+    /// the history (CSV, JSON, plots), the recovered scene and a checkpoint.
+    Invert {
+        /// Inversion file (.toml).
+        file: PathBuf,
+        /// Output folder (default out/<file stem>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Continue from the checkpoint in the output folder.
+        #[arg(long)]
+        resume: bool,
     },
     /// Run verification cases against analytical solutions.
     Verify {
@@ -168,7 +192,10 @@ fn main() -> ExitCode {
                 (None, None) => Outcome::BadInput,
             }
         }
+        Command::Check { scene } if invert::is_inversion(&scene) => invert::check(&scene),
         Command::Check { scene } => check::check(&scene, memory_limit),
+        Command::Gradient { file, check } => invert::gradient(&file, check),
+        Command::Invert { file, out, resume } => invert::invert(&file, out.as_deref(), resume),
         Command::Verify {
             cases,
             list,

@@ -43,8 +43,18 @@ fn check_rejects_every_malformed_fixture_with_exit_2_and_a_field_path() {
 
 #[test]
 fn check_accepts_the_examples() {
-    for entry in std::fs::read_dir(workspace().join("examples")).expect("examples") {
-        let path = entry.expect("entry").path();
+    let files = |dir: PathBuf| {
+        std::fs::read_dir(dir)
+            .expect("examples")
+            .map(|e| e.expect("entry").path())
+            .filter(|p| p.is_file())
+            .collect::<Vec<_>>()
+    };
+    let examples = workspace().join("examples");
+    // The scenes, and the inversion files with their scene (`loam check` validates both).
+    let mut all = files(examples.clone());
+    all.extend(files(examples.join("inverse")));
+    for path in all {
         let out = loam(&["check", path.to_str().expect("utf-8 path")]);
         assert!(
             out.status.success(),

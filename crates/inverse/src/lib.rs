@@ -11,7 +11,11 @@
 //! - [`gradient`] runs the forward pass with checkpoints every `K ≈ √T` steps and the reverse
 //!   pass segment by segment, so memory grows as `√T`, not `T`.
 //! - [`Param`] names a parameter; [`Objective`] is a loss over the run's states
-//!   ([`TrackedPositions`]).
+//!   ([`TrackedPositions`], [`VelocityMonitors`], their sum [`Observations`]).
+//! - [`Problem`] is an inversion's loss as a function of its unknowns ([`Control`]: the
+//!   parameters and initial velocities), with its gradient by the adjoint and, as the oracle,
+//!   by a forward-mode dual run; [`Variable`] reparameterises an unknown for an optimiser
+//!   (softplus, bounds); [`Optimiser`] is Adam with a decaying rate or L-BFGS.
 //!
 //! The forward-mode dual run (`Solver<Dual64, D>` on a configuration lifted with one seeded
 //! parameter) is the test oracle: the adjoint agrees with it to round-off.
@@ -21,12 +25,20 @@ mod error;
 mod gradient;
 pub mod lanes;
 mod objective;
+mod observe;
+pub mod optimise;
 mod params;
+mod problem;
 mod step;
+mod variable;
 
 pub use adjoint_state::ParticleAdjoint;
 pub use error::AdjointError;
 pub use gradient::{Gradient, gradient, segment_length};
-pub use objective::{Objective, TrackedPositions};
+pub use objective::{Objective, ScalarObjective, TrackedPositions};
+pub use observe::{MonitorBox, Observations, VelocityMonitors};
+pub use optimise::{Adam, Evaluation, Lbfgs, Optimiser};
 pub use params::{Acts, MaterialField, Param};
+pub use problem::{Control, Problem, run_value};
 pub use step::ReverseStep;
+pub use variable::{Transform, Variable, softplus, softplus_inverse};

@@ -1,8 +1,8 @@
 //! What a gradient is the gradient of: a loss over the states of a run.
 
 use crate::adjoint_state::ParticleAdjoint;
-use loam_core::Particles;
 use loam_core::tensor::Vector;
+use loam_core::{Particles, Scalar};
 use std::collections::BTreeMap;
 
 /// A loss `L = Σ_n ℓ_n(state after n steps)`, summed over the states of a run (`n = 0` is
@@ -15,6 +15,15 @@ pub trait Objective<const D: usize>: Sync {
         particles: &Particles<f64, D>,
         adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64;
+}
+
+/// An objective whose terms can also be evaluated in any scalar type, so that a forward-mode
+/// dual run (`Solver<Dual64, D>` with one seeded input) gives `dL/dθ` directly: the oracle the
+/// adjoint is checked against (`loam gradient --check`).
+pub trait ScalarObjective<const D: usize>: Objective<D> {
+    /// `ℓ_n` of the state after `step` steps, in the scalar type of the run; its real part
+    /// equals [`Objective::term`].
+    fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T;
 }
 
 /// Squared mismatch of tracked particle positions:
@@ -32,18 +41,27 @@ impl<const D: usize> Objective<D> for TrackedPositions<D> {
         &self,
         step: usize,
         particles: &Particles<f64, D>,
-        mut adjoint: Option<&mut ParticleAdjoint<D>>,
+        adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64 {
-        let Some(targets) = self.targets.get(&step) else {
-            return 0.0;
-        };
-        let mut loss = 0.0;
-        for &(p, target) in targets {
-            let d = particles.x[p] - target;
-            loss += self.weight * d.norm_squared();
-            if let Some(adj) = adjoint.as_deref_mut() {
-                adj.x[p] += d * (2.0 * self.weight);
+        if let (Some(adj), Some(targets)) = (adjoint, self.targets.get(&step)) {
+            // ∂ℓ_n/∂x_p = 2 w (x_p − x*).
+            for &(p, target) in targets {
+                adj.x[p] += (particles.x[p] - target) * (2.0 * self.weight);
             }
+        }
+        self.value(step, particles)
+    }
+}
+
+impl<const D: usize> ScalarObjective<D> for TrackedPositions<D> {
+    fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T {
+        let Some(targets) = self.targets.get(&step) else {
+            return T::zero();
+        };
+        let mut loss = T::zero();
+        for (p, target) in targets {
+            let d = particles.x[*p] - target.map(T::cst);
+            loss += d.norm_squared() * T::cst(self.weight);
         }
         loss
     }

@@ -16,6 +16,7 @@ use loam_core::constitutive::{Lame, Model};
 use loam_explicit::Config;
 use num_dual::Dual64;
 use std::fmt;
+use std::str::FromStr;
 
 /// A material constant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -90,6 +91,76 @@ impl fmt::Display for Param {
             Param::Gravity(a) => write!(f, "gravity[{a}]"),
             Param::Material(k, field) => write!(f, "materials[{k}].{}", field.name()),
         }
+    }
+}
+
+impl MaterialField {
+    /// Every constant, in the order of the enum.
+    pub const ALL: [MaterialField; 12] = [
+        Self::Young,
+        Self::Poisson,
+        Self::Density,
+        Self::BulkModulus,
+        Self::SoundSpeed,
+        Self::Gamma,
+        Self::Viscosity,
+        Self::FrictionAngle,
+        Self::DilationAngle,
+        Self::Cohesion,
+        Self::YieldStress,
+        Self::Hardening,
+    ];
+}
+
+impl FromStr for Param {
+    type Err = String;
+
+    /// Reads the form [`Param`]'s `Display` writes: `friction[k]`, `obstacle[k].friction`,
+    /// `obstacle[k].velocity[a]`, `gravity[a]`, `materials[k].<constant>`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let expected = || {
+            format!(
+                "unknown parameter `{s}`; expected `friction[k]`, `obstacle[k].friction`, \
+                 `obstacle[k].velocity[a]`, `gravity[a]` or `materials[k].<constant>` with \
+                 <constant> one of {}",
+                MaterialField::ALL.map(MaterialField::name).join(", ")
+            )
+        };
+        // `name[index]` and the rest after it.
+        let indexed = |t: &str, name: &str| -> Option<(usize, String)> {
+            let rest = t.strip_prefix(name)?.strip_prefix('[')?;
+            let (index, rest) = rest.split_once(']')?;
+            Some((index.parse().ok()?, rest.to_owned()))
+        };
+        if let Some((k, rest)) = indexed(s, "friction") {
+            return rest
+                .is_empty()
+                .then_some(Param::Friction(k))
+                .ok_or_else(expected);
+        }
+        if let Some((a, rest)) = indexed(s, "gravity") {
+            return rest
+                .is_empty()
+                .then_some(Param::Gravity(a))
+                .ok_or_else(expected);
+        }
+        if let Some((k, rest)) = indexed(s, "obstacle") {
+            if rest == ".friction" {
+                return Ok(Param::ObstacleFriction(k));
+            }
+            return match indexed(&rest, ".velocity") {
+                Some((a, tail)) if tail.is_empty() => Ok(Param::ObstacleVelocity(k, a)),
+                _ => Err(expected()),
+            };
+        }
+        if let Some((k, rest)) = indexed(s, "materials") {
+            let field = rest.strip_prefix('.').ok_or_else(expected)?;
+            return (MaterialField::ALL.into_iter())
+                .find(|f| f.name() == field)
+                .map(|f| Param::Material(k, f))
+                .ok_or_else(expected);
+        }
+        Err(expected())
     }
 }
 
@@ -324,4 +395,33 @@ fn set_material(m: &mut Material<f64>, field: MaterialField, value: f64) -> Opti
         _ => return None,
     }
     Some(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_read_back_what_display_writes() {
+        let mut all = vec![
+            Param::Friction(3),
+            Param::ObstacleFriction(0),
+            Param::ObstacleVelocity(1, 2),
+            Param::Gravity(1),
+        ];
+        all.extend(MaterialField::ALL.map(|f| Param::Material(2, f)));
+        for p in all {
+            assert_eq!(p.to_string().parse::<Param>(), Ok(p));
+        }
+        for bad in [
+            "friction",
+            "friction[x]",
+            "friction[1].mu",
+            "materials[0].stiffness",
+            "mu",
+        ] {
+            let err = bad.parse::<Param>().unwrap_err();
+            assert!(err.contains(bad) && err.contains("expected"), "{err}");
+        }
+    }
 }

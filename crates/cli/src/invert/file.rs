@@ -1,0 +1,746 @@
+//! The inversion file: its schema, reading it with field-path errors, and turning it into an
+//! inverse problem on the scene it names (`docs/inversion-format.md`).
+
+use super::observed;
+use loam_core::TimeStep;
+use loam_core::tensor::Vector;
+use loam_inverse::{
+    Control, MonitorBox, Observations, Param, Problem, ReverseStep, Transform, Variable,
+};
+use loam_scene::{Built, Issue, Location, Scene, SceneError, SceneFormat, SolverPlan};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// A whole inversion file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InversionFile {
+    /// The forward scene, relative to the inversion file's folder.
+    pub scene: PathBuf,
+    /// Steps of every run (default: the scene's fixed step count); not with `end_time`.
+    pub steps: Option<usize>,
+    /// Simulated time of every run, `round(end_time / Δt)` steps; not with `steps`.
+    pub end_time: Option<f64>,
+    /// Steps between the adjoint's checkpoints (default `⌈√steps⌉`).
+    pub segment: Option<usize>,
+    /// The unknowns.
+    pub parameters: Vec<ParameterSpec>,
+    /// Observation files and monitor boxes.
+    #[serde(default)]
+    pub observations: ObservationsSpec,
+    /// Make the observations from a truth run instead of reading them.
+    pub synthetic: Option<SyntheticSpec>,
+    /// The optimiser (default L-BFGS).
+    #[serde(default)]
+    pub optimizer: OptimizerSpec,
+    /// When to stop.
+    #[serde(default)]
+    pub stop: StopSpec,
+}
+
+/// `[[parameters]]`: one unknown.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSpec {
+    /// `friction[k]`, `obstacle[k].friction`, `obstacle[k].velocity[a]`, `gravity[a]`,
+    /// `materials[k].<constant>`, or `velocity` (an initial velocity).
+    pub name: String,
+    /// The first guess.
+    pub initial: f64,
+    /// The value of the truth run (`[synthetic]`), and the reference in the report.
+    pub truth: Option<f64>,
+    /// `identity` (default) or `softplus`.
+    #[serde(default)]
+    pub transform: Transform,
+    /// The scale `s` of `θ = s z` or `θ = s softplus(z)` (default 1).
+    pub scale: Option<f64>,
+    /// `[lo, hi]` on the value.
+    pub bounds: Option<[f64; 2]>,
+    /// `velocity`: the direction (normalised).
+    pub direction: Option<Vec<f64>>,
+    /// `velocity`: the material whose particles it sets (default all).
+    pub material: Option<String>,
+}
+
+/// `[observations]`.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObservationsSpec {
+    /// CSV of tracked positions (`step|time, id, x, y[, z]`).
+    pub tracked: Option<PathBuf>,
+    /// Weight of every squared position mismatch (default 1).
+    pub tracked_weight: Option<f64>,
+    /// CSV of monitor velocities (`step|time, monitor, vx, vy[, vz]`).
+    pub velocity: Option<PathBuf>,
+    /// Weight of every squared velocity mismatch (default 1).
+    pub velocity_weight: Option<f64>,
+    /// The monitor boxes.
+    #[serde(default)]
+    pub monitors: Vec<MonitorSpec>,
+}
+
+/// `[[observations.monitors]]`: a box `[lo, hi)`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MonitorSpec {
+    /// Its name in the velocity CSV.
+    pub name: String,
+    /// Lower corner.
+    pub lo: Vec<f64>,
+    /// Upper corner.
+    pub hi: Vec<f64>,
+}
+
+/// `[synthetic]`: observations made from a run at the parameters' `truth` values.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SyntheticSpec {
+    /// Tracked particles, chosen pseudo-randomly (default 0).
+    #[serde(default)]
+    pub particles: usize,
+    /// Seed of the choice (default 0).
+    #[serde(default)]
+    pub seed: u64,
+    /// Observe every this many steps.
+    pub every: usize,
+    /// First observed step (default `every`).
+    pub first: Option<usize>,
+}
+
+/// `[optimizer]`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(tag = "method", rename_all = "snake_case", deny_unknown_fields)]
+pub enum OptimizerSpec {
+    /// Adam with the rate `learning_rate · decay_rate^(t / decay_steps)`.
+    Adam {
+        /// `α₀`.
+        learning_rate: f64,
+        /// `r` (default 1, no decay).
+        #[serde(default = "one")]
+        decay_rate: f64,
+        /// `T` (default 100).
+        #[serde(default = "hundred")]
+        decay_steps: f64,
+    },
+    /// L-BFGS with a backtracking Armijo line search.
+    Lbfgs {
+        /// Pairs kept (default 10).
+        #[serde(default = "ten")]
+        memory: usize,
+        /// Length of the first step in the optimiser's variables (default 0.1).
+        #[serde(default = "tenth")]
+        first_step: f64,
+    },
+}
+
+impl Default for OptimizerSpec {
+    fn default() -> Self {
+        Self::Lbfgs {
+            memory: ten(),
+            first_step: tenth(),
+        }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn hundred() -> f64 {
+    100.0
+}
+fn ten() -> usize {
+    10
+}
+fn tenth() -> f64 {
+    0.1
+}
+
+/// `[stop]`: stop at the first rule met.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StopSpec {
+    /// Iterations (default 100).
+    #[serde(default = "hundred_iterations")]
+    pub max_iterations: usize,
+    /// Stop when the loss is at most this (default 0).
+    #[serde(default)]
+    pub loss: f64,
+    /// Stop when the gradient norm in the optimiser's variables is at most this (default 0).
+    #[serde(default)]
+    pub gradient: f64,
+}
+
+fn hundred_iterations() -> usize {
+    100
+}
+
+impl Default for StopSpec {
+    fn default() -> Self {
+        Self {
+            max_iterations: hundred_iterations(),
+            loss: 0.0,
+            gradient: 0.0,
+        }
+    }
+}
+
+/// An inversion ready to run.
+pub struct Inversion<const D: usize> {
+    /// The inversion file.
+    pub path: PathBuf,
+    /// What it says.
+    pub file: InversionFile,
+    /// The scene it names, resolved.
+    pub scene_path: PathBuf,
+    /// The scene.
+    pub scene: Scene,
+    /// The parameters' names as written.
+    pub names: Vec<String>,
+    /// The optimiser's view of each unknown.
+    pub variables: Vec<Variable>,
+    /// The loss as a function of the unknowns.
+    pub problem: Problem<D, Observations<D>>,
+    /// The truth values, when every parameter has one.
+    pub truth: Option<Vec<f64>>,
+    /// The first guess.
+    pub initial: Vec<f64>,
+    /// The monitors' names.
+    pub monitor_names: Vec<String>,
+}
+
+/// Why an inversion could not be set up: the message is printed as is (exit 2).
+pub struct Invalid(pub String);
+
+impl From<SceneError> for Invalid {
+    fn from(e: SceneError) -> Self {
+        Invalid(e.to_string())
+    }
+}
+
+/// Reads and parses the inversion file (fields only).
+pub fn read(path: &Path) -> Result<InversionFile, Invalid> {
+    if SceneFormat::from_path(path) != Some(SceneFormat::Toml) {
+        return Err(Invalid(format!(
+            "{}: unknown inversion file extension; expected `.toml`",
+            path.display()
+        )));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Invalid(format!(
+            "{}: cannot read the inversion file: {e}",
+            path.display()
+        ))
+    })?;
+    let location = |e: &toml::de::Error| e.span().map(|s| Location::from_offset(&text, s.start));
+    let de = toml::Deserializer::parse(&text).map_err(|e| SceneError::Syntax {
+        file: Some(path.to_path_buf()),
+        format: SceneFormat::Toml,
+        location: location(&e),
+        message: e.message().trim_end().to_owned(),
+    })?;
+    let file: InversionFile = serde_path_to_error::deserialize(de).map_err(|e| {
+        let field = e.path().to_string();
+        let field = if field == "." { String::new() } else { field };
+        let message = match location(e.inner()) {
+            Some(at) if !field.is_empty() => format!("{} ({at})", e.inner().message()),
+            _ => e.inner().message().to_owned(),
+        };
+        invalid(path, vec![Issue::new(field, message)])
+    })?;
+    Ok(file)
+}
+
+/// An invalid-file error listing `issues`, each line starting with the file name.
+fn invalid(path: &Path, issues: Vec<Issue>) -> Invalid {
+    Invalid(
+        SceneError::Invalid {
+            file: Some(path.to_path_buf()),
+            issues,
+        }
+        .to_string(),
+    )
+}
+
+/// The scene an inversion file names, resolved against the file's folder, read and
+/// validated, and its dimension.
+pub fn scene_of(path: &Path, file: &InversionFile) -> Result<(PathBuf, Scene), Invalid> {
+    let scene_path = path.parent().unwrap_or(Path::new("")).join(&file.scene);
+    let scene = Scene::from_path(&scene_path).map_err(|e| match e {
+        SceneError::Read { .. } => invalid(
+            path,
+            vec![Issue::new(
+                "scene",
+                format!("cannot read the scene file {}", scene_path.display()),
+            )],
+        ),
+        e => Invalid(e.to_string()),
+    })?;
+    Ok((scene_path, scene))
+}
+
+/// Builds the inversion from the file: the scene's solver inputs, the unknowns and the
+/// observations (read from their CSV files, or made by the truth run of `[synthetic]`).
+/// Every problem found is reported at once with its field path.
+pub fn build<const D: usize>(
+    path: &Path,
+    file: InversionFile,
+    scene_path: PathBuf,
+    scene: Scene,
+) -> Result<Inversion<D>, Invalid> {
+    let built: Built<D> = scene.build()?;
+    let mut issues = Vec::new();
+    let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
+    let config = match (&built.plan, built.explicit_config()) {
+        (SolverPlan::Explicit(_), Some(c)) => Some(c),
+        _ => {
+            issue(
+                "scene".into(),
+                "the inversion needs an explicit scene".into(),
+            );
+            None
+        }
+    };
+    let dt = match config.as_ref().map(|c| c.time_step) {
+        Some(TimeStep::Fixed { dt }) => dt,
+        Some(TimeStep::Adaptive { .. }) => {
+            issue(
+                "scene".into(),
+                "the inversion needs a fixed time step (`solver.time_step = { type = \"fixed\", \
+                 dt = .. }`), so that observations fall on steps"
+                    .into(),
+            );
+            f64::NAN
+        }
+        None => f64::NAN,
+    };
+    let steps = match (file.steps, file.end_time) {
+        (Some(_), Some(_)) => {
+            issue(
+                "end_time".into(),
+                "give `steps` or `end_time`, not both".into(),
+            );
+            0
+        }
+        (Some(0), None) => {
+            issue("steps".into(), "expected at least 1 step".into());
+            0
+        }
+        (Some(n), None) => n,
+        (None, Some(t)) if t.is_finite() && (t / dt).round() >= 1.0 => (t / dt).round() as usize,
+        (None, Some(t)) => {
+            issue(
+                "end_time".into(),
+                format!("expected at least one step of {dt} s, got {t}"),
+            );
+            0
+        }
+        (None, None) => match built.plan {
+            SolverPlan::Explicit(p) => p.fixed_steps().unwrap_or(0),
+            SolverPlan::Implicit(_) => 0,
+        },
+    };
+    if file.segment == Some(0) {
+        issue("segment".into(), "expected at least 1 step".into());
+    }
+    if file.parameters.is_empty() {
+        issue(
+            "parameters".into(),
+            "expected at least one parameter".into(),
+        );
+    }
+    // The unknowns.
+    let mut controls = Vec::new();
+    let mut variables = Vec::new();
+    let mut truth = Some(Vec::new());
+    for (i, p) in file.parameters.iter().enumerate() {
+        let at = |field: &str| format!("parameters[{i}].{field}");
+        let control = if p.name == "velocity" {
+            velocity_control::<D>(p, &built, &mut |f, m| issue(at(f), m))
+        } else {
+            for (field, given) in [
+                ("direction", p.direction.is_some()),
+                ("material", p.material.is_some()),
+            ] {
+                if given {
+                    issue(at(field), "only for `name = \"velocity\"`".into());
+                }
+            }
+            match p.name.parse::<Param>() {
+                Ok(param) => match config.as_ref().map(|c| param.value(c)) {
+                    Some(Err(e)) => {
+                        issue(at("name"), e.to_string());
+                        None
+                    }
+                    _ => Some(Control::Param(param)),
+                },
+                Err(msg) => {
+                    issue(at("name"), msg);
+                    None
+                }
+            }
+        };
+        if let Some(c) = control {
+            if controls.contains(&c) {
+                issue(at("name"), format!("`{}` is given twice", p.name));
+            }
+            controls.push(c);
+        }
+        let scale = p.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale > 0.0) {
+            issue(
+                at("scale"),
+                format!("expected a positive number, got {scale}"),
+            );
+        }
+        let bounds = p.bounds.map(|[lo, hi]| (lo, hi));
+        if let Some((lo, hi)) = bounds
+            && lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less)
+        {
+            issue(
+                at("bounds"),
+                format!("expected [lo, hi] with lo < hi, got [{lo}, {hi}]"),
+            );
+        }
+        for (field, value) in [("initial", Some(p.initial)), ("truth", p.truth)] {
+            let Some(v) = value else { continue };
+            if !v.is_finite() {
+                issue(at(field), format!("expected a finite number, got {v}"));
+            } else if p.transform == Transform::Softplus && v <= 0.0 {
+                issue(
+                    at(field),
+                    format!("a softplus parameter is positive; got {v}"),
+                );
+            } else if let Some((lo, hi)) = bounds
+                && !(lo..=hi).contains(&v)
+            {
+                issue(at(field), format!("{v} is outside the bounds [{lo}, {hi}]"));
+            }
+        }
+        variables.push(Variable {
+            transform: p.transform,
+            scale,
+            bounds,
+        });
+        truth = truth.zip(p.truth).map(|(mut t, v)| {
+            t.push(v);
+            t
+        });
+    }
+    check_velocities::<D>(&controls, &mut issue);
+    if let Some(c) = &config {
+        let params: Vec<Param> = (controls.iter())
+            .filter_map(|c| match c {
+                Control::Param(p) => Some(*p),
+                Control::InitialVelocity { .. } => None,
+            })
+            .collect();
+        if let Err(e) = ReverseStep::new(c, &params) {
+            issue("scene".into(), e.to_string());
+        }
+    }
+    check_optimiser(&file, &mut issue);
+    // Monitors.
+    let mut monitor_names: Vec<String> = Vec::new();
+    let mut boxes = Vec::new();
+    for (i, m) in file.observations.monitors.iter().enumerate() {
+        let at = |f: &str| format!("observations.monitors[{i}].{f}");
+        if monitor_names.contains(&m.name) {
+            issue(at("name"), format!("monitor `{}` is defined twice", m.name));
+        }
+        monitor_names.push(m.name.clone());
+        if m.lo.len() != D || m.hi.len() != D {
+            issue(
+                at("lo"),
+                format!("expected {D} coordinates in `lo` and `hi`"),
+            );
+            continue;
+        }
+        if (0..D).any(|a| m.lo[a].partial_cmp(&m.hi[a]) != Some(std::cmp::Ordering::Less)) {
+            issue(at("hi"), "expected hi > lo on every axis".into());
+        }
+        boxes.push(MonitorBox {
+            lo: Vector::from_iterator(m.lo.iter().copied()),
+            hi: Vector::from_iterator(m.hi.iter().copied()),
+        });
+    }
+    let o = &file.observations;
+    let weights = (
+        o.tracked_weight.unwrap_or(1.0),
+        o.velocity_weight.unwrap_or(1.0),
+    );
+    for (field, w) in [
+        ("tracked_weight", weights.0),
+        ("velocity_weight", weights.1),
+    ] {
+        if !(w.is_finite() && w >= 0.0) {
+            issue(
+                format!("observations.{field}"),
+                format!("expected a weight ≥ 0, got {w}"),
+            );
+        }
+    }
+    match &file.synthetic {
+        Some(s) => {
+            for (field, given) in [
+                ("tracked", o.tracked.is_some()),
+                ("velocity", o.velocity.is_some()),
+            ] {
+                if given {
+                    issue(
+                        format!("observations.{field}"),
+                        "not with [synthetic]: synthetic observations come from the truth run \
+                         (and are written to the output folder)"
+                            .into(),
+                    );
+                }
+            }
+            if s.every == 0 {
+                issue("synthetic.every".into(), "expected at least 1 step".into());
+            }
+            if s.particles > built.particles.len() {
+                issue(
+                    "synthetic.particles".into(),
+                    format!("the scene has only {} particles", built.particles.len()),
+                );
+            }
+            if s.particles == 0 && boxes.is_empty() {
+                issue(
+                    "synthetic.particles".into(),
+                    "nothing to observe: track particles or define monitors".into(),
+                );
+            }
+            if truth.is_none() {
+                for (i, p) in file.parameters.iter().enumerate() {
+                    if p.truth.is_none() {
+                        issue(
+                            format!("parameters[{i}].truth"),
+                            "[synthetic] needs the truth value of every parameter".into(),
+                        );
+                    }
+                }
+            }
+        }
+        None => {
+            if o.tracked.is_none() && o.velocity.is_none() {
+                issue(
+                    "observations".into(),
+                    "expected `tracked` or `velocity` (a CSV file), or a [synthetic] section"
+                        .into(),
+                );
+            }
+            if o.velocity.is_some() && boxes.is_empty() {
+                issue(
+                    "observations.monitors".into(),
+                    "the velocity file needs monitor boxes".into(),
+                );
+            }
+        }
+    }
+    if !issues.is_empty() {
+        return Err(invalid(path, issues));
+    }
+    let config = config.expect("an explicit scene");
+    let mut problem = Problem {
+        config,
+        initial: built.particles,
+        steps,
+        controls,
+        objective: Observations::default(),
+        segment: file.segment,
+    };
+    let initial: Vec<f64> = file.parameters.iter().map(|p| p.initial).collect();
+    problem.objective = match &file.synthetic {
+        Some(s) => {
+            let truth = truth.as_deref().expect("checked above");
+            let (config, particles) = problem.setup(truth).map_err(|e| Invalid(e.to_string()))?;
+            let first = s.first.unwrap_or(s.every);
+            let observed: BTreeSet<usize> = (first..=steps).step_by(s.every).collect();
+            let ids = observed::choose(particles.len(), s.particles, s.seed);
+            Observations::record(&config, &particles, steps, &observed, &ids, boxes, weights)
+                .map_err(|e| Invalid(format!("{}: the truth run: {e}", path.display())))?
+        }
+        None => {
+            let dir = path.parent().unwrap_or(Path::new(""));
+            let at = observed::Grid {
+                dt,
+                steps,
+                particles: problem.initial.len(),
+            };
+            let mut out = Observations::default();
+            out.tracked.weight = weights.0;
+            out.monitors.weight = weights.1;
+            out.monitors.boxes = boxes;
+            let mut errors = Vec::new();
+            if let Some(f) = &o.tracked {
+                match observed::read_tracked::<D>(&dir.join(f), &at) {
+                    Ok(t) => out.tracked.targets = t,
+                    Err(msg) => errors.push(Issue::new("observations.tracked", msg)),
+                }
+            }
+            if let Some(f) = &o.velocity {
+                match observed::read_velocity::<D>(&dir.join(f), &at, &monitor_names) {
+                    Ok(t) => out.monitors.targets = t,
+                    Err(msg) => errors.push(Issue::new("observations.velocity", msg)),
+                }
+            }
+            if !errors.is_empty() {
+                return Err(invalid(path, errors));
+            }
+            out
+        }
+    };
+    Ok(Inversion {
+        path: path.to_path_buf(),
+        file,
+        scene_path,
+        scene,
+        names: Vec::new(),
+        variables,
+        problem,
+        truth,
+        initial,
+        monitor_names,
+    }
+    .named())
+}
+
+impl<const D: usize> Inversion<D> {
+    fn named(mut self) -> Self {
+        self.names = (self.file.parameters.iter())
+            .map(|p| match (&p.direction, &p.material) {
+                (Some(d), m) => format!(
+                    "velocity{}({})",
+                    m.as_ref().map_or_else(String::new, |m| format!("[{m}]")),
+                    d.iter()
+                        .map(|x| format!("{x}"))
+                        .collect::<Vec<_>>()
+                        .join(",")
+                ),
+                _ => p.name.clone(),
+            })
+            .collect();
+        self
+    }
+}
+
+/// An initial-velocity unknown: its direction (normalised) and material.
+fn velocity_control<const D: usize>(
+    p: &ParameterSpec,
+    built: &Built<D>,
+    issue: &mut dyn FnMut(&str, String),
+) -> Option<Control> {
+    let material = match &p.material {
+        None => None,
+        Some(name) => match built.material_names.iter().position(|n| n == name) {
+            Some(m) => Some(m as u32),
+            None => {
+                issue(
+                    "material",
+                    format!(
+                        "unknown material `{name}`; the scene has {}",
+                        built.material_names.join(", ")
+                    ),
+                );
+                return None;
+            }
+        },
+    };
+    let Some(d) = &p.direction else {
+        issue(
+            "direction",
+            format!("expected the direction of the velocity, {D} components"),
+        );
+        return None;
+    };
+    let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if d.len() != D || !(n.is_finite() && n > 0.0) {
+        issue(
+            "direction",
+            format!("expected a non-zero vector of {D} components"),
+        );
+        return None;
+    }
+    Some(Control::InitialVelocity {
+        material,
+        direction: d.iter().map(|x| x / n).collect(),
+    })
+}
+
+/// Initial velocities on the same particles must be along orthogonal directions, so that
+/// each sets its own component.
+fn check_velocities<const D: usize>(controls: &[Control], issue: &mut dyn FnMut(String, String)) {
+    for (i, a) in controls.iter().enumerate() {
+        for b in &controls[..i] {
+            if let (
+                Control::InitialVelocity {
+                    material: ma,
+                    direction: da,
+                },
+                Control::InitialVelocity {
+                    material: mb,
+                    direction: db,
+                },
+            ) = (a, b)
+            {
+                let overlap = ma.is_none() || mb.is_none() || ma == mb;
+                let dot: f64 = da.iter().zip(db).map(|(x, y)| x * y).sum();
+                if overlap && dot.abs() > 1e-12 {
+                    issue(
+                        format!("parameters[{i}].direction"),
+                        "two velocities on the same particles need orthogonal directions".into(),
+                    );
+                }
+            }
+        }
+    }
+}
+
+fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    match file.optimizer {
+        OptimizerSpec::Adam {
+            learning_rate,
+            decay_rate,
+            decay_steps,
+        } => {
+            for (field, v) in [
+                ("learning_rate", learning_rate),
+                ("decay_steps", decay_steps),
+            ] {
+                if !positive(v) {
+                    issue(
+                        format!("optimizer.{field}"),
+                        format!("expected a positive number, got {v}"),
+                    );
+                }
+            }
+            if !(decay_rate > 0.0 && decay_rate <= 1.0) {
+                issue(
+                    "optimizer.decay_rate".into(),
+                    format!("expected 0 < rate ≤ 1, got {decay_rate}"),
+                );
+            }
+        }
+        OptimizerSpec::Lbfgs { memory, first_step } => {
+            if memory == 0 {
+                issue("optimizer.memory".into(), "expected at least 1 pair".into());
+            }
+            if !positive(first_step) {
+                issue(
+                    "optimizer.first_step".into(),
+                    format!("expected a positive number, got {first_step}"),
+                );
+            }
+        }
+    }
+    let s = &file.stop;
+    for (field, v) in [("loss", s.loss), ("gradient", s.gradient)] {
+        if !(v.is_finite() && v >= 0.0) {
+            issue(
+                format!("stop.{field}"),
+                format!("expected a number ≥ 0, got {v}"),
+            );
+        }
+    }
+}

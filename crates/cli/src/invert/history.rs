@@ -1,0 +1,227 @@
+//! What an inversion writes: the history (CSV and JSON), its plots, the optimiser's
+//! checkpoint and the recovered scene.
+
+use super::file::InversionFile;
+use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
+use loam_scene::Scene;
+use loam_verification::{Series, write_plot};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One iteration of an inversion.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Entry {
+    /// Iteration, 0 the first guess.
+    pub iteration: usize,
+    /// `L`.
+    pub loss: f64,
+    /// `‖∇_z L‖` in the optimiser's variables.
+    pub gradient_norm: f64,
+    /// `θ`.
+    pub parameters: Vec<f64>,
+    /// `dL/dθ`.
+    pub gradient: Vec<f64>,
+    /// Loss evaluations (forward and adjoint runs) this iteration took.
+    pub evaluations: usize,
+    /// Wall time of the iteration (s).
+    pub seconds: f64,
+}
+
+/// The history file: the parameter names and the iterations.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct History {
+    /// The parameters' names.
+    pub names: Vec<String>,
+    /// Their truth values, when known.
+    pub truth: Option<Vec<f64>>,
+    /// The iterations so far.
+    pub entries: Vec<Entry>,
+}
+
+/// Everything `--resume` continues from.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// The inversion file as read, `[stop]` left out (it may change between runs).
+    pub file: serde_json::Value,
+    /// The optimiser's state.
+    pub optimiser: Optimiser,
+    /// The current point, the last entry of the history.
+    pub current: Evaluation,
+    /// The history so far.
+    pub history: History,
+}
+
+impl Checkpoint {
+    /// The file name in the output folder.
+    pub const NAME: &str = "checkpoint.json";
+
+    /// The inversion file as a checkpoint records it: without `[stop]`.
+    pub fn key(file: &InversionFile) -> serde_json::Value {
+        let mut v = serde_json::to_value(file).expect("the inversion file serialises");
+        if let Some(map) = v.as_object_mut() {
+            map.remove("stop");
+        }
+        v
+    }
+}
+
+/// Writes `text` to `path` through a temporary file and a rename, so that an interruption
+/// never leaves it half-written.
+pub fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+impl History {
+    /// Writes `history.csv` and `history.json` in `dir`.
+    pub fn write(&self, dir: &Path) -> Result<(), String> {
+        let mut csv = String::from("iteration,loss,gradient_norm,evaluations,seconds");
+        for n in &self.names {
+            write!(csv, ",{n}").expect("string");
+        }
+        for n in &self.names {
+            write!(csv, ",dL/d {n}").expect("string");
+        }
+        csv.push('\n');
+        for e in &self.entries {
+            write!(
+                csv,
+                "{},{:e},{:e},{},{:.3}",
+                e.iteration, e.loss, e.gradient_norm, e.evaluations, e.seconds
+            )
+            .expect("string");
+            for v in e.parameters.iter().chain(&e.gradient) {
+                write!(csv, ",{v:e}").expect("string");
+            }
+            csv.push('\n');
+        }
+        write_atomic(&dir.join("history.csv"), &csv)?;
+        let json = serde_json::to_string_pretty(self).expect("the history serialises");
+        write_atomic(&dir.join("history.json"), &json)
+    }
+
+    /// Plots `log₁₀ L` and the parameters (with their truth, dashed as markers) against the
+    /// iteration: `history_loss.png`, `history_parameters.png` in `dir`.
+    pub fn plot(&self, dir: &Path) -> Result<(), String> {
+        let loss = Series {
+            name: "log10 loss".into(),
+            points: (self.entries.iter())
+                .filter(|e| e.loss > 0.0)
+                .map(|e| (e.iteration as f64, e.loss.log10()))
+                .collect(),
+            markers: false,
+        };
+        let err = |e: loam_verification::VerifyError| e.to_string();
+        write_plot(
+            &dir.join("history_loss.png"),
+            "Loss",
+            "iteration",
+            "log10 L",
+            &[loss],
+        )
+        .map_err(err)?;
+        let last = self.entries.last().map_or(0.0, |e| e.iteration as f64);
+        let mut series = Vec::new();
+        for (k, name) in self.names.iter().enumerate() {
+            series.push(Series {
+                name: name.clone(),
+                points: (self.entries.iter())
+                    .map(|e| (e.iteration as f64, e.parameters[k]))
+                    .collect(),
+                markers: false,
+            });
+            if let Some(t) = &self.truth {
+                series.push(Series {
+                    name: format!("{name} truth"),
+                    points: vec![(0.0, t[k]), (last, t[k])],
+                    markers: true,
+                });
+            }
+        }
+        write_plot(
+            &dir.join("history_parameters.png"),
+            "Parameters",
+            "iteration",
+            "value",
+            &series,
+        )
+        .map_err(err)
+    }
+}
+
+/// The scene with the unknowns set to `theta`, as TOML, with a header naming them.
+/// Material angles are written in degrees, as scene files hold them.
+pub fn recovered_scene(
+    scene: &Scene,
+    controls: &[Control],
+    names: &[String],
+    theta: &[f64],
+    material_names: &[String],
+    source: &Path,
+) -> Result<String, String> {
+    let mut s = scene.clone();
+    for (control, &v) in controls.iter().zip(theta) {
+        match control {
+            Control::Param(p) => set(&mut s, *p, v),
+            Control::InitialVelocity {
+                material,
+                direction,
+            } => {
+                let dim = s.dim();
+                for b in &mut s.bodies {
+                    let selected =
+                        material.is_none_or(|m| material_names[m as usize] == b.material);
+                    if selected {
+                        let vel = b.velocity.get_or_insert_with(|| vec![0.0; dim]);
+                        let along: f64 = vel.iter().zip(direction).map(|(a, d)| a * d).sum();
+                        vel.iter_mut()
+                            .zip(direction)
+                            .for_each(|(a, d)| *a += (v - along) * d);
+                    }
+                }
+            }
+        }
+    }
+    let body = toml::to_string(&s).map_err(|e| format!("cannot write the recovered scene: {e}"))?;
+    let mut head = format!("# Recovered by `loam invert` from {}:\n", source.display());
+    for (n, v) in names.iter().zip(theta) {
+        writeln!(head, "#   {n} = {v}").expect("string");
+    }
+    Ok(head + "\n" + &body)
+}
+
+/// Sets one parameter's field of the scene (validated: it exists).
+fn set(s: &mut Scene, p: Param, v: f64) {
+    use MaterialField as F;
+    let dim = s.dim();
+    match p {
+        Param::Friction(k) => s.friction[k].mu = v,
+        Param::ObstacleFriction(k) => s.obstacles[k].friction = Some(v),
+        Param::ObstacleVelocity(k, a) => {
+            s.obstacles[k]
+                .velocity
+                .get_or_insert_with(|| vec![0.0; dim])[a] = v
+        }
+        Param::Gravity(a) => s.loads.gravity.get_or_insert_with(|| vec![0.0; dim])[a] = v,
+        Param::Material(k, field) => {
+            let m = &mut s.materials[k];
+            match field {
+                F::Young => m.youngs_modulus = Some(v),
+                F::Poisson => m.poisson_ratio = Some(v),
+                F::Density => m.density = v,
+                F::BulkModulus => (m.bulk_modulus, m.sound_speed) = (Some(v), None),
+                F::SoundSpeed => (m.sound_speed, m.bulk_modulus) = (Some(v), None),
+                F::Gamma => m.gamma = Some(v),
+                F::Viscosity => m.viscosity = Some(v),
+                F::FrictionAngle => m.friction_angle = Some(v.to_degrees()),
+                F::DilationAngle => m.dilation_angle = Some(v.to_degrees()),
+                F::Cohesion => m.cohesion = Some(v),
+                F::YieldStress => m.yield_stress = Some(v),
+                F::Hardening => m.hardening = Some(v),
+            }
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn loam(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args(args)
+        .output()
+        .expect("the loam binary runs")
+}
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/inverse")
+        .join(name)
+}
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+/// A small inversion of the example scene: the initial horizontal velocity (truth 2.0, first
+/// guess 0.5) from 10 particles every 20 steps of a 200-step run.
+fn tiny(dir: &Path, max_iterations: usize, initial: f64) -> String {
+    let scene = example("dambreak_small.toml");
+    let body = format!(
+        r#"scene = "{}"
+steps = 200
+
+[[parameters]]
+name = "velocity"
+direction = [1.0, 0.0]
+initial = {initial}
+truth = 2.0
+
+[synthetic]
+particles = 10
+every = 20
+
+[stop]
+max_iterations = {max_iterations}
+gradient = 1e-11
+"#,
+        scene.display()
+    );
+    let path = dir.join("tiny.toml");
+    std::fs::write(&path, body).expect("write");
+    path.to_str().expect("utf-8").to_owned()
+}
+
+fn history(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("history.json")).expect("history"))
+        .expect("json")
+}
+
+#[test]
+fn gradient_check_agrees_with_the_dual_run() {
+    let out = loam(&[
+        "gradient",
+        example("friction.toml").to_str().unwrap(),
+        "--check",
+    ]);
+    let all = text(&out);
+    // The command fails when the adjoint and the dual derivative differ by more than 1e-8.
+    assert!(out.status.success(), "{all}");
+    for p in [
+        "friction[0]",
+        "friction[1]",
+        "friction[2]",
+        "central diff.",
+        "r(h/8)",
+    ] {
+        assert!(all.contains(p), "{p} missing in {all}");
+    }
+}
+
+#[test]
+fn invert_recovers_the_initial_velocity_and_writes_its_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = tiny(dir.path(), 20, 0.5);
+    let out_dir = dir.path().join("out");
+    let out = loam(&["invert", &file, "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out));
+    let h = history(&out_dir);
+    let last = h["entries"].as_array().unwrap().last().unwrap().clone();
+    let v0 = last["parameters"][0].as_f64().unwrap();
+    // Synthetic data from the same discrete model: the minimum is the truth, and L-BFGS on
+    // this one-dimensional smooth loss reaches it to round-off (1e-6 leaves a wide margin).
+    assert!((v0 - 2.0).abs() < 1e-6, "{v0}\n{}", text(&out));
+    for f in [
+        "history.csv",
+        "history_loss.png",
+        "history_parameters.png",
+        "tracked.csv",
+        "checkpoint.json",
+        "recovered_dambreak_small.toml",
+    ] {
+        assert!(out_dir.join(f).exists(), "{f} not written");
+    }
+    // The recovered scene is a valid scene holding the recovered velocity.
+    let recovered = out_dir.join("recovered_dambreak_small.toml");
+    let check = loam(&["check", recovered.to_str().unwrap()]);
+    assert!(check.status.success(), "{}", text(&check));
+    let table: toml::Table = std::fs::read_to_string(&recovered)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let written = table["bodies"][0]["velocity"][0].as_float().unwrap();
+    assert_eq!(written, v0);
+    // The synthetic observations can be read back as real ones: at the truth the loss is 0.
+    let real = format!(
+        "scene = \"{}\"\nsteps = 200\n[[parameters]]\nname = \"velocity\"\ndirection = [1.0, 0.0]\ninitial = 2.0\n[observations]\ntracked = \"{}\"\n",
+        example("dambreak_small.toml").display(),
+        out_dir.join("tracked.csv").display()
+    );
+    let real_path = dir.path().join("real.toml");
+    std::fs::write(&real_path, real).unwrap();
+    let g = loam(&["gradient", real_path.to_str().unwrap()]);
+    assert!(text(&g).contains("L = 0.0000000000e0"), "{}", text(&g));
+}
+
+#[test]
+fn resume_continues_exactly_where_the_run_stopped() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&a).unwrap();
+    std::fs::create_dir_all(&b).unwrap();
+    // Straight through 6 iterations, and 2 then resumed to 6 (only [stop] changed).
+    let whole = tiny(&a, 6, 0.5);
+    assert!(
+        loam(&["invert", &whole, "--out", a.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let part = tiny(&b, 2, 0.5);
+    assert!(
+        loam(&["invert", &part, "--out", b.to_str().unwrap()])
+            .status
+            .success()
+    );
+    assert_eq!(history(&b)["entries"].as_array().unwrap().len(), 3);
+    let part = tiny(&b, 6, 0.5);
+    let out = loam(&["invert", &part, "--out", b.to_str().unwrap(), "--resume"]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("resuming from iteration 2"),
+        "{}",
+        text(&out)
+    );
+    // The optimiser's state is saved exactly: the same iterates to the last bit.
+    let (ha, hb) = (
+        history(&a)["entries"].clone(),
+        history(&b)["entries"].clone(),
+    );
+    let params = |h: &serde_json::Value| -> Vec<String> {
+        h.as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["parameters"].to_string())
+            .collect()
+    };
+    assert_eq!(params(&ha), params(&hb));
+    // Another inversion (a different first guess) is not resumed.
+    let other = tiny(&b, 6, 0.7);
+    let out = loam(&["invert", &other, "--out", b.to_str().unwrap(), "--resume"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("differs"), "{}", text(&out));
+}
+
+#[test]
+fn malformed_inversion_files_exit_2_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("dambreak_small.toml");
+    let head = format!("scene = \"{}\"\nsteps = 20\n", scene.display());
+    let param = "[[parameters]]\nname = \"friction[1]\"\ninitial = 0.5\ntruth = 0.1\n";
+    let synth = "[synthetic]\nparticles = 5\nevery = 10\n";
+    let cases = [
+        // (body, expected field path, expected words)
+        (
+            format!(
+                "{head}{synth}[[parameters]]\nname = \"friction[7]\"\ninitial = 0.5\ntruth = 0.1\n"
+            ),
+            "parameters[0].name",
+            "friction segments",
+        ),
+        (
+            format!("{head}{synth}[[parameters]]\nname = \"mu\"\ninitial = 0.5\ntruth = 0.1\n"),
+            "parameters[0].name",
+            "expected",
+        ),
+        (
+            format!("{head}{synth}[[parameters]]\nname = \"friction[1]\"\ninitial = 0.5\n"),
+            "parameters[0].truth",
+            "[synthetic]",
+        ),
+        (
+            format!("{head}{synth}{param}[optimizer]\nmethod = \"adam\"\nlearning_rate = -1.0\n"),
+            "optimizer.learning_rate",
+            "positive",
+        ),
+        (
+            format!("{head}{synth}{param}[stop]\nmax_iteration = 3\n"),
+            "stop.max_iteration",
+            "unknown field",
+        ),
+        (
+            format!("{head}{synth}{param}transform = \"softplus\"\nbounds = [0.2, 1.0]\n"),
+            "parameters[0].truth",
+            "outside the bounds",
+        ),
+        (
+            format!("{head}{param}"),
+            "observations",
+            "expected `tracked`",
+        ),
+        (
+            format!("{head}{param}[observations]\ntracked = \"obs.csv\"\n"),
+            "observations.tracked",
+            "line 2",
+        ),
+        (
+            format!(
+                "{head}{synth}[[parameters]]\nname = \"velocity\"\ninitial = 1.0\ntruth = 2.0\ndirection = [1.0]\n"
+            ),
+            "parameters[0].direction",
+            "2 components",
+        ),
+    ];
+    std::fs::write(dir.path().join("obs.csv"), "step,id,x,y\n10,3,0.1\n").unwrap();
+    for (k, (body, field, words)) in cases.iter().enumerate() {
+        let path = dir.path().join(format!("bad{k}.toml"));
+        std::fs::write(&path, body).unwrap();
+        for cmd in ["gradient", "check"] {
+            let out = loam(&[cmd, path.to_str().unwrap()]);
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "{cmd} case {k}: {err}");
+            assert!(
+                err.starts_with("error: ") && !err.contains("panicked"),
+                "{err}"
+            );
+            assert!(
+                err.contains(&format!("{field}: ")) && err.contains(words),
+                "case {k}: {err}"
+            );
+        }
+    }
+}

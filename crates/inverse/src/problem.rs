@@ -1,0 +1,230 @@
+//! An inverse problem: the unknowns of a run (parameters of the setup and initial
+//! velocities), the loss over the run as a function of them, its gradient by the adjoint and,
+//! as the oracle, its derivative by a forward-mode dual run.
+
+use crate::error::AdjointError;
+use crate::gradient::gradient;
+use crate::objective::ScalarObjective;
+use crate::params::{MaterialField, Param};
+use loam_core::{Particles, Scalar};
+use loam_explicit::{Config, Solver};
+use num_dual::Dual64;
+
+/// One scalar unknown `θ` of an inversion.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Control {
+    /// A parameter of the step or of the initial masses (the density).
+    Param(Param),
+    /// The component along the unit vector `direction` of the initial velocity of the
+    /// particles of material `material` (all particles when `None`):
+    /// `v_p ← v_p + (θ − v_p·d) d`, the other components kept. A uniform velocity vector is
+    /// one control per axis; a speed along a direction is one control. Its gradient is
+    /// `dL/dθ = Σ_p (∂L/∂v_p⁰)·d` over those particles.
+    InitialVelocity {
+        /// The material whose particles it sets, or all particles.
+        material: Option<u32>,
+        /// The unit vector `d` (`D` components).
+        direction: Vec<f64>,
+    },
+}
+
+impl Control {
+    /// The particles it acts on.
+    fn selects(&self, material: u32) -> bool {
+        match self {
+            Control::InitialVelocity {
+                material: Some(m), ..
+            } => *m == material,
+            _ => true,
+        }
+    }
+}
+
+/// A loss over an explicit run as a function of its unknowns `θ`.
+#[derive(Clone, Debug)]
+pub struct Problem<const D: usize, O> {
+    /// The solver configuration at the scene's values.
+    pub config: Config<f64, D>,
+    /// The initial particle state at the scene's values.
+    pub initial: Particles<f64, D>,
+    /// Steps of the run.
+    pub steps: usize,
+    /// The unknowns, in order.
+    pub controls: Vec<Control>,
+    /// The loss.
+    pub objective: O,
+    /// Steps between checkpoints of the adjoint (`⌈√T⌉` when `None`).
+    pub segment: Option<usize>,
+}
+
+impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
+    /// The values of the unknowns in the scene (an initial velocity: the mean of `v_p·d`
+    /// over its particles).
+    ///
+    /// # Errors
+    /// A parameter the configuration does not have, or a velocity with no particle.
+    pub fn values(&self) -> Result<Vec<f64>, AdjointError> {
+        self.controls
+            .iter()
+            .map(|c| match c {
+                Control::Param(p) => p.value(&self.config),
+                Control::InitialVelocity { direction, .. } => {
+                    let along: Vec<f64> = (0..self.initial.len())
+                        .filter(|&p| c.selects(self.initial.material[p]))
+                        .map(|p| (0..D).map(|a| self.initial.v[p][a] * direction[a]).sum())
+                        .collect();
+                    let Some(&first) = along.first() else {
+                        return Err(AdjointError::Parameter {
+                            param: "initial velocity".into(),
+                            msg: "no particle has the material it names".into(),
+                        });
+                    };
+                    // The mean as `a₀ + Σ (aᵢ − a₀) / n`: exactly the value when all agree.
+                    let spread: f64 = along.iter().map(|a| a - first).sum();
+                    Ok(first + spread / along.len() as f64)
+                }
+            })
+            .collect()
+    }
+
+    /// The configuration and initial state with the unknowns set to `theta`; a density sets
+    /// the masses of its material's particles, `m_p = ρ₀ V⁰_p`.
+    ///
+    /// # Errors
+    /// A parameter the configuration does not have.
+    pub fn setup(
+        &self,
+        theta: &[f64],
+    ) -> Result<(Config<f64, D>, Particles<f64, D>), AdjointError> {
+        let mut config = self.config.clone();
+        let mut particles = self.initial.clone();
+        for (control, &value) in self.controls.iter().zip(theta) {
+            match control {
+                Control::Param(param) => {
+                    param.set(&mut config, value)?;
+                    if let Param::Material(m, MaterialField::Density) = *param {
+                        for p in 0..particles.len() {
+                            if particles.material[p] as usize == m {
+                                particles.mass[p] = value * particles.volume0[p];
+                            }
+                        }
+                    }
+                }
+                Control::InitialVelocity { direction, .. } => {
+                    for p in 0..particles.len() {
+                        if control.selects(particles.material[p]) {
+                            let v = &mut particles.v[p];
+                            let along: f64 = (0..D).map(|a| v[a] * direction[a]).sum();
+                            for a in 0..D {
+                                v[a] += (value - along) * direction[a];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok((config, particles))
+    }
+
+    /// The loss at `theta`, by a forward run.
+    ///
+    /// # Errors
+    /// As [`Problem::setup`], or a run that is refused or stops.
+    pub fn loss(&self, theta: &[f64]) -> Result<f64, AdjointError> {
+        let (config, particles) = self.setup(theta)?;
+        run_value(config, particles, self.steps, &self.objective)
+    }
+
+    /// The loss and `dL/dθ` at `theta`, by the discrete adjoint ([`gradient`]).
+    ///
+    /// # Errors
+    /// As [`gradient`].
+    pub fn gradient(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), AdjointError> {
+        let (config, particles) = self.setup(theta)?;
+        let params: Vec<Param> = (self.controls.iter())
+            .filter_map(|c| match c {
+                Control::Param(p) => Some(*p),
+                Control::InitialVelocity { .. } => None,
+            })
+            .collect();
+        let g = gradient(
+            &config,
+            &particles,
+            self.steps,
+            &params,
+            &self.objective,
+            self.segment,
+        )?;
+        let mut from_params = g.params.iter();
+        let derivative = (self.controls.iter())
+            .map(|c| match c {
+                // `gradient` returns the parameters in the order asked for.
+                Control::Param(_) => from_params.next().copied().unwrap_or_default(),
+                Control::InitialVelocity { direction, .. } => (0..particles.len())
+                    .filter(|&p| c.selects(particles.material[p]))
+                    .map(|p| {
+                        (0..D)
+                            .map(|a| g.initial.v[p][a] * direction[a])
+                            .sum::<f64>()
+                    })
+                    .sum(),
+            })
+            .collect();
+        Ok((g.loss, derivative))
+    }
+
+    /// `dL/dθ_k` at `theta` by a forward-mode dual run: the configuration lifted to `Dual64`
+    /// with the parameter seeded ([`Param::seeded`]; a density also seeds the masses,
+    /// `dm_p/dρ₀ = V⁰_p`), or the initial velocities seeded with `dv_p/dθ = d`.
+    ///
+    /// # Errors
+    /// As [`Problem::loss`].
+    pub fn dual_derivative(&self, theta: &[f64], k: usize) -> Result<f64, AdjointError> {
+        let (config, particles) = self.setup(theta)?;
+        let mut lifted: Particles<Dual64, D> = particles.lift();
+        let control = &self.controls[k];
+        let seeded = match control {
+            Control::Param(param) => {
+                if let Param::Material(m, MaterialField::Density) = *param {
+                    for p in 0..lifted.len() {
+                        if particles.material[p] as usize == m {
+                            lifted.mass[p].eps = particles.volume0[p];
+                        }
+                    }
+                }
+                param.seeded(&config)?
+            }
+            Control::InitialVelocity { direction, .. } => {
+                for p in 0..lifted.len() {
+                    if control.selects(particles.material[p]) {
+                        for a in 0..D {
+                            lifted.v[p][a].eps = direction[a];
+                        }
+                    }
+                }
+                config.lift()
+            }
+        };
+        Ok(run_value(seeded, lifted, self.steps, &self.objective)?.eps)
+    }
+}
+
+/// `L = Σ_n ℓ_n` over a forward run of `steps` steps in any scalar type
+/// ([`ScalarObjective::value`]).
+///
+/// # Errors
+/// A run that is refused or stops.
+pub fn run_value<T: Scalar, const D: usize, O: ScalarObjective<D>>(
+    config: Config<T, D>,
+    mut particles: Particles<T, D>,
+    steps: usize,
+    objective: &O,
+) -> Result<T, AdjointError> {
+    let mut solver = Solver::new(config, &particles)?;
+    let mut loss = objective.value(0, &particles);
+    for s in 1..=steps {
+        solver.step(&mut particles, f64::INFINITY)?;
+        loss += objective.value(s, &particles);
+    }
+    Ok(loss)
+}

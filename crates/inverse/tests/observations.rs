@@ -1,0 +1,192 @@
+//! Observations and inverse problems against forward-mode duals.
+//!
+//! Synthetic observations (tracked positions and velocity monitors) are recorded from a
+//! truth run; the loss at other values of the unknowns must have the adjoint gradient of
+//! [`Problem::gradient`] equal to the dual derivative of [`Problem::dual_derivative`] (both
+//! exact derivatives of the same discrete map: 1e-10 relative, the round-off of summing the
+//! nodal contributions in another order, as in `adjoint.rs`), and the dual derivative must
+//! equal a central difference (1e-5 relative: steps of 10⁻⁴ |θ| taking the same branches,
+//! truncation O(δ²) ≈ 1e-8 relative, round-off of a loss of order 1e-4 about 1e-12 / δ).
+
+use loam_core::Particles;
+use loam_core::tensor::Vector;
+use loam_explicit::Config;
+use loam_inverse::{
+    Control, MaterialField, MonitorBox, Observations, Param, Problem, VelocityMonitors,
+};
+use loam_scene::Scene;
+use std::collections::BTreeSet;
+
+/// Water (MLS-MPM, USL) collapsing on a floor of two Coulomb segments.
+const FLUID_2D: &str = r#"
+[grid]
+lo = [0.0, 0.0]
+hi = [0.4, 0.2]
+cell_size = 0.02
+shape_function = "quadratic_bspline"
+
+[[materials]]
+name = "water"
+model = "fluid"
+density = 1000.0
+sound_speed = 10.0
+gamma = 7.0
+viscosity = 0.05
+
+[[bodies]]
+material = "water"
+shape = { type = "box", lo = [0.0, 0.0], hi = [0.12, 0.1] }
+particles_per_cell = 2
+velocity = [0.3, 0.0]
+
+[boundaries]
+x_min = "slip"
+x_max = "slip"
+y_min = { kind = "slip", separable = true }
+y_max = "slip"
+
+[[friction]]
+wall = "y_min"
+mu = 0.3
+from = [0.0]
+to = [0.06]
+
+[[friction]]
+wall = "y_min"
+mu = 0.1
+from = [0.06]
+to = [0.4]
+
+[loads]
+gravity = [0.0, -9.81]
+
+[solver]
+type = "explicit"
+scheme = "usl"
+transfer = "mls"
+time_step = { type = "fixed", dt = 5e-4 }
+end_time = 0.03
+"#;
+
+const STEPS: usize = 50;
+
+fn scene() -> (Config<f64, 2>, Particles<f64, 2>) {
+    let built = Scene::from_toml_str(FLUID_2D)
+        .and_then(|s| s.build::<2>())
+        .unwrap_or_else(|e| panic!("{e}"));
+    (built.explicit_config().expect("explicit"), built.particles)
+}
+
+/// Two boxes on the floor in the path of the flow, observed every 10 steps with every 9th
+/// particle.
+fn truth_observations(config: &Config<f64, 2>, particles: &Particles<f64, 2>) -> Observations<2> {
+    let boxes = vec![
+        MonitorBox {
+            lo: Vector::from([0.04, 0.0]),
+            hi: Vector::from([0.1, 0.04]),
+        },
+        MonitorBox {
+            lo: Vector::from([0.1, 0.0]),
+            hi: Vector::from([0.2, 0.06]),
+        },
+    ];
+    let observed: BTreeSet<usize> = (10..=STEPS).step_by(10).collect();
+    let ids: Vec<usize> = (0..particles.len()).step_by(9).collect();
+    Observations::record(config, particles, STEPS, &observed, &ids, boxes, (1.0, 0.5))
+        .expect("truth run")
+}
+
+fn controls() -> Vec<Control> {
+    vec![
+        Control::Param(Param::Friction(0)),
+        Control::Param(Param::Friction(1)),
+        Control::Param(Param::Material(0, MaterialField::Viscosity)),
+        Control::Param(Param::Material(0, MaterialField::Density)),
+        Control::InitialVelocity {
+            material: None,
+            direction: vec![1.0, 0.0],
+        },
+        Control::InitialVelocity {
+            material: Some(0),
+            direction: vec![0.0, 1.0],
+        },
+    ]
+}
+
+fn check(problem: &Problem<2, Observations<2>>, theta: &[f64], difference: bool) {
+    let (loss, grad) = problem.gradient(theta).expect("gradient");
+    let plain = problem.loss(theta).expect("loss");
+    assert!((loss - plain).abs() <= 1e-12 * plain, "{loss} vs {plain}");
+    for (k, control) in problem.controls.iter().enumerate() {
+        let dual = problem.dual_derivative(theta, k).expect("dual");
+        println!("{control:?}: adjoint {:.12e}, dual {dual:.12e}", grad[k]);
+        assert!(
+            (grad[k] - dual).abs() <= 1e-10 * dual.abs().max(1e-12 * loss),
+            "{control:?}: adjoint {:e} vs dual {dual:e}",
+            grad[k]
+        );
+        if difference {
+            let delta = 1e-4 * theta[k].abs().max(1e-2);
+            let at = |d: f64| {
+                let mut t = theta.to_vec();
+                t[k] += d;
+                problem.loss(&t).expect("loss")
+            };
+            let fd = (at(delta) - at(-delta)) / (2.0 * delta);
+            println!("  central difference {fd:.12e}");
+            assert!(
+                (fd - dual).abs() <= 1e-5 * dual.abs().max(1e-8 * loss),
+                "{control:?}: central difference {fd:e} vs dual {dual:e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn tracked_and_monitor_losses_have_exact_adjoints() {
+    let (config, particles) = scene();
+    let objective = truth_observations(&config, &particles);
+    assert!(!objective.monitors.targets.is_empty() && !objective.tracked.targets.is_empty());
+    let problem = Problem {
+        config,
+        initial: particles,
+        steps: STEPS,
+        controls: controls(),
+        objective,
+        segment: None,
+    };
+    let truth = problem.values().expect("values");
+    assert_eq!(truth, vec![0.3, 0.1, 0.05, 1000.0, 0.3, 0.0]);
+    // At the truth the synthetic observations are matched exactly.
+    assert_eq!(problem.loss(&truth).expect("loss"), 0.0);
+    let guess = [0.5, 0.2, 0.08, 1050.0, 0.5, -0.1];
+    check(&problem, &guess, false);
+}
+
+#[test]
+fn monitor_loss_alone_matches_the_dual_run_and_differences() {
+    let (config, particles) = scene();
+    let all = truth_observations(&config, &particles);
+    let objective = Observations {
+        tracked: Default::default(),
+        monitors: VelocityMonitors {
+            weight: 2.0,
+            ..all.monitors
+        },
+    };
+    let problem = Problem {
+        config,
+        initial: particles,
+        steps: STEPS,
+        controls: vec![
+            Control::Param(Param::Material(0, MaterialField::Viscosity)),
+            Control::InitialVelocity {
+                material: None,
+                direction: vec![0.6, 0.8],
+            },
+        ],
+        objective,
+        segment: Some(7),
+    };
+    check(&problem, &[0.07, 0.45], true);
+}
