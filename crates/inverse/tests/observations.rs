@@ -14,68 +14,17 @@ use loam_explicit::Config;
 use loam_inverse::{
     Control, MaterialField, MonitorBox, Observations, Param, Problem, VelocityMonitors,
 };
-use loam_scene::Scene;
 use std::collections::BTreeSet;
 
-/// Water (MLS-MPM, USL) collapsing on a floor of two Coulomb segments.
-const FLUID_2D: &str = r#"
-[grid]
-lo = [0.0, 0.0]
-hi = [0.4, 0.2]
-cell_size = 0.02
-shape_function = "quadratic_bspline"
+mod common;
+use common::FLUID_2D;
 
-[[materials]]
-name = "water"
-model = "fluid"
-density = 1000.0
-sound_speed = 10.0
-gamma = 7.0
-viscosity = 0.05
-
-[[bodies]]
-material = "water"
-shape = { type = "box", lo = [0.0, 0.0], hi = [0.12, 0.1] }
-particles_per_cell = 2
-velocity = [0.3, 0.0]
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = { kind = "slip", separable = true }
-y_max = "slip"
-
-[[friction]]
-wall = "y_min"
-mu = 0.3
-from = [0.0]
-to = [0.06]
-
-[[friction]]
-wall = "y_min"
-mu = 0.1
-from = [0.06]
-to = [0.4]
-
-[loads]
-gravity = [0.0, -9.81]
-
-[solver]
-type = "explicit"
-scheme = "usl"
-transfer = "mls"
-time_step = { type = "fixed", dt = 5e-4 }
-end_time = 0.03
-"#;
+/// The fluid scene's solver inputs.
+fn scene() -> (Config<f64, 2>, Particles<f64, 2>) {
+    common::scene(FLUID_2D)
+}
 
 const STEPS: usize = 50;
-
-fn scene() -> (Config<f64, 2>, Particles<f64, 2>) {
-    let built = Scene::from_toml_str(FLUID_2D)
-        .and_then(|s| s.build::<2>())
-        .unwrap_or_else(|e| panic!("{e}"));
-    (built.explicit_config().expect("explicit"), built.particles)
-}
 
 /// Two boxes on the floor in the path of the flow, observed every 10 steps with every 9th
 /// particle.

@@ -38,7 +38,7 @@ mod usl;
 
 use crate::adjoint_state::ParticleAdjoint;
 use crate::error::AdjointError;
-use crate::lanes::{Packed, Unpack, constants, dot_eps, vjp};
+use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
 use crate::params::{Acts, Param};
 use kernels::node_update;
 use loam_core::constitutive::Material;
@@ -223,6 +223,39 @@ impl<const D: usize> ReverseStep<D> {
         };
         self.reverse_nodes(time, dt, extra_mass.as_deref(), gradient);
         self.reverse_p2g(start, dt, &shares, adjoint);
+    }
+
+    /// The local VJP of a particle kernel `f(material, inputs, outputs)` at `input` for a
+    /// particle of material `mat`, seeding `lanes`, against the output adjoints `y_bar`; adds
+    /// the shares of the parameters of that material to `grad` (one evaluation each with the
+    /// seeded material and constant inputs). Returns the input adjoints.
+    fn particle_vjp(
+        &self,
+        mat: usize,
+        input: &Packed<f64>,
+        lanes: &[usize],
+        y_bar: &Packed<f64>,
+        grad: &mut [f64],
+        f: impl Fn(&Material<Dual64>, &[Dual64], &mut Packed<Dual64>),
+    ) -> [f64; MAX_LANES] {
+        let mut x_bar = [0.0; MAX_LANES];
+        let material = &self.base.materials[mat];
+        vjp(
+            input.as_slice(),
+            lanes.iter().copied(),
+            y_bar.as_slice(),
+            &mut x_bar,
+            |i, out| f(material, i, out),
+        );
+        let constant = constants(input.as_slice());
+        for (index, m, seeded) in &self.particle_params {
+            if *m == mat {
+                let mut out = Packed::default();
+                f(seeded, constant.as_slice(), &mut out);
+                grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
+            }
+        }
+        x_bar
     }
 
     /// The stencil site of particle `i`.

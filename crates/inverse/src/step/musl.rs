@@ -116,23 +116,14 @@ impl<const D: usize> ReverseStep<D> {
                     y_bar.vector(&adjoint.x[i]);
                     y_bar.vector(&adjoint.v[i]);
                     pack_end_adjoint(adjoint, i, &mut y_bar);
-                    let mut x_bar = [0.0; MAX_LANES];
-                    let material = &self.base.materials[mat];
-                    vjp(
-                        input.as_slice(),
-                        end_lanes[mat].iter().copied(),
-                        y_bar.as_slice(),
-                        &mut x_bar,
-                        |i, out| kernels::musl_end(dtd, &end, material, i, out),
+                    let x_bar = self.particle_vjp(
+                        mat,
+                        &input,
+                        &end_lanes[mat],
+                        &y_bar,
+                        &mut grad,
+                        |m, i, out| kernels::musl_end(dtd, &end, m, i, out),
                     );
-                    let constant = constants(input.as_slice());
-                    for (index, m, seeded) in &self.particle_params {
-                        if *m == mat {
-                            let mut out = Packed::default();
-                            kernels::musl_end(dtd, &end, seeded, constant.as_slice(), &mut out);
-                            grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
-                        }
-                    }
                     let mut u = Unpack::new(&x_bar[..start + End::len(D)]);
                     let l_bar = u.tensor::<D>();
                     moved_bar[k] = (u.vector::<D>(), u.vector::<D>());

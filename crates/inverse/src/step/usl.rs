@@ -5,7 +5,7 @@ use super::kernels::{self, End, Motion};
 use super::transfers::gather_adjoint;
 use super::{CHUNK, ParticleShare, ReverseStep, Scatter, add_parts, pack_end, pack_end_adjoint};
 use crate::adjoint_state::ParticleAdjoint;
-use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
+use crate::lanes::{Packed, Unpack};
 use loam_core::stencil::Layout;
 use loam_core::step::EndOfStep;
 use loam_core::tensor::Vector;
@@ -83,30 +83,14 @@ impl<const D: usize> ReverseStep<D> {
                     y_bar.vector(&adjoint.v[i]);
                     y_bar.tensor(&adjoint.c[i]);
                     pack_end_adjoint(adjoint, i, &mut y_bar);
-                    let mut x_bar = [0.0; MAX_LANES];
-                    let material = &self.base.materials[mat];
-                    vjp(
-                        input.as_slice(),
-                        lanes[mat].iter().copied(),
-                        y_bar.as_slice(),
-                        &mut x_bar,
-                        |i, out| kernels::usl_particle(transfer, dtd, &end, material, i, out),
+                    let x_bar = self.particle_vjp(
+                        mat,
+                        &input,
+                        &lanes[mat],
+                        &y_bar,
+                        &mut grad,
+                        |m, i, out| kernels::usl_particle(transfer, dtd, &end, m, i, out),
                     );
-                    let constant = constants(input.as_slice());
-                    for (index, m, seeded) in &self.particle_params {
-                        if *m == mat {
-                            let mut out = Packed::default();
-                            kernels::usl_particle(
-                                transfer,
-                                dtd,
-                                &end,
-                                seeded,
-                                constant.as_slice(),
-                                &mut out,
-                            );
-                            grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
-                        }
-                    }
                     let mut u = Unpack::new(&x_bar[..Motion::<D>::END + End::len(D)]);
                     let g_bar = Gathered {
                         v: u.vector::<D>(),
