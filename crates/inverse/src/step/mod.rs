@@ -31,6 +31,7 @@
 //! parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
 //! order: the gradient has the same bits at any thread count.
 
+mod fluid_mls;
 mod kernels;
 mod musl;
 mod transfers;

@@ -1,7 +1,10 @@
 //! The adjoints of the transfers, written for the stencil: P2G's is a gather of the node
-//! adjoints, G2P's a scatter to the nodes; the dependence on the particle position (through
-//! the weights, their gradients and the offsets `x_i − x_p`) is taken by `D` evaluations of
-//! the same sums with a dual position.
+//! adjoints, G2P's a scatter to the nodes. The dependence on the particle position goes
+//! through the weights, their gradients and the offsets `x_i − x_p`: in closed form where the
+//! sums hold no weight gradient (MLS-MPM, MUSL's motion and second P2G), which needs only the
+//! weights' first derivatives `∇w`; otherwise (the force `−V σ ∇w` and the velocity gradient
+//! `Σ v ∇wᵀ`, whose derivatives need the second derivatives of the weights) by `D`
+//! evaluations of the same sums with a dual position.
 
 use loam_core::stencil::Stencil;
 use loam_core::tensor::{Tensor, Vector};
@@ -80,6 +83,28 @@ pub(super) fn gather_adjoint<const D: usize>(
         out[k] = (node.flat, a, -g_bar.dv * w);
         k += 1;
     });
+    if grad_bar == Tensor::<f64, D>::zeros() {
+        // No ∇w term: J = Σ_i w_i a_i with a_i = v_i·(Ḡ.v + Ḡ.dv) − vⁿ_i·Ḡ.dv + v_iᵀ Ā o_i, so
+        // ∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i (∂o_i/∂x_p = −I): the weights' first
+        // derivatives only.
+        let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
+        site.stencil().for_each(|node| {
+            let vi = velocity[node.flat];
+            let mut a = vi.dot(&(g_bar.v + g_bar.dv));
+            if !old.is_empty() {
+                a -= old[node.flat].dot(&g_bar.dv);
+            }
+            if let Some(aff) = &aff_bar {
+                a += vi.dot(&(aff * node.offset));
+            }
+            x_bar += node.gradient * a;
+            wv += vi * node.weight;
+        });
+        if let Some(aff) = &aff_bar {
+            x_bar -= aff.transpose() * wv;
+        }
+        return x_bar;
+    }
     let (gv, gdv) = (g_bar.v.map(Dual64::from_re), g_bar.dv.map(Dual64::from_re));
     let grad_d = grad_bar.map(Dual64::from_re);
     let aff_d = aff_bar.map(|a| a.map(Dual64::from_re));
@@ -149,6 +174,22 @@ impl<const D: usize> NodeAdjoints<'_, D> {
         a: &Tensor<f64, D>,
         sv: &Tensor<f64, D>,
     ) -> Vector<f64, D> {
+        if self.force.is_none() {
+            // No ∇w term (MLS-MPM's P2G, MUSL's second P2G): J = Σ_i w_i b_i with
+            // b_i = m m̄_i + P̄_i·(m v + A o_i), so ∂J/∂x_p = Σ_i ∇w_i b_i − Aᵀ Σ_i w_i P̄_i.
+            let mv = v * m;
+            let (mut x_bar, mut wp) = (Vector::zeros(), Vector::zeros());
+            site.stencil().for_each(|node| {
+                let pb = self.momentum[node.flat];
+                let mut b = pb.dot(&(mv + a * node.offset));
+                if let Some(mass) = self.mass {
+                    b += m * mass[node.flat];
+                }
+                x_bar += node.gradient * b;
+                wp += pb * node.weight;
+            });
+            return x_bar - a.transpose() * wp;
+        }
         let mv = (v * m).map(Dual64::from_re);
         let a = a.map(Dual64::from_re);
         let sv = sv.map(Dual64::from_re);

@@ -1,11 +1,14 @@
 //! USL in reverse: per particle, the local VJP of G2P and the particle end together
-//! ([`kernels::usl_particle`]) and the scatter of the gathered sums' adjoints to the nodes.
+//! ([`kernels::usl_particle`]; in closed form for MLS-MPM with the fluid, [`fluid_mls`]) and
+//! the scatter of the gathered sums' adjoints to the nodes.
 
+use super::fluid_mls;
 use super::kernels::{self, End, Motion};
 use super::transfers::gather_adjoint;
 use super::{CHUNK, ParticleShare, ReverseStep, Scatter, add_parts, pack_end, pack_end_adjoint};
 use crate::adjoint_state::ParticleAdjoint;
 use crate::lanes::{Packed, Unpack};
+use loam_core::constitutive::Model;
 use loam_core::stencil::Layout;
 use loam_core::step::EndOfStep;
 use loam_core::tensor::Vector;
@@ -28,6 +31,7 @@ impl<const D: usize> ReverseStep<D> {
     ) -> Vec<ParticleShare<D>> {
         let cfg = &self.config;
         let end = EndOfStep::new(&cfg.grid, &cfg.boundary, &self.base.contact, time + dt);
+        let end_f64 = EndOfStep::new(&cfg.grid, &cfg.boundary, &cfg.contact, time + dt);
         let dtd = Dual64::from_re(dt);
         let (grid, transfer, shape) = (&cfg.grid, cfg.transfer, cfg.shape);
         let stencil_len = shape.support_width().pow(D as u32);
@@ -70,37 +74,60 @@ impl<const D: usize> ReverseStep<D> {
                         v_hat,
                         old,
                     );
-                    let mut input = Packed::<f64>::default();
-                    input.vector(&g.v);
-                    input.vector(&g.dv);
-                    input.tensor(&g.grad_v);
-                    input.tensor(&g.affine);
-                    input.vector(&p.x[i]);
-                    input.vector(&p.v[i]);
-                    pack_end(p, i, &mut input);
-                    let mut y_bar = Packed::<f64>::default();
-                    y_bar.vector(&adjoint.x[i]);
-                    y_bar.vector(&adjoint.v[i]);
-                    y_bar.tensor(&adjoint.c[i]);
-                    pack_end_adjoint(adjoint, i, &mut y_bar);
-                    let x_bar = self.particle_vjp(
-                        mat,
-                        &input,
-                        &lanes[mat],
-                        &y_bar,
-                        &mut grad,
-                        |m, i, out| kernels::usl_particle(transfer, dtd, &end, m, i, out),
-                    );
-                    let mut u = Unpack::new(&x_bar[..Motion::<D>::END + End::len(D)]);
-                    let g_bar = Gathered {
-                        v: u.vector::<D>(),
-                        dv: u.vector::<D>(),
-                        grad_v: u.tensor::<D>(),
-                        affine: u.tensor::<D>(),
+                    let model = &cfg.materials[mat].model;
+                    let g_bar = if let (true, Model::Fluid(fluid)) = (transfer.is_mls(), model) {
+                        let y = (
+                            &adjoint.x[i],
+                            &adjoint.v[i],
+                            &adjoint.c[i],
+                            &adjoint.f[i],
+                            &adjoint.stress[i],
+                        );
+                        let r = fluid_mls::reverse(fluid, &end_f64, dt, &g, &p.x[i], &p.f[i], y);
+                        *share = r.share;
+                        for (index, m, seeded) in &self.particle_params {
+                            if let (true, Model::Fluid(s)) = (*m == mat, &seeded.model) {
+                                let [k_bar, gamma_bar, eta_bar] = r.params;
+                                grad[*index] += k_bar * s.bulk_modulus.eps
+                                    + gamma_bar * s.gamma.eps
+                                    + eta_bar * s.viscosity.eps;
+                            }
+                        }
+                        r.g_bar
+                    } else {
+                        let mut input = Packed::<f64>::default();
+                        input.vector(&g.v);
+                        input.vector(&g.dv);
+                        input.tensor(&g.grad_v);
+                        input.tensor(&g.affine);
+                        input.vector(&p.x[i]);
+                        input.vector(&p.v[i]);
+                        pack_end(p, i, &mut input);
+                        let mut y_bar = Packed::<f64>::default();
+                        y_bar.vector(&adjoint.x[i]);
+                        y_bar.vector(&adjoint.v[i]);
+                        y_bar.tensor(&adjoint.c[i]);
+                        pack_end_adjoint(adjoint, i, &mut y_bar);
+                        let x_bar = self.particle_vjp(
+                            mat,
+                            &input,
+                            &lanes[mat],
+                            &y_bar,
+                            &mut grad,
+                            |m, i, out| kernels::usl_particle(transfer, dtd, &end, m, i, out),
+                        );
+                        let mut u = Unpack::new(&x_bar[..Motion::<D>::END + End::len(D)]);
+                        let g_bar = Gathered {
+                            v: u.vector::<D>(),
+                            dv: u.vector::<D>(),
+                            grad_v: u.tensor::<D>(),
+                            affine: u.tensor::<D>(),
+                        };
+                        share.x = u.vector::<D>();
+                        share.v = u.vector::<D>();
+                        share.read_end(&mut u);
+                        g_bar
                     };
-                    share.x = u.vector::<D>();
-                    share.v = u.vector::<D>();
-                    share.read_end(&mut u);
                     let out = &mut scatter[k * stencil_len..(k + 1) * stencil_len];
                     share.x += gather_adjoint(&site, form, &g_bar, v_hat, old, out);
                 }
