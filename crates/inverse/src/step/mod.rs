@@ -44,7 +44,7 @@ use crate::params::{Acts, Param};
 use kernels::node_update;
 use loam_core::constitutive::Material;
 use loam_core::stencil::{Layout, particle_half_width};
-use loam_core::step::{NodeLaw, NodeState, NodeSums, P2g, momentum_update};
+use loam_core::step::{NodeLaw, NodeState, NodeSums, P2g, momentum_update, on_a_face};
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
 use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
 use loam_explicit::{Config, MASS_EPS};
@@ -262,12 +262,8 @@ impl<const D: usize> ReverseStep<D> {
     /// The stencil site of particle `i`.
     fn site(&self, p: &Particles<f64, D>, i: usize) -> Site<'_, D> {
         let cfg = &self.config;
-        Site {
-            grid: &cfg.grid,
-            shape: cfg.shape,
-            x: p.x[i],
-            half_width: particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]),
-        }
+        let half_width = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
+        Site::new(&cfg.grid, cfg.shape, p.x[i], half_width)
     }
 
     /// How the transfer's G2P forms its sums.
@@ -370,7 +366,11 @@ impl<const D: usize> ReverseStep<D> {
             .iter()
             .map(|(k, param, c)| {
                 let law = NodeLaw::new(grid, &cfg.boundary, &c.contact, time + dt);
-                (*k, matches!(param, Param::Gravity(_)), law, c.gravity)
+                let axis = match param {
+                    Param::Gravity(a) => Some(*a),
+                    _ => None,
+                };
+                (*k, axis, law, c.gravity)
             })
             .collect();
         let g = &mut self.grid;
@@ -401,11 +401,27 @@ impl<const D: usize> ReverseStep<D> {
                     if y_bar.as_slice().iter().all(|&y| y == 0.0) {
                         continue;
                     }
+                    let node = grid.multi(n);
+                    let touched = states[n].contact.active != 0;
+                    if !touched && !on_a_face(grid, node) {
+                        // Nothing acted on an interior node: vⁿ = P/m, v̂ = vⁿ + Δt (f/m + g),
+                        // whose transpose is m̄ = −(P·(v̄ⁿ + v̂̄) + Δt f·v̂̄)/m², P̄ = (v̄ⁿ + v̂̄)/m,
+                        // f̄ = Δt v̂̄/m, ḡ = Δt v̂̄.
+                        let (m, p, f) = (sums[n].m, sums[n].p, sums[n].f);
+                        let (yo, yh) = (adj_v_old[n], adj_v_hat[n]);
+                        am[k] -= (p.dot(&(yo + yh)) + dt * f.dot(&yh)) / (m * m);
+                        (ap[k], af[k]) = ((yo + yh) / m, yh * (dt / m));
+                        for (index, axis, ..) in &seeded {
+                            if let Some(a) = axis {
+                                grad[*index] += dt * yh[*a];
+                            }
+                        }
+                        continue;
+                    }
                     let mut input = Packed::<f64>::default();
                     input.push(sums[n].m);
                     input.vector(&sums[n].p);
                     input.vector(&sums[n].f);
-                    let node = grid.multi(n);
                     let mut x_bar = [0.0; 1 + 2 * 3];
                     vjp(
                         input.as_slice(),
@@ -418,9 +434,8 @@ impl<const D: usize> ReverseStep<D> {
                     am[k] += u.scalar();
                     (ap[k], af[k]) = (u.vector::<D>(), u.vector::<D>());
                     let constant = constants(input.as_slice());
-                    let touched = states[n].contact.active != 0;
-                    for (index, gravity_param, law, grav) in &seeded {
-                        if *gravity_param || touched {
+                    for (index, axis, law, grav) in &seeded {
+                        if axis.is_some() || touched {
                             let mut out = Packed::default();
                             node_update(law, grav, dtd, node, constant.as_slice(), &mut out);
                             grad[*index] += dot_eps(out.as_slice(), y_bar.as_slice());
@@ -491,12 +506,12 @@ impl<const D: usize> ReverseStep<D> {
                         None => Tensor::zeros(),
                     };
                     // J = m S₀ + m v·S₁ + A:S₂ − (V σ):S₃ (MLS-MPM: the force is in A).
-                    let s = nodes.moments(&site);
+                    let (s, x_bar) = nodes.moments_and_position(&site, m, &vp, &a, &sv);
                     let sv_bar = match mls {
                         Some(k) => -s.s2 * k,
                         None => -s.s3,
                     };
-                    *x = share.x + nodes.position_derivative(&site, m, &vp, &a, &sv);
+                    *x = share.x + x_bar;
                     *v = share.v + s.s1 * m;
                     *c = if affine { s.s2 * m } else { Tensor::zeros() };
                     let vol_bar = sv_bar.component_mul(&sigma).sum();

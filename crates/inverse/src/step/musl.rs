@@ -46,12 +46,20 @@ impl<const D: usize> ReverseStep<D> {
         let moved: Vec<Moved<D>> = (0..p.len())
             .into_par_iter()
             .with_min_len(CHUNK)
-            .map(|i| stage.motion(&self.site(p, i).stencil(), v_hat, old, &p.x[i], &p.v[i]))
+            .map(|i| stage.motion(self.site(p, i).stencil(), v_hat, old, &p.x[i], &p.v[i]))
             .collect();
         let mut sums = vec![NodeSums::zero(); n_nodes];
         for (i, (_, v1, c1)) in moved.iter().enumerate() {
-            let st = self.site(p, i).stencil();
-            momentum_to_grid(&st, &layout, p.mass[i], v1, c1, affine, &mut sums);
+            let site = self.site(p, i);
+            momentum_to_grid(
+                site.stencil(),
+                &layout,
+                p.mass[i],
+                v1,
+                c1,
+                affine,
+                &mut sums,
+            );
         }
         let mut p2: Vec<Vector<f64, D>> = sums.iter().map(|s| s.p).collect();
         cfg.boundary.fold_ghosts(grid, None, &mut p2, None);
@@ -105,7 +113,7 @@ impl<const D: usize> ReverseStep<D> {
                     let i = chunk * CHUNK + k;
                     let mat = p.material[i] as usize;
                     let site = self.site(p, i);
-                    let l = stage.velocity_gradient(&site.stencil(), &v2);
+                    let l = stage.velocity_gradient(site.stencil(), &v2);
                     let (x1, v1, _) = moved[i];
                     let mut input = Packed::<f64>::default();
                     input.tensor(&l);
@@ -215,26 +223,29 @@ impl<const D: usize> ReverseStep<D> {
                     let site = self.site(p, i);
                     let (_, v1, c1) = moved[i];
                     let m = p.mass[i];
-                    let s = second.moments(&site);
+                    let a = if affine { c1 * m } else { Tensor::zeros() };
+                    let (s, x_bar) =
+                        second.moments_and_position(&site, m, &v1, &a, &Tensor::zeros());
                     let (x1_bar, mut v1_bar) = moved_bar[i];
                     v1_bar += s.s1 * m;
                     let mut c1_bar = adjoint.c[i];
-                    let a = if affine {
+                    share.mass = v1.dot(&s.s1);
+                    if affine {
                         c1_bar += s.s2 * m;
-                        c1 * m
-                    } else {
-                        Tensor::zeros()
-                    };
-                    share.mass = v1.dot(&s.s1)
-                        + if affine {
-                            c1.component_mul(&s.s2).sum()
-                        } else {
-                            0.0
-                        };
-                    share.x += second.position_derivative(&site, m, &v1, &a, &Tensor::zeros());
+                        share.mass += c1.component_mul(&s.s2).sum();
+                    }
+                    share.x += x_bar;
                     // The motion: (x1, v1, C1) from the gathered sums and (x, v).
-                    let st = site.stencil();
-                    let g = g2p(&st, &layout, grid, shape, transfer, false, v_hat, old);
+                    let g = g2p(
+                        site.stencil(),
+                        &layout,
+                        grid,
+                        shape,
+                        transfer,
+                        false,
+                        v_hat,
+                        old,
+                    );
                     let mut input = Packed::<f64>::default();
                     input.vector(&g.v);
                     input.vector(&g.dv);

@@ -6,25 +6,52 @@
 //! `Σ v ∇wᵀ`, whose derivatives need the second derivatives of the weights) by `D`
 //! evaluations of the same sums with a dual position.
 
-use loam_core::stencil::Stencil;
+use loam_core::stencil::{Layout, Stencil};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::Gathered;
 use loam_core::{Grid, Shape};
 use num_dual::Dual64;
 
-/// What the stencil of one particle needs: grid, shape and the particle's half-width.
+/// One particle's place on the grid: grid, shape, position, half-width, and its stencil
+/// (formed once and shared by the reverse passes of the step).
 #[derive(Clone, Copy)]
 pub(super) struct Site<'a, const D: usize> {
-    pub grid: &'a Grid<D>,
-    pub shape: Shape,
-    pub x: Vector<f64, D>,
-    pub half_width: Vector<f64, D>,
+    grid: &'a Grid<D>,
+    shape: Shape,
+    x: Vector<f64, D>,
+    half_width: Vector<f64, D>,
+    stencil: Stencil<f64, D>,
 }
 
-impl<const D: usize> Site<'_, D> {
+impl<'a, const D: usize> Site<'a, D> {
+    /// The site of a particle at `x` with half-width `half_width`.
+    pub fn new(
+        grid: &'a Grid<D>,
+        shape: Shape,
+        x: Vector<f64, D>,
+        half_width: Vector<f64, D>,
+    ) -> Self {
+        Self {
+            grid,
+            shape,
+            x,
+            half_width,
+            stencil: Stencil::new(shape, grid, &x, &half_width),
+        }
+    }
+
     /// The stencil at the particle.
-    pub fn stencil(&self) -> Stencil<f64, D> {
-        Stencil::new(self.shape, self.grid, &self.x, &self.half_width)
+    pub fn stencil(&self) -> &Stencil<f64, D> {
+        &self.stencil
+    }
+
+    /// Calls `f(node, w, ∇w, x_i − x_p)` for every node of the stencil (`node` the flat grid
+    /// index).
+    #[inline]
+    pub fn each(&self, f: impl FnMut(usize, f64, Vector<f64, D>, Vector<f64, D>)) {
+        let mut f = f;
+        self.stencil
+            .for_each_in(&Layout::grid(self.grid), |n, _, w, g, o| f(n, w, g, o));
     }
 
     /// `∂J/∂x_p` of `J = Σ_i term(node i)` with everything but the position held, by `D`
@@ -39,7 +66,9 @@ impl<const D: usize> Site<'_, D> {
             x[axis].eps = 1.0;
             let st = Stencil::new(self.shape, self.grid, &x, &hw);
             let mut j = Dual64::from_re(0.0);
-            st.for_each(|node| j += term(node.flat, node.weight, &node.gradient, &node.offset));
+            st.for_each_in(&Layout::grid(self.grid), |n, _, w, g, o| {
+                j += term(n, w, &g, &o)
+            });
             j.eps
         })
     }
@@ -73,33 +102,34 @@ pub(super) fn gather_adjoint<const D: usize>(
         g_bar.grad_v
     };
     let aff_bar = form.scale.map(|k| g_bar.affine * k);
+    // Without a ∇w term the position derivative is in closed form and comes out of the
+    // scatter's own loop: J = Σ_i w_i a_i with a_i = v_i·(Ḡ.v + Ḡ.dv) − vⁿ_i·Ḡ.dv + v_iᵀ Ā o_i,
+    // ∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i (∂o_i/∂x_p = −I): the weights' first
+    // derivatives only.
+    let closed = grad_bar == Tensor::<f64, D>::zeros();
+    let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
     let mut k = 0;
-    site.stencil().for_each(|node| {
-        let w = node.weight;
-        let mut a = (g_bar.v + g_bar.dv) * w + grad_bar * node.gradient;
+    site.each(|n, w, gradient, offset| {
+        let mut a = (g_bar.v + g_bar.dv) * w + grad_bar * gradient;
         if let Some(aff) = aff_bar {
-            a += aff * node.offset * w;
+            a += aff * offset * w;
         }
-        out[k] = (node.flat, a, -g_bar.dv * w);
+        out[k] = (n, a, -g_bar.dv * w);
         k += 1;
-    });
-    if grad_bar == Tensor::<f64, D>::zeros() {
-        // No ∇w term: J = Σ_i w_i a_i with a_i = v_i·(Ḡ.v + Ḡ.dv) − vⁿ_i·Ḡ.dv + v_iᵀ Ā o_i, so
-        // ∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i (∂o_i/∂x_p = −I): the weights' first
-        // derivatives only.
-        let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
-        site.stencil().for_each(|node| {
-            let vi = velocity[node.flat];
-            let mut a = vi.dot(&(g_bar.v + g_bar.dv));
+        if closed {
+            let vi = velocity[n];
+            let mut s = vi.dot(&(g_bar.v + g_bar.dv));
             if !old.is_empty() {
-                a -= old[node.flat].dot(&g_bar.dv);
+                s -= old[n].dot(&g_bar.dv);
             }
             if let Some(aff) = &aff_bar {
-                a += vi.dot(&(aff * node.offset));
+                s += vi.dot(&(aff * offset));
             }
-            x_bar += node.gradient * a;
-            wv += vi * node.weight;
-        });
+            x_bar += gradient * s;
+            wv += vi * w;
+        }
+    });
+    if closed {
         if let Some(aff) = &aff_bar {
             x_bar -= aff.transpose() * wv;
         }
@@ -123,6 +153,7 @@ pub(super) fn gather_adjoint<const D: usize>(
 
 /// The node adjoints a particle's P2G contributions meet, summed over its stencil:
 /// `S₀ = Σ w m̄_i`, `S₁ = Σ w P̄_i`, `S₂ = Σ w P̄_i o_iᵀ`, `S₃ = Σ f̄_i ∇wᵀ` (`o_i = x_i − x_p`).
+#[derive(Clone, Copy)]
 pub(super) struct Moments<const D: usize> {
     pub s0: f64,
     pub s1: Vector<f64, D>,
@@ -140,69 +171,65 @@ pub(super) struct NodeAdjoints<'a, const D: usize> {
 }
 
 impl<const D: usize> NodeAdjoints<'_, D> {
-    /// [`Moments`] over the stencil of `site`.
-    pub fn moments(&self, site: &Site<'_, D>) -> Moments<D> {
-        let mut m = Moments {
-            s0: 0.0,
-            s1: Vector::zeros(),
-            s2: Tensor::zeros(),
-            s3: Tensor::zeros(),
-        };
-        site.stencil().for_each(|node| {
-            let (n, w) = (node.flat, node.weight);
-            if let Some(mass) = self.mass {
-                m.s0 += w * mass[n];
-            }
-            let pw = self.momentum[n] * w;
-            m.s1 += pw;
-            m.s2 += pw * node.offset.transpose();
-            if let Some(force) = self.force {
-                m.s3 += force[n] * node.gradient.transpose();
-            }
-        });
-        m
-    }
-
-    /// `x̄_p` through P2G's weights, gradients and offsets:
-    /// `∂/∂x_p Σ_i [m̄_i m w + P̄_i · w (m v + A o_i) − f̄_i · (V σ) ∇w]` with the particle's
-    /// other fields held (`A` its affine momentum, `sv = V σ`).
-    pub fn position_derivative(
+    /// [`Moments`] over the stencil of `site`, and `x̄_p` through P2G's weights, gradients
+    /// and offsets: `∂/∂x_p Σ_i [m̄_i m w + P̄_i · w (m v + A o_i) − f̄_i · (V σ) ∇w]` with the
+    /// particle's other fields held (`A` its affine momentum, `sv = V σ`). Without a force
+    /// term (MLS-MPM's P2G, MUSL's second P2G) the derivative is in closed form in the same
+    /// loop, `Σ_i ∇w_i b_i − Aᵀ S₁` with `b_i = m m̄_i + P̄_i·(m v + A o_i)`; with one it takes
+    /// `D` dual evaluations (the force's derivative needs the weights' second derivatives).
+    pub fn moments_and_position(
         &self,
         site: &Site<'_, D>,
         m: f64,
         v: &Vector<f64, D>,
         a: &Tensor<f64, D>,
         sv: &Tensor<f64, D>,
-    ) -> Vector<f64, D> {
-        if self.force.is_none() {
-            // No ∇w term (MLS-MPM's P2G, MUSL's second P2G): J = Σ_i w_i b_i with
-            // b_i = m m̄_i + P̄_i·(m v + A o_i), so ∂J/∂x_p = Σ_i ∇w_i b_i − Aᵀ Σ_i w_i P̄_i.
-            let mv = v * m;
-            let (mut x_bar, mut wp) = (Vector::zeros(), Vector::zeros());
-            site.stencil().for_each(|node| {
-                let pb = self.momentum[node.flat];
-                let mut b = pb.dot(&(mv + a * node.offset));
-                if let Some(mass) = self.mass {
-                    b += m * mass[node.flat];
-                }
-                x_bar += node.gradient * b;
-                wp += pb * node.weight;
-            });
-            return x_bar - a.transpose() * wp;
-        }
-        let mv = (v * m).map(Dual64::from_re);
-        let a = a.map(Dual64::from_re);
-        let sv = sv.map(Dual64::from_re);
-        site.position_derivative(|n, w, gradient, offset| {
-            let pb = self.momentum[n].map(Dual64::from_re);
-            let mut s = pb.dot(&(mv + a * offset)) * w;
+    ) -> (Moments<D>, Vector<f64, D>) {
+        let mut s = Moments {
+            s0: 0.0,
+            s1: Vector::zeros(),
+            s2: Tensor::zeros(),
+            s3: Tensor::zeros(),
+        };
+        let closed = self.force.is_none();
+        let mv = v * m;
+        let mut x_bar = Vector::zeros();
+        site.each(|n, w, gradient, offset| {
+            let pb = self.momentum[n];
+            let pw = pb * w;
+            s.s1 += pw;
+            s.s2 += pw * offset.transpose();
             if let Some(mass) = self.mass {
-                s += w * (m * mass[n]);
+                s.s0 += w * mass[n];
             }
             if let Some(force) = self.force {
-                s -= force[n].map(Dual64::from_re).dot(&(sv * gradient));
+                s.s3 += force[n] * gradient.transpose();
             }
-            s
-        })
+            if closed {
+                let mut b = pb.dot(&(mv + a * offset));
+                if let Some(mass) = self.mass {
+                    b += m * mass[n];
+                }
+                x_bar += gradient * b;
+            }
+        });
+        if closed {
+            return (s, x_bar - a.transpose() * s.s1);
+        }
+        let mv = mv.map(Dual64::from_re);
+        let a = a.map(Dual64::from_re);
+        let sv = sv.map(Dual64::from_re);
+        let x_bar = site.position_derivative(|n, w, gradient, offset| {
+            let pb = self.momentum[n].map(Dual64::from_re);
+            let mut j = pb.dot(&(mv + a * offset)) * w;
+            if let Some(mass) = self.mass {
+                j += w * (m * mass[n]);
+            }
+            if let Some(force) = self.force {
+                j -= force[n].map(Dual64::from_re).dot(&(sv * gradient));
+            }
+            j
+        });
+        (s, x_bar)
     }
 }

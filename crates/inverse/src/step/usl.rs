@@ -63,9 +63,8 @@ impl<const D: usize> ReverseStep<D> {
                     let i = chunk * CHUNK + k;
                     let mat = p.material[i] as usize;
                     let site = self.site(p, i);
-                    let st = site.stencil();
                     let g = g2p(
-                        &st,
+                        site.stencil(),
                         &layout,
                         grid,
                         shape,
