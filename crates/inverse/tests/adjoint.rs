@@ -527,3 +527,16 @@ fn gradient_bits_do_not_depend_on_the_thread_count() {
     assert_eq!(one.params, two.params);
     assert_eq!(one.initial, two.initial);
 }
+
+/// With an adaptive step the reverse pass holds each step's Δt at the forward's value, as the
+/// dual run does (the step size is chosen on real parts): the two agree to round-off. A
+/// central difference would also see the step sizes move, so it is not compared here.
+#[test]
+fn adaptive_steps_are_held_fixed_like_the_dual_run() {
+    let toml = BLOCK_2D.replace(
+        "time_step = { type = \"fixed\", dt = 1e-3 }",
+        "time_step = { type = \"adaptive\", cfl = 0.4, max_dt = 1e-3 }",
+    );
+    let params = [Param::Material(0, MaterialField::Young), Param::Gravity(1)];
+    check::<2>(&toml, 40, 3, [0.25, 0.2], &params, &params);
+}
