@@ -70,6 +70,9 @@ pub struct ReverseStep<const D: usize> {
     /// material and that material seeded.
     particle_params: Vec<(usize, usize, Material<Dual64>)>,
     grid: GridScratch<D>,
+    /// Every particle's stencil at the start of the step being reversed, formed once and
+    /// shared by the reverse passes.
+    stencils: Vec<Stencil<f64, D>>,
 }
 
 /// The grid of one step, recomputed, and the adjoints of its fields.
@@ -198,6 +201,7 @@ impl<const D: usize> ReverseStep<D> {
                 adj_v_hat: vec![Vector::zeros(); n],
                 adj_v_old: vec![Vector::zeros(); n],
             },
+            stencils: Vec::new(),
             config: config.clone(),
         })
     }
@@ -214,6 +218,7 @@ impl<const D: usize> ReverseStep<D> {
         adjoint: &mut ParticleAdjoint<D>,
         gradient: &mut [f64],
     ) {
+        self.locate(start);
         self.recompute_grid(start, time, dt);
         let (shares, extra_mass) = match self.config.scheme {
             Scheme::Usl => (self.usl_particles(start, time, dt, adjoint, gradient), None),
@@ -259,11 +264,36 @@ impl<const D: usize> ReverseStep<D> {
         x_bar
     }
 
-    /// The stencil site of particle `i`.
+    /// The half-width of particle `i`'s shape function.
+    fn half_width(&self, p: &Particles<f64, D>, i: usize) -> Vector<f64, D> {
+        let cfg = &self.config;
+        particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i])
+    }
+
+    /// Forms every particle's stencil at the start of the step (in parallel).
+    fn locate(&mut self, p: &Particles<f64, D>) {
+        let mut stencils = std::mem::take(&mut self.stencils);
+        let cfg = &self.config;
+        stencils.clear();
+        stencils.par_extend(
+            (0..p.len())
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map(|i| Stencil::new(cfg.shape, &cfg.grid, &p.x[i], &self.half_width(p, i))),
+        );
+        self.stencils = stencils;
+    }
+
+    /// The stencil site of particle `i` (its stencil from [`ReverseStep::locate`]).
     fn site(&self, p: &Particles<f64, D>, i: usize) -> Site<'_, D> {
         let cfg = &self.config;
-        let half_width = particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i]);
-        Site::new(&cfg.grid, cfg.shape, p.x[i], half_width)
+        Site::new(
+            &cfg.grid,
+            cfg.shape,
+            p.x[i],
+            self.half_width(p, i),
+            self.stencils[i],
+        )
     }
 
     /// How the transfer's G2P forms its sums.

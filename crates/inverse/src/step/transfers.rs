@@ -24,19 +24,20 @@ pub(super) struct Site<'a, const D: usize> {
 }
 
 impl<'a, const D: usize> Site<'a, D> {
-    /// The site of a particle at `x` with half-width `half_width`.
+    /// The site of a particle at `x` with half-width `half_width` and its stencil there.
     pub fn new(
         grid: &'a Grid<D>,
         shape: Shape,
         x: Vector<f64, D>,
         half_width: Vector<f64, D>,
+        stencil: Stencil<f64, D>,
     ) -> Self {
         Self {
             grid,
             shape,
             x,
             half_width,
-            stencil: Stencil::new(shape, grid, &x, &half_width),
+            stencil,
         }
     }
 
@@ -107,23 +108,29 @@ pub(super) fn gather_adjoint<const D: usize>(
     // ∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i (∂o_i/∂x_p = −I): the weights' first
     // derivatives only.
     let closed = grad_bar == Tensor::<f64, D>::zeros();
+    let gvd = g_bar.v + g_bar.dv;
+    let flip = !old.is_empty();
     let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
     let mut k = 0;
     site.each(|n, w, gradient, offset| {
-        let mut a = (g_bar.v + g_bar.dv) * w + grad_bar * gradient;
-        if let Some(aff) = aff_bar {
-            a += aff * offset * w;
+        let ao = aff_bar.map(|aff| aff * offset);
+        let mut a = gvd * w;
+        if !closed {
+            a += grad_bar * gradient;
         }
-        out[k] = (n, a, -g_bar.dv * w);
+        if let Some(ao) = ao {
+            a += ao * w;
+        }
+        out[k] = (n, a, if flip { -g_bar.dv * w } else { Vector::zeros() });
         k += 1;
         if closed {
             let vi = velocity[n];
-            let mut s = vi.dot(&(g_bar.v + g_bar.dv));
-            if !old.is_empty() {
+            let mut s = vi.dot(&gvd);
+            if flip {
                 s -= old[n].dot(&g_bar.dv);
             }
-            if let Some(aff) = &aff_bar {
-                s += vi.dot(&(aff * offset));
+            if let Some(ao) = ao {
+                s += vi.dot(&ao);
             }
             x_bar += gradient * s;
             wv += vi * w;
