@@ -173,6 +173,62 @@ fn resume_continues_exactly_where_the_run_stopped() {
 }
 
 #[test]
+fn invert_recovers_a_velocity_field_and_reports_its_error() {
+    // The velocity-field example made tiny: 80 steps, 50 tracked particles every 20 steps, a
+    // 2 → 8 → 8 → 1 network, 8 L-BFGS iterations.
+    let dir = tempfile::tempdir().unwrap();
+    let body = format!(
+        "scene = \"{}\"\nsteps = 80\n[[velocity_field]]\ndirection = [1.0, 0.0]\nhidden = [8, 8]\nseed = 3\n\
+         [synthetic]\nscene = \"{}\"\nparticles = 50\nevery = 20\n[stop]\nmax_iterations = 8\n",
+        example("mlp_column.toml").display(),
+        example("mlp_column_truth.toml").display()
+    );
+    let file = dir.path().join("field.toml");
+    std::fs::write(&file, body).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = loam(&[
+        "invert",
+        file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let all = text(&out);
+    assert!(out.status.success(), "{all}");
+    assert!(all.contains("relative L2 error against the truth"), "{all}");
+    let h = history(&out_dir);
+    let entries = h["entries"].as_array().unwrap();
+    let error = |e: &serde_json::Value| e["field_errors"][0].as_f64().unwrap();
+    let (first, last) = (error(&entries[0]), error(entries.last().unwrap()));
+    // The Glorot start is far from the truth (vx of order 1 everywhere against a random
+    // field); eight quasi-Newton steps on the positions must at least halve the error.
+    assert!(first > 0.5 && last < 0.5 * first, "{first} → {last}\n{all}");
+    let loss = |e: &serde_json::Value| e["loss"].as_f64().unwrap();
+    assert!(
+        loss(entries.last().unwrap()) < 1e-2 * loss(&entries[0]),
+        "{all}"
+    );
+    for f in [
+        "history.csv",
+        "history_loss.png",
+        "history_field_error.png",
+        "recovered_velocity.csv",
+    ] {
+        assert!(out_dir.join(f).exists(), "{f} not written");
+    }
+    // The recovered scene reads the recovered velocities as its body's velocity file.
+    let recovered = out_dir.join("recovered_mlp_column.toml");
+    let check = loam(&["check", recovered.to_str().unwrap()]);
+    assert!(check.status.success(), "{}", text(&check));
+    let g = loam(&["gradient", file.to_str().unwrap(), "--check"]);
+    assert!(g.status.success(), "{}", text(&g));
+    assert!(
+        text(&g).contains("velocity_field[0].w[104]"),
+        "{}",
+        text(&g)
+    );
+}
+
+#[test]
 fn malformed_inversion_files_exit_2_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
     let scene = example("dambreak_small.toml");
@@ -229,6 +285,31 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
             ),
             "parameters[0].direction",
             "2 components",
+        ),
+        (
+            format!("{head}{synth}[[velocity_field]]\ndirection = [1.0, 0.0]\nhidden = []\n"),
+            "velocity_field[0].hidden",
+            "hidden layer",
+        ),
+        (
+            format!(
+                "{head}{synth}[[velocity_field]]\ndirection = [1.0, 0.0]\nmaterial = \"sand\"\n"
+            ),
+            "velocity_field[0].material",
+            "unknown material",
+        ),
+        (
+            format!("{head}{synth}[[velocity_field]]\ndirection = [1.0, 0.0]\n"),
+            "synthetic.scene",
+            "truth scene",
+        ),
+        (
+            format!(
+                "{head}{synth}scene = \"{}\"\n[[velocity_field]]\ndirection = [1.0, 0.0]\n",
+                example("mlp_column_truth.toml").display()
+            ),
+            "synthetic.scene",
+            "240 particles",
         ),
     ];
     std::fs::write(dir.path().join("obs.csv"), "step,id,x,y\n10,3,0.1\n").unwrap();

@@ -13,7 +13,8 @@
 //! - [`Param`] names a parameter; [`Objective`] is a loss over the run's states
 //!   ([`TrackedPositions`], [`VelocityMonitors`], their sum [`Observations`]).
 //! - [`Problem`] is an inversion's loss as a function of its unknowns ([`Control`]: the
-//!   parameters and initial velocities), with its gradient by the adjoint and, as the oracle,
+//!   parameters, initial velocities and velocity fields given by an MLP, [`VelocityField`]),
+//!   with its gradient by the adjoint and, as the oracle,
 //!   by a forward-mode dual run; [`Variable`] reparameterises an unknown for an optimiser
 //!   (softplus, bounds); [`Optimiser`] is Adam with a decaying rate or L-BFGS.
 //!
@@ -22,6 +23,7 @@
 
 mod adjoint_state;
 mod error;
+mod field;
 mod gradient;
 pub mod lanes;
 mod objective;
@@ -34,6 +36,7 @@ mod variable;
 
 pub use adjoint_state::ParticleAdjoint;
 pub use error::AdjointError;
+pub use field::{Mlp, SplitMix64, VelocityField};
 pub use gradient::{Gradient, gradient, segment_length};
 pub use objective::{Objective, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors};

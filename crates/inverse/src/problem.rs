@@ -1,8 +1,9 @@
-//! An inverse problem: the unknowns of a run (parameters of the setup and initial
-//! velocities), the loss over the run as a function of them, its gradient by the adjoint and,
-//! as the oracle, its derivative by a forward-mode dual run.
+//! An inverse problem: the unknowns of a run (parameters of the setup, initial velocities and
+//! initial velocity fields), the loss over the run as a function of them, its gradient by the
+//! adjoint and, as the oracle, its derivative by a forward-mode dual run.
 
 use crate::error::AdjointError;
+use crate::field::VelocityField;
 use crate::gradient::gradient;
 use crate::objective::ScalarObjective;
 use crate::params::{MaterialField, Param};
@@ -10,7 +11,8 @@ use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
 use num_dual::Dual64;
 
-/// One scalar unknown `θ` of an inversion.
+/// One unknown of an inversion: a scalar `θ`, or a block of them (a velocity field's
+/// weights). The unknowns of a [`Problem`] are the controls' values one after the other.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Control {
     /// A parameter of the step or of the initial masses (the density).
@@ -26,6 +28,9 @@ pub enum Control {
         /// The unit vector `d` (`D` components).
         direction: Vec<f64>,
     },
+    /// The initial velocity along a direction given by an MLP of the initial position: its
+    /// [`Mlp::len`](crate::Mlp::len) weights and biases, in the network's order.
+    VelocityField(VelocityField),
 }
 
 impl Control {
@@ -35,8 +40,22 @@ impl Control {
             Control::InitialVelocity {
                 material: Some(m), ..
             } => *m == material,
+            Control::VelocityField(f) => f.selects(material),
             _ => true,
         }
+    }
+
+    /// How many scalar unknowns it holds (1, or a field's weights).
+    pub fn len(&self) -> usize {
+        match self {
+            Control::VelocityField(f) => f.mlp.len(),
+            _ => 1,
+        }
+    }
+
+    /// Whether it holds no unknown (a field with no layer).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 }
 
@@ -58,16 +77,36 @@ pub struct Problem<const D: usize, O> {
 }
 
 impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
+    /// The number of scalar unknowns, `Σ` [`Control::len`].
+    pub fn len(&self) -> usize {
+        self.controls.iter().map(Control::len).sum()
+    }
+
+    /// Whether it has no unknown.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Each control with its slice of `theta` (of [`Problem::len`] values).
+    pub fn split<'a>(&'a self, theta: &'a [f64]) -> impl Iterator<Item = (&'a Control, &'a [f64])> {
+        let mut at = 0;
+        self.controls.iter().map(move |c| {
+            at += c.len();
+            (c, &theta[at - c.len()..at])
+        })
+    }
+
     /// The values of the unknowns in the scene (an initial velocity: the mean of `v_p·d`
-    /// over its particles).
+    /// over its particles; a velocity field: its Glorot initialisation from its seed).
     ///
     /// # Errors
     /// A parameter the configuration does not have, or a velocity with no particle.
     pub fn values(&self) -> Result<Vec<f64>, AdjointError> {
-        self.controls
-            .iter()
-            .map(|c| match c {
-                Control::Param(p) => p.value(&self.config),
+        let mut out = Vec::with_capacity(self.len());
+        for c in &self.controls {
+            match c {
+                Control::Param(p) => out.push(p.value(&self.config)?),
+                Control::VelocityField(f) => out.extend(f.mlp.glorot(f.seed)),
                 Control::InitialVelocity { direction, .. } => {
                     let along: Vec<f64> = (0..self.initial.len())
                         .filter(|&p| c.selects(self.initial.material[p]))
@@ -81,10 +120,11 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                     };
                     // The mean as `a₀ + Σ (aᵢ − a₀) / n`: exactly the value when all agree.
                     let spread: f64 = along.iter().map(|a| a - first).sum();
-                    Ok(first + spread / along.len() as f64)
+                    out.push(first + spread / along.len() as f64);
                 }
-            })
-            .collect()
+            }
+        }
+        Ok(out)
     }
 
     /// The configuration and initial state with the unknowns set to `theta`; a density sets
@@ -98,9 +138,10 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
     ) -> Result<(Config<f64, D>, Particles<f64, D>), AdjointError> {
         let mut config = self.config.clone();
         let mut particles = self.initial.clone();
-        for (control, &value) in self.controls.iter().zip(theta) {
+        for (control, values) in self.split(theta) {
             match control {
                 Control::Param(param) => {
+                    let value = values[0];
                     param.set(&mut config, value)?;
                     if let Param::Material(m, MaterialField::Density) = *param {
                         for p in 0..particles.len() {
@@ -116,11 +157,12 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                             let v = &mut particles.v[p];
                             let along: f64 = (0..D).map(|a| v[a] * direction[a]).sum();
                             for a in 0..D {
-                                v[a] += (value - along) * direction[a];
+                                v[a] += (values[0] - along) * direction[a];
                             }
                         }
                     }
                 }
+                Control::VelocityField(field) => field.apply(values, &mut particles),
             }
         }
         Ok((config, particles))
@@ -135,54 +177,77 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
         run_value(config, particles, self.steps, &self.objective)
     }
 
-    /// The loss and `dL/dθ` at `theta`, by the discrete adjoint ([`gradient`]).
+    /// The loss and `dL/dθ` at `theta`, by the discrete adjoint ([`gradient`]); a velocity
+    /// field's weights chain the adjoint of the initial velocities through the network
+    /// ([`VelocityField::gradient`]).
     ///
     /// # Errors
     /// As [`gradient`].
     pub fn gradient(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), AdjointError> {
         let (config, particles) = self.setup(theta)?;
-        let params: Vec<Param> = (self.controls.iter())
-            .filter_map(|c| match c {
-                Control::Param(p) => Some(*p),
-                Control::InitialVelocity { .. } => None,
-            })
-            .collect();
         let g = gradient(
             &config,
             &particles,
             self.steps,
-            &params,
+            &self.params(),
             &self.objective,
             self.segment,
         )?;
         let mut from_params = g.params.iter();
-        let derivative = (self.controls.iter())
-            .map(|c| match c {
+        let mut derivative = Vec::with_capacity(theta.len());
+        for (c, values) in self.split(theta) {
+            match c {
                 // `gradient` returns the parameters in the order asked for.
-                Control::Param(_) => from_params.next().copied().unwrap_or_default(),
-                Control::InitialVelocity { direction, .. } => (0..particles.len())
-                    .filter(|&p| c.selects(particles.material[p]))
-                    .map(|p| {
-                        (0..D)
-                            .map(|a| g.initial.v[p][a] * direction[a])
-                            .sum::<f64>()
-                    })
-                    .sum(),
-            })
-            .collect();
+                Control::Param(_) => {
+                    derivative.push(from_params.next().copied().unwrap_or_default())
+                }
+                Control::InitialVelocity { direction, .. } => derivative.push(
+                    (0..particles.len())
+                        .filter(|&p| c.selects(particles.material[p]))
+                        .map(|p| {
+                            (0..D)
+                                .map(|a| g.initial.v[p][a] * direction[a])
+                                .sum::<f64>()
+                        })
+                        .sum(),
+                ),
+                Control::VelocityField(f) => {
+                    derivative.extend(f.gradient(values, &particles, &g.initial))
+                }
+            }
+        }
         Ok((g.loss, derivative))
+    }
+
+    /// The parameters of the step among the controls, in order.
+    pub fn params(&self) -> Vec<Param> {
+        (self.controls.iter())
+            .filter_map(|c| match c {
+                Control::Param(p) => Some(*p),
+                Control::InitialVelocity { .. } | Control::VelocityField(_) => None,
+            })
+            .collect()
     }
 
     /// `dL/dθ_k` at `theta` by a forward-mode dual run: the configuration lifted to `Dual64`
     /// with the parameter seeded ([`Param::seeded`]; a density also seeds the masses,
-    /// `dm_p/dρ₀ = V⁰_p`), or the initial velocities seeded with `dv_p/dθ = d`.
+    /// `dm_p/dρ₀ = V⁰_p`), or the initial velocities seeded with `dv_p/dθ = d`, or, for a
+    /// weight `w` of a velocity field, `dv_p/dw = d ∂f(x̂_p)/∂w` from the network evaluated
+    /// with that weight seeded.
     ///
     /// # Errors
     /// As [`Problem::loss`].
     pub fn dual_derivative(&self, theta: &[f64], k: usize) -> Result<f64, AdjointError> {
         let (config, particles) = self.setup(theta)?;
         let mut lifted: Particles<Dual64, D> = particles.lift();
-        let control = &self.controls[k];
+        let mut start = 0;
+        let (control, values) = (self.split(theta))
+            .find(|(c, _)| {
+                start += c.len();
+                k < start
+            })
+            .expect("k is below the number of unknowns");
+        let index = k + control.len() - start;
         let seeded = match control {
             Control::Param(param) => {
                 if let Param::Material(m, MaterialField::Density) = *param {
@@ -200,6 +265,18 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                         for a in 0..D {
                             lifted.v[p][a].eps = direction[a];
                         }
+                    }
+                }
+                config.lift()
+            }
+            Control::VelocityField(field) => {
+                let w: Vec<Dual64> = (values.iter().enumerate())
+                    .map(|(i, &w)| Dual64::new(w, if i == index { 1.0 } else { 0.0 }))
+                    .collect();
+                for p in field.particles(&particles) {
+                    let df = field.value(&w, &self.initial, p).eps;
+                    for a in 0..D {
+                        lifted.v[p][a].eps = field.direction[a] * df;
                     }
                 }
                 config.lift()

@@ -12,7 +12,8 @@ use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Config;
 use loam_inverse::{
-    Control, MaterialField, MonitorBox, Observations, Param, Problem, VelocityMonitors,
+    Control, MaterialField, MonitorBox, Observations, Param, Problem, VelocityField,
+    VelocityMonitors,
 };
 use std::collections::BTreeSet;
 
@@ -62,16 +63,23 @@ fn controls() -> Vec<Control> {
     ]
 }
 
-fn check(problem: &Problem<2, Observations<2>>, theta: &[f64], difference: bool) {
+/// Checks the unknowns `indices` of `theta`.
+fn check(
+    problem: &Problem<2, Observations<2>>,
+    theta: &[f64],
+    indices: &[usize],
+    difference: bool,
+) {
     let (loss, grad) = problem.gradient(theta).expect("gradient");
+    assert_eq!(grad.len(), problem.len());
     let plain = problem.loss(theta).expect("loss");
     assert!((loss - plain).abs() <= 1e-12 * plain, "{loss} vs {plain}");
-    for (k, control) in problem.controls.iter().enumerate() {
+    for &k in indices {
         let dual = problem.dual_derivative(theta, k).expect("dual");
-        println!("{control:?}: adjoint {:.12e}, dual {dual:.12e}", grad[k]);
+        println!("θ[{k}]: adjoint {:.12e}, dual {dual:.12e}", grad[k]);
         assert!(
             (grad[k] - dual).abs() <= 1e-10 * dual.abs().max(1e-12 * loss),
-            "{control:?}: adjoint {:e} vs dual {dual:e}",
+            "θ[{k}]: adjoint {:e} vs dual {dual:e}",
             grad[k]
         );
         if difference {
@@ -85,7 +93,7 @@ fn check(problem: &Problem<2, Observations<2>>, theta: &[f64], difference: bool)
             println!("  central difference {fd:.12e}");
             assert!(
                 (fd - dual).abs() <= 1e-5 * dual.abs().max(1e-8 * loss),
-                "{control:?}: central difference {fd:e} vs dual {dual:e}"
+                "θ[{k}]: central difference {fd:e} vs dual {dual:e}"
             );
         }
     }
@@ -109,7 +117,7 @@ fn tracked_and_monitor_losses_have_exact_adjoints() {
     // At the truth the synthetic observations are matched exactly.
     assert_eq!(problem.loss(&truth).expect("loss"), 0.0);
     let guess = [0.5, 0.2, 0.08, 1050.0, 0.5, -0.1];
-    check(&problem, &guess, false);
+    check(&problem, &guess, &[0, 1, 2, 3, 4, 5], false);
 }
 
 #[test]
@@ -137,5 +145,37 @@ fn monitor_loss_alone_matches_the_dual_run_and_differences() {
         objective,
         segment: Some(7),
     };
-    check(&problem, &[0.07, 0.45], true);
+    check(&problem, &[0.07, 0.45], &[0, 1], true);
+}
+
+#[test]
+fn velocity_field_weights_have_exact_adjoints() {
+    // An MLP velocity field (2 → 30 → 30 → 30 → 1 along x) next to a scalar parameter: the
+    // adjoint chained through the network's backpropagation equals the dual run with one
+    // weight seeded, for weights of the first, a middle and the last layer and a bias.
+    let (config, particles) = scene();
+    let objective = truth_observations(&config, &particles);
+    let field = VelocityField::new(&particles, Some(0), vec![1.0, 0.0], &[30, 30, 30], 5)
+        .expect("the field's particles");
+    assert_eq!(field.mlp.len(), 1981);
+    let problem = Problem {
+        config,
+        initial: particles,
+        steps: STEPS,
+        controls: vec![
+            Control::Param(Param::Material(0, MaterialField::Viscosity)),
+            Control::VelocityField(field),
+        ],
+        objective,
+        segment: None,
+    };
+    let mut theta = problem.values().expect("values");
+    assert_eq!(theta.len(), 1982);
+    // Non-zero biases, so that their derivatives are not those of the Glorot start alone.
+    for (i, t) in theta.iter_mut().enumerate().skip(1) {
+        *t += 0.01 * ((i % 7) as f64 - 3.0);
+    }
+    // θ[0] viscosity; θ[1 + i] weight i: layer 1 weight 3, layer 2 weight 100, layer 3
+    // bias 5 (offset 90 + 930 + 900), the output weight 7 and bias.
+    check(&problem, &theta, &[0, 4, 191, 1926, 1958, 1981], false);
 }

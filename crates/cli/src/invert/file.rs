@@ -2,10 +2,12 @@
 //! inverse problem on the scene it names (`docs/inversion-format.md`).
 
 use super::observed;
+use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
 use loam_inverse::{
     Control, MonitorBox, Observations, Param, Problem, ReverseStep, Transform, Variable,
+    VelocityField,
 };
 use loam_scene::{Built, Issue, Location, Scene, SceneError, SceneFormat, SolverPlan};
 use serde::{Deserialize, Serialize};
@@ -24,8 +26,12 @@ pub struct InversionFile {
     pub end_time: Option<f64>,
     /// Steps between the adjoint's checkpoints (default `⌈√steps⌉`).
     pub segment: Option<usize>,
-    /// The unknowns.
+    /// The scalar unknowns.
+    #[serde(default)]
     pub parameters: Vec<ParameterSpec>,
+    /// Initial velocity fields given by an MLP (their weights are unknowns too).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub velocity_field: Vec<VelocityFieldSpec>,
     /// Observation files and monitor boxes.
     #[serde(default)]
     pub observations: ObservationsSpec,
@@ -61,6 +67,27 @@ pub struct ParameterSpec {
     pub direction: Option<Vec<f64>>,
     /// `velocity`: the material whose particles it sets (default all).
     pub material: Option<String>,
+}
+
+/// `[[velocity_field]]`: the initial velocity along `direction` of a material's particles
+/// given by an MLP of the initial position.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VelocityFieldSpec {
+    /// The direction (normalised).
+    pub direction: Vec<f64>,
+    /// The material whose particles it sets (default all).
+    pub material: Option<String>,
+    /// The hidden layers' widths (default `[30, 30, 30]`).
+    #[serde(default = "hidden")]
+    pub hidden: Vec<usize>,
+    /// The seed of the Glorot initialisation (default 0).
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn hidden() -> Vec<usize> {
+    vec![30, 30, 30]
 }
 
 /// `[observations]`.
@@ -106,6 +133,10 @@ pub struct SyntheticSpec {
     pub every: usize,
     /// First observed step (default `every`).
     pub first: Option<usize>,
+    /// The truth run's scene (default the forward scene), relative to the inversion file:
+    /// where a velocity field's truth comes from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
 }
 
 /// `[optimizer]`.
@@ -195,15 +226,18 @@ pub struct Inversion<const D: usize> {
     pub scene_path: PathBuf,
     /// The scene.
     pub scene: Scene,
-    /// The parameters' names as written.
+    /// The parameters' names as written (the first unknowns; the fields' weights follow).
     pub names: Vec<String>,
     /// The optimiser's view of each unknown.
     pub variables: Vec<Variable>,
     /// The loss as a function of the unknowns.
     pub problem: Problem<D, Observations<D>>,
-    /// The truth values, when every parameter has one.
+    /// The parameters' truth values, when every parameter has one.
     pub truth: Option<Vec<f64>>,
-    /// The first guess.
+    /// The truth run's initial state, against which the velocity fields are measured
+    /// (`[synthetic]` with velocity fields).
+    pub truth_initial: Option<Particles<f64, D>>,
+    /// The first guess of every unknown (the fields' weights: their Glorot initialisation).
     pub initial: Vec<f64>,
     /// The monitors' names.
     pub monitor_names: Vec<String>,
@@ -343,10 +377,10 @@ pub fn build<const D: usize>(
     if file.segment == Some(0) {
         issue("segment".into(), "expected at least 1 step".into());
     }
-    if file.parameters.is_empty() {
+    if file.parameters.is_empty() && file.velocity_field.is_empty() {
         issue(
             "parameters".into(),
-            "expected at least one parameter".into(),
+            "expected at least one parameter or velocity field".into(),
         );
     }
     // The unknowns.
@@ -427,12 +461,42 @@ pub fn build<const D: usize>(
             t
         });
     }
-    check_velocities::<D>(&controls, &mut issue);
+    // The velocity fields come after the parameters.
+    let scalars = controls.len();
+    for (i, f) in file.velocity_field.iter().enumerate() {
+        let at = |field: &str| format!("velocity_field[{i}].{field}");
+        let material = material_index(&f.material, &built, &mut |m| issue(at("material"), m));
+        let direction = unit::<D>(&f.direction, &mut |m| issue(at("direction"), m));
+        if f.hidden.is_empty() || f.hidden.contains(&0) {
+            issue(
+                at("hidden"),
+                "expected at least one hidden layer, each of at least 1 unit".into(),
+            );
+            continue;
+        }
+        if let (Some(material), Some(direction)) = (material, direction) {
+            // `material_index` checked the material exists, so it has particles.
+            if let Some(field) =
+                VelocityField::new(&built.particles, material, direction, &f.hidden, f.seed)
+            {
+                variables.extend(std::iter::repeat_n(
+                    Variable {
+                        transform: Transform::Identity,
+                        scale: 1.0,
+                        bounds: None,
+                    },
+                    field.mlp.len(),
+                ));
+                controls.push(Control::VelocityField(field));
+            }
+        }
+    }
+    check_velocities(&controls, scalars, &mut issue);
     if let Some(c) = &config {
         let params: Vec<Param> = (controls.iter())
             .filter_map(|c| match c {
                 Control::Param(p) => Some(*p),
-                Control::InitialVelocity { .. } => None,
+                _ => None,
             })
             .collect();
         if let Err(e) = ReverseStep::new(c, &params) {
@@ -510,6 +574,14 @@ pub fn build<const D: usize>(
                     "nothing to observe: track particles or define monitors".into(),
                 );
             }
+            if !file.velocity_field.is_empty() && s.scene.is_none() {
+                issue(
+                    "synthetic.scene".into(),
+                    "a velocity field's truth comes from a truth scene: the forward scene with \
+                     the truth velocities (e.g. a body's `velocity_file`)"
+                        .into(),
+                );
+            }
             if truth.is_none() {
                 for (i, p) in file.parameters.iter().enumerate() {
                     if p.truth.is_none() {
@@ -549,11 +621,28 @@ pub fn build<const D: usize>(
         objective: Observations::default(),
         segment: file.segment,
     };
-    let initial: Vec<f64> = file.parameters.iter().map(|p| p.initial).collect();
+    let mut initial: Vec<f64> = file.parameters.iter().map(|p| p.initial).collect();
+    let values = problem.values().map_err(|e| Invalid(e.to_string()))?;
+    initial.extend_from_slice(&values[scalars..]);
+    let mut truth_initial = None;
     problem.objective = match &file.synthetic {
         Some(s) => {
             let truth = truth.as_deref().expect("checked above");
-            let (config, particles) = problem.setup(truth).map_err(|e| Invalid(e.to_string()))?;
+            // The truth run: the truth scene (or the forward scene) with the parameters'
+            // truth values; the fields' truth is the truth scene's velocities.
+            let truth_problem = match &s.scene {
+                Some(scene) => Problem {
+                    controls: problem.controls[..scalars].to_vec(),
+                    ..truth_scene::<D>(path, scene, &problem)?
+                },
+                None => problem.clone(),
+            };
+            let (config, particles) = truth_problem
+                .setup(truth)
+                .map_err(|e| Invalid(e.to_string()))?;
+            if s.scene.is_some() {
+                truth_initial = Some(particles.clone());
+            }
             let first = s.first.unwrap_or(s.every);
             let observed: BTreeSet<usize> = (first..=steps).step_by(s.every).collect();
             let ids = observed::choose(particles.len(), s.particles, s.seed);
@@ -599,13 +688,61 @@ pub fn build<const D: usize>(
         variables,
         problem,
         truth,
+        truth_initial,
         initial,
         monitor_names,
     }
     .named())
 }
 
+/// The truth scene of `[synthetic]`, read and built: `problem` with its configuration and
+/// initial state. It must have the forward scene's particles (the same positions).
+fn truth_scene<const D: usize>(
+    path: &Path,
+    scene: &Path,
+    problem: &Problem<D, Observations<D>>,
+) -> Result<Problem<D, Observations<D>>, Invalid> {
+    let at = |msg: String| invalid(path, vec![Issue::new("synthetic.scene", msg)]);
+    let file = path.parent().unwrap_or(Path::new("")).join(scene);
+    let built: Built<D> = match Scene::from_path(&file) {
+        Ok(s) if s.dim() == D => s.build()?,
+        Ok(_) => return Err(at(format!("{}: expected a {D}D scene", file.display()))),
+        Err(SceneError::Read { .. }) => {
+            return Err(at(format!("cannot read the scene file {}", file.display())));
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let same = built.particles.len() == problem.initial.len()
+        && (built.particles.x.iter().zip(&problem.initial.x)).all(|(a, b)| a == b);
+    let config = built.explicit_config().filter(|_| same).ok_or_else(|| {
+        at(format!(
+            "{}: expected an explicit scene with the forward scene's {} particles",
+            file.display(),
+            problem.initial.len()
+        ))
+    })?;
+    Ok(Problem {
+        config,
+        initial: built.particles,
+        ..problem.clone()
+    })
+}
+
 impl<const D: usize> Inversion<D> {
+    /// The relative L2 error of each velocity field at `theta` against the truth run's
+    /// velocities ([`VelocityField::relative_error`]); empty without a truth.
+    pub fn field_errors(&self, theta: &[f64]) -> Vec<f64> {
+        let Some(truth) = &self.truth_initial else {
+            return Vec::new();
+        };
+        (self.problem.split(theta))
+            .filter_map(|(c, w)| match c {
+                Control::VelocityField(f) => Some(f.relative_error(w, truth)),
+                _ => None,
+            })
+            .collect()
+    }
+
     fn named(mut self) -> Self {
         self.names = (self.file.parameters.iter())
             .map(|p| match (&p.direction, &p.material) {
@@ -630,22 +767,7 @@ fn velocity_control<const D: usize>(
     built: &Built<D>,
     issue: &mut dyn FnMut(&str, String),
 ) -> Option<Control> {
-    let material = match &p.material {
-        None => None,
-        Some(name) => match built.material_names.iter().position(|n| n == name) {
-            Some(m) => Some(m as u32),
-            None => {
-                issue(
-                    "material",
-                    format!(
-                        "unknown material `{name}`; the scene has {}",
-                        built.material_names.join(", ")
-                    ),
-                );
-                return None;
-            }
-        },
-    };
+    let material = material_index(&p.material, built, &mut |m| issue("material", m))?;
     let Some(d) = &p.direction else {
         issue(
             "direction",
@@ -653,41 +775,65 @@ fn velocity_control<const D: usize>(
         );
         return None;
     };
-    let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if d.len() != D || !(n.is_finite() && n > 0.0) {
-        issue(
-            "direction",
-            format!("expected a non-zero vector of {D} components"),
-        );
-        return None;
-    }
+    let direction = unit::<D>(d, &mut |m| issue("direction", m))?;
     Some(Control::InitialVelocity {
         material,
-        direction: d.iter().map(|x| x / n).collect(),
+        direction,
     })
 }
 
-/// Initial velocities on the same particles must be along orthogonal directions, so that
-/// each sets its own component.
-fn check_velocities<const D: usize>(controls: &[Control], issue: &mut dyn FnMut(String, String)) {
+/// The index of a named material (`Some(None)`: all particles); `None` after an issue.
+fn material_index<const D: usize>(
+    name: &Option<String>,
+    built: &Built<D>,
+    issue: &mut dyn FnMut(String),
+) -> Option<Option<u32>> {
+    let Some(name) = name else { return Some(None) };
+    let found = built.material_names.iter().position(|n| n == name);
+    if found.is_none() {
+        issue(format!(
+            "unknown material `{name}`; the scene has {}",
+            built.material_names.join(", ")
+        ));
+    }
+    found.map(|m| Some(m as u32))
+}
+
+/// `d / |d|`; `None` after an issue when `d` is not a non-zero vector of `D` components.
+fn unit<const D: usize>(d: &[f64], issue: &mut dyn FnMut(String)) -> Option<Vec<f64>> {
+    let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if d.len() != D || !(n.is_finite() && n > 0.0) {
+        issue(format!("expected a non-zero vector of {D} components"));
+        return None;
+    }
+    Some(d.iter().map(|x| x / n).collect())
+}
+
+/// Initial velocities and velocity fields on the same particles must be along orthogonal
+/// directions, so that each sets its own component. The first `scalars` controls are the
+/// `[[parameters]]`, the rest the `[[velocity_field]]`s.
+fn check_velocities(controls: &[Control], scalars: usize, issue: &mut dyn FnMut(String, String)) {
+    let velocity = |c: &Control| match c {
+        Control::InitialVelocity {
+            material,
+            direction,
+        } => Some((*material, direction.clone())),
+        Control::VelocityField(f) => Some((f.material, f.direction.clone())),
+        Control::Param(_) => None,
+    };
     for (i, a) in controls.iter().enumerate() {
         for b in &controls[..i] {
-            if let (
-                Control::InitialVelocity {
-                    material: ma,
-                    direction: da,
-                },
-                Control::InitialVelocity {
-                    material: mb,
-                    direction: db,
-                },
-            ) = (a, b)
-            {
+            if let (Some((ma, da)), Some((mb, db))) = (velocity(a), velocity(b)) {
                 let overlap = ma.is_none() || mb.is_none() || ma == mb;
-                let dot: f64 = da.iter().zip(db).map(|(x, y)| x * y).sum();
+                let dot: f64 = da.iter().zip(&db).map(|(x, y)| x * y).sum();
                 if overlap && dot.abs() > 1e-12 {
+                    let at = if i < scalars {
+                        format!("parameters[{i}].direction")
+                    } else {
+                        format!("velocity_field[{}].direction", i - scalars)
+                    };
                     issue(
-                        format!("parameters[{i}].direction"),
+                        at,
                         "two velocities on the same particles need orthogonal directions".into(),
                     );
                 }

@@ -18,10 +18,13 @@ pub struct Entry {
     pub loss: f64,
     /// `‖∇_z L‖` in the optimiser's variables.
     pub gradient_norm: f64,
-    /// `θ`.
+    /// `θ` of the named parameters.
     pub parameters: Vec<f64>,
-    /// `dL/dθ`.
+    /// `dL/dθ` of the named parameters.
     pub gradient: Vec<f64>,
+    /// The relative L2 error of each velocity field against the truth, when known.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub field_errors: Vec<f64>,
     /// Loss evaluations (forward and adjoint runs) this iteration took.
     pub evaluations: usize,
     /// Wall time of the iteration (s).
@@ -85,6 +88,10 @@ impl History {
         for n in &self.names {
             write!(csv, ",dL/d {n}").expect("string");
         }
+        let fields = self.entries.first().map_or(0, |e| e.field_errors.len());
+        for k in 0..fields {
+            write!(csv, ",velocity_field[{k}] error").expect("string");
+        }
         csv.push('\n');
         for e in &self.entries {
             write!(
@@ -93,7 +100,12 @@ impl History {
                 e.iteration, e.loss, e.gradient_norm, e.evaluations, e.seconds
             )
             .expect("string");
-            for v in e.parameters.iter().chain(&e.gradient) {
+            for v in e
+                .parameters
+                .iter()
+                .chain(&e.gradient)
+                .chain(&e.field_errors)
+            {
                 write!(csv, ",{v:e}").expect("string");
             }
             csv.push('\n');
@@ -103,8 +115,10 @@ impl History {
         write_atomic(&dir.join("history.json"), &json)
     }
 
-    /// Plots `log₁₀ L` and the parameters (with their truth, dashed as markers) against the
-    /// iteration: `history_loss.png`, `history_parameters.png` in `dir`.
+    /// Plots `log₁₀ L`, the parameters (with their truth, dashed as markers) and the velocity
+    /// fields' relative errors against the iteration: `history_loss.png`,
+    /// `history_parameters.png` (with parameters), `history_field_error.png` (with fields
+    /// and their truth) in `dir`.
     pub fn plot(&self, dir: &Path) -> Result<(), String> {
         let loss = Series {
             name: "log10 loss".into(),
@@ -123,6 +137,29 @@ impl History {
             &[loss],
         )
         .map_err(err)?;
+        let fields = self.entries.first().map_or(0, |e| e.field_errors.len());
+        if fields > 0 {
+            let errors: Vec<Series> = (0..fields)
+                .map(|k| Series {
+                    name: format!("velocity_field[{k}]"),
+                    points: (self.entries.iter())
+                        .map(|e| (e.iteration as f64, e.field_errors[k]))
+                        .collect(),
+                    markers: false,
+                })
+                .collect();
+            write_plot(
+                &dir.join("history_field_error.png"),
+                "Velocity field: relative L2 error",
+                "iteration",
+                "relative error",
+                &errors,
+            )
+            .map_err(err)?;
+        }
+        if self.names.is_empty() {
+            return Ok(());
+        }
         let last = self.entries.last().map_or(0.0, |e| e.iteration as f64);
         let mut series = Vec::new();
         for (k, name) in self.names.iter().enumerate() {
@@ -152,8 +189,11 @@ impl History {
     }
 }
 
-/// The scene with the unknowns set to `theta`, as TOML, with a header naming them.
-/// Material angles are written in degrees, as scene files hold them.
+/// The scene with the named parameters set to `theta` (their values, in the order of
+/// `controls`), as TOML, with a header naming them. Material angles are written in degrees,
+/// as scene files hold them. `velocity_file` is the file of every particle's recovered
+/// initial velocity when velocity fields were recovered: a scene of one body reads it as
+/// that body's `velocity_file`; otherwise the header points to it.
 pub fn recovered_scene(
     scene: &Scene,
     controls: &[Control],
@@ -161,10 +201,12 @@ pub fn recovered_scene(
     theta: &[f64],
     material_names: &[String],
     source: &Path,
+    velocity_file: Option<&Path>,
 ) -> Result<String, String> {
     let mut s = scene.clone();
     for (control, &v) in controls.iter().zip(theta) {
         match control {
+            Control::VelocityField(_) => {}
             Control::Param(p) => set(&mut s, *p, v),
             Control::InitialVelocity {
                 material,
@@ -189,6 +231,19 @@ pub fn recovered_scene(
     let mut head = format!("# Recovered by `loam invert` from {}:\n", source.display());
     for (n, v) in names.iter().zip(theta) {
         writeln!(head, "#   {n} = {v}").expect("string");
+    }
+    if let Some(file) = velocity_file {
+        if let [body] = s.bodies.as_mut_slice() {
+            body.velocity_file = Some(file.to_path_buf());
+            (body.velocity, body.rotation) = (None, None);
+        } else {
+            writeln!(
+                head,
+                "#   the recovered initial velocities of every particle: {}",
+                file.display()
+            )
+            .expect("string");
+        }
     }
     Ok(head + "\n" + &body)
 }

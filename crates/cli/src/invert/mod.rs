@@ -17,7 +17,7 @@ use crate::run::interrupt;
 use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
 use loam_inverse::optimise::norm;
-use loam_inverse::{Adam, AdjointError, Evaluation, Lbfgs, Optimiser};
+use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -57,10 +57,12 @@ pub fn check(path: &Path) -> Outcome {
     fn report<const D: usize>(inv: Inversion<D>) -> Outcome {
         let o = &inv.problem.objective;
         println!(
-            "{}: valid {D}D inversion of {}: {} parameter(s), {} steps, {} observed step(s)",
+            "{}: valid {D}D inversion of {}: {} parameter(s), {} velocity field(s), {} steps, \
+             {} observed step(s)",
             inv.path.display(),
             inv.scene_path.display(),
             inv.names.len(),
+            inv.file.velocity_field.len(),
             inv.problem.steps,
             o.steps().len()
         );
@@ -96,13 +98,20 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         inv.path.display(),
         inv.problem.steps
     );
-    let width = inv.names.iter().map(String::len).max().unwrap_or(0).max(9);
+    let rows = rows(&inv);
+    let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(9);
     println!(
         "  {:width$}  {:>14}  {:>18}",
         "parameter", "value", "dL/dθ (adjoint)"
     );
-    for (k, name) in inv.names.iter().enumerate() {
-        println!("  {name:width$}  {:>14.8}  {:>18.10e}", theta[k], grad[k]);
+    for (name, k) in &rows {
+        println!("  {name:width$}  {:>14.8}  {:>18.10e}", theta[*k], grad[*k]);
+    }
+    for (f, (start, len)) in field_blocks(&inv).into_iter().enumerate() {
+        println!(
+            "  velocity_field[{f}]: {len} weights, |dL/dw| = {:.10e}",
+            norm(&grad[start..start + len])
+        );
     }
     if !check {
         return Outcome::Ok;
@@ -129,7 +138,8 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         "ratio"
     );
     let mut worst = 0.0f64;
-    for (k, name) in inv.names.iter().enumerate() {
+    for (name, k) in &rows {
+        let k = *k;
         let row = check_one(&inv, theta, loss, grad[k], k);
         let (dual, fd, r) = match row {
             Ok(row) => row,
@@ -159,6 +169,31 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         return Outcome::Failed;
     }
     Outcome::Ok
+}
+
+/// The unknowns `loam gradient` prints, with their index in `θ`: every named parameter, and
+/// of each velocity field the first, the middle and the last weight (the output bias).
+fn rows<const D: usize>(inv: &Inversion<D>) -> Vec<(String, usize)> {
+    let mut rows: Vec<(String, usize)> = inv.names.iter().cloned().zip(0..).collect();
+    for (f, (start, len)) in field_blocks(inv).into_iter().enumerate() {
+        for i in [0, len / 2, len - 1] {
+            rows.push((format!("velocity_field[{f}].w[{i}]"), start + i));
+        }
+    }
+    rows
+}
+
+/// Where each velocity field's weights start in `θ`, and how many there are.
+fn field_blocks<const D: usize>(inv: &Inversion<D>) -> Vec<(usize, usize)> {
+    let mut start = 0;
+    let mut out = Vec::new();
+    for c in &inv.problem.controls {
+        if let Control::VelocityField(f) = c {
+            out.push((start, f.mlp.len()));
+        }
+        start += c.len();
+    }
+    out
 }
 
 /// The dual derivative, the central difference and the Taylor remainders of parameter `k`.
@@ -297,6 +332,7 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             names: inv.names.clone(),
             truth: inv.truth.clone(),
             entries: vec![entry(
+                &inv,
                 0,
                 &first,
                 &physical(&first.x),
@@ -363,6 +399,7 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             Ok(Some(next)) => {
                 let theta = physical(&next.x);
                 let e = entry(
+                    &inv,
                     last.iteration + 1,
                     &next,
                     &theta,
@@ -383,8 +420,10 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
     finish(&inv, dir, &history, &current, &reason, started)
 }
 
-/// The history entry of an evaluated point.
-fn entry(
+/// The history entry of an evaluated point: the named parameters' values and derivatives,
+/// the velocity fields' errors.
+fn entry<const D: usize>(
+    inv: &Inversion<D>,
     iteration: usize,
     at: &Evaluation,
     theta: &[f64],
@@ -392,12 +431,14 @@ fn entry(
     runs: usize,
     since: Instant,
 ) -> Entry {
+    let n = inv.names.len();
     Entry {
         iteration,
         loss: at.loss,
         gradient_norm: norm(&at.gradient),
-        parameters: theta.to_vec(),
-        gradient: dl.to_vec(),
+        parameters: theta[..n].to_vec(),
+        gradient: dl[..n].to_vec(),
+        field_errors: inv.field_errors(theta),
         evaluations: runs,
         seconds: since.elapsed().as_secs_f64(),
     }
@@ -415,6 +456,10 @@ fn print_line<const D: usize>(inv: &Inversion<D>, history: &History, e: &Entry) 
     let left = inv.file.stop.max_iterations.saturating_sub(e.iteration) as f64 * per;
     let params: Vec<String> = (inv.names.iter().zip(&e.parameters))
         .map(|(n, v)| format!("{n} = {v:.6}"))
+        .chain(
+            (e.field_errors.iter().enumerate())
+                .map(|(k, r)| format!("velocity_field[{k}] error {:.2} %", 100.0 * r)),
+        )
         .collect();
     println!(
         "iter {:>4}  L {:.6e}  |g| {:.3e}  {}  {:.2} s/it  ETA {:.0} s",
@@ -473,7 +518,11 @@ fn finish<const D: usize>(
         .file_name()
         .map_or("scene.toml".into(), |n| n.to_string_lossy().into_owned());
     let recovered = dir.join(format!("recovered_{scene_name}"));
+    let velocity_file = (!field_blocks(inv).is_empty()).then(|| Path::new(VELOCITY_FILE));
     let written = history.plot(dir).and_then(|()| {
+        if velocity_file.is_some() {
+            write_velocities(inv, &theta, &dir.join(VELOCITY_FILE))?;
+        }
         let text = history::recovered_scene(
             &inv.scene,
             &inv.problem.controls,
@@ -481,6 +530,7 @@ fn finish<const D: usize>(
             &theta,
             &material_names,
             &inv.scene_path,
+            velocity_file,
         )?;
         write_atomic(&recovered, &text)
     });
@@ -507,12 +557,69 @@ fn finish<const D: usize>(
             None => println!("  {name}: {:.6} (first guess {})", theta[k], inv.initial[k]),
         }
     }
+    let errors = inv.field_errors(&theta);
+    for (f, (start, len)) in field_blocks(inv).into_iter().enumerate() {
+        match errors.get(f) {
+            Some(r) => println!(
+                "  velocity_field[{f}]: {len} weights; relative L2 error against the truth {:.3} % (first guess {:.3} %)",
+                100.0 * r,
+                100.0 * inv.field_errors(&inv.initial)[f],
+            ),
+            None => println!(
+                "  velocity_field[{f}]: {len} weights, |w| = {:.6}",
+                norm(&theta[start..start + len])
+            ),
+        }
+    }
+    let mut plots = vec!["history_loss.png"];
+    if !inv.names.is_empty() {
+        plots.push("history_parameters.png");
+    }
+    if !errors.is_empty() {
+        plots.push("history_field_error.png");
+    }
+    if velocity_file.is_some() {
+        plots.push(VELOCITY_FILE);
+    }
     println!(
-        "  wrote {0}/history.csv, history.json, history_loss.png, history_parameters.png, {1}",
+        "  wrote {0}/history.csv, history.json, {1}, {2}",
         dir.display(),
+        plots.join(", "),
         recovered
             .file_name()
             .map_or(String::new(), |n| n.to_string_lossy().into_owned())
     );
     Outcome::Ok
+}
+
+/// The file of every particle's recovered initial velocity (with velocity fields).
+const VELOCITY_FILE: &str = "recovered_velocity.csv";
+
+/// Writes every particle's initial velocity at `theta` in the scene's `velocity_file` format
+/// (positions, then velocities, in particle order).
+fn write_velocities<const D: usize>(
+    inv: &Inversion<D>,
+    theta: &[f64],
+    file: &Path,
+) -> Result<(), String> {
+    let (_, particles) = inv.problem.setup(theta).map_err(|e| e.to_string())?;
+    let axes = ["x", "y", "z"];
+    let mut text = format!(
+        "# the initial velocities recovered by `loam invert` from {}\n{}, {}\n",
+        inv.path.display(),
+        axes[..D].join(", "),
+        axes[..D]
+            .iter()
+            .map(|a| format!("v{a}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for p in 0..particles.len() {
+        let row: Vec<String> = (particles.x[p].iter().chain(particles.v[p].iter()))
+            .map(|v| format!("{v:e}"))
+            .collect();
+        text.push_str(&row.join(", "));
+        text.push('\n');
+    }
+    write_atomic(file, &text)
 }

@@ -170,14 +170,8 @@ pub fn write<const D: usize>(
 /// a partial Fisher–Yates shuffle), in increasing order: the same for the same arguments on
 /// every machine.
 pub fn choose(n: usize, count: usize, seed: u64) -> Vec<usize> {
-    let mut state = seed;
-    let mut next = || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
+    let mut rng = loam_inverse::SplitMix64::new(seed);
+    let mut next = || rng.next_u64();
     let mut ids: Vec<usize> = (0..n).collect();
     for i in 0..count.min(n) {
         let j = i + (next() % (n - i) as u64) as usize;
