@@ -376,6 +376,25 @@ impl<const D: usize> ReverseStep<D> {
         }
     }
 
+    /// The adjoint of the first grid's velocities from the G2P scatter: `v̂̄` (and `v̄ⁿ` for
+    /// FLIP) summed in particle order, then the transpose of their reflection.
+    fn scatter_to_first_grid(&mut self, scatter: &Scatter<D>) {
+        let cfg = &self.config;
+        let flip = cfg.transfer.needs_old_grid_velocity();
+        let g = &mut self.grid;
+        Self::add_scatter(
+            scatter,
+            &mut g.adj_v_hat,
+            flip.then_some(&mut g.adj_v_old[..]),
+        );
+        cfg.boundary
+            .reflect_ghosts_adjoint(&cfg.grid, &mut g.adj_v_hat);
+        if flip {
+            cfg.boundary
+                .reflect_ghosts_adjoint(&cfg.grid, &mut g.adj_v_old);
+        }
+    }
+
     /// Stage 2 in reverse: per live node, the local VJP of the node update (and the
     /// parameters' shares: gravity everywhere, contact where a contact constraint acted),
     /// then the transpose of the fold. `extra_mass` adds MUSL's `m̄_i` from the second

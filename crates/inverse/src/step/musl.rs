@@ -278,16 +278,7 @@ impl<const D: usize> ReverseStep<D> {
                     share.x += gather_adjoint(&site, form, &g_bar, v_hat, old, out);
                 }
             });
-        let g = &mut self.grid;
-        Self::add_scatter(
-            &scatter,
-            &mut g.adj_v_hat,
-            flip.then_some(&mut g.adj_v_old[..]),
-        );
-        cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_hat);
-        if flip {
-            cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_old);
-        }
+        self.scatter_to_first_grid(&scatter);
         (shares, adj_m2)
     }
 }

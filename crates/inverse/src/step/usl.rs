@@ -134,16 +134,7 @@ impl<const D: usize> ReverseStep<D> {
             })
             .collect();
         add_parts(gradient, parts);
-        let g = &mut self.grid;
-        Self::add_scatter(
-            &scatter,
-            &mut g.adj_v_hat,
-            flip.then_some(&mut g.adj_v_old[..]),
-        );
-        cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_hat);
-        if flip {
-            cfg.boundary.reflect_ghosts_adjoint(grid, &mut g.adj_v_old);
-        }
+        self.scatter_to_first_grid(&scatter);
         shares
     }
 }
