@@ -166,28 +166,6 @@ pub fn write<const D: usize>(
     std::fs::write(file, s)
 }
 
-/// `count` distinct particle ids out of `n`, pseudo-random from `seed` (splitmix64 driving
-/// a partial Fisher–Yates shuffle), in increasing order: the same for the same arguments on
-/// every machine.
-pub fn choose(n: usize, count: usize, seed: u64) -> Vec<usize> {
-    let mut state = seed;
-    let mut next = || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
-    let mut ids: Vec<usize> = (0..n).collect();
-    for i in 0..count.min(n) {
-        let j = i + (next() % (n - i) as u64) as usize;
-        ids.swap(i, j);
-    }
-    ids.truncate(count.min(n));
-    ids.sort_unstable();
-    ids
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -220,14 +198,5 @@ mod tests {
         .unwrap();
         let err = read_tracked::<2>(&file, &grid).unwrap_err();
         assert!(err.contains("line 4") && err.contains("`9`"), "{err}");
-    }
-
-    #[test]
-    fn choice_is_distinct_sorted_and_reproducible() {
-        let a = choose(1000, 100, 7);
-        assert_eq!(a, choose(1000, 100, 7));
-        assert_ne!(a, choose(1000, 100, 8));
-        assert!(a.windows(2).all(|w| w[0] < w[1]) && a.len() == 100 && a[99] < 1000);
-        assert_eq!(choose(5, 9, 1), vec![0, 1, 2, 3, 4]);
     }
 }
