@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 12] = [
+pub const SCENES: [CaseScene; 18] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -52,6 +52,12 @@ pub const SCENES: [CaseScene; 12] = [
     case_scene!("dambreak_2d"),
     case_scene!("incline_friction"),
     case_scene!("dambreak_obstacles_3d"),
+    case_scene!("adjoint_fluid"),
+    case_scene!("adjoint_block"),
+    case_scene!("adjoint_column"),
+    case_scene!("adjoint_block_3d"),
+    case_scene!("inverse_v0"),
+    case_scene!("inverse_friction"),
 ];
 
 /// The reference scene `name` (a stem of [`SCENES`]), parsed and validated.

@@ -96,3 +96,18 @@ fn bui_collapse() {
 fn column_runout() {
     check("column-runout");
 }
+
+#[test]
+fn adjoint_fd() {
+    check("adjoint-fd");
+}
+
+#[test]
+fn inverse_v0() {
+    check("inverse-v0");
+}
+
+#[test]
+fn inverse_friction() {
+    check("inverse-friction");
+}

@@ -18,10 +18,14 @@
 //!   by a forward-mode dual run; [`Variable`] reparameterises an unknown for an optimiser
 //!   (softplus, bounds); [`Optimiser`] is Adam with a decaying rate or L-BFGS.
 //!
+//! - [`check`] compares a gradient with branch-aware central differences and runs the
+//!   Taylor test; [`choose`] picks tracked particles reproducibly.
+//!
 //! The forward-mode dual run (`Solver<Dual64, D>` on a configuration lifted with one seeded
 //! parameter) is the test oracle: the adjoint agrees with it to round-off.
 
 mod adjoint_state;
+pub mod check;
 mod error;
 mod field;
 mod gradient;
@@ -39,7 +43,7 @@ pub use error::AdjointError;
 pub use field::{Mlp, SplitMix64, VelocityField};
 pub use gradient::{Gradient, gradient, segment_length};
 pub use objective::{Objective, ScalarObjective, TrackedPositions};
-pub use observe::{MonitorBox, Observations, VelocityMonitors};
+pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, Optimiser};
 pub use params::{Acts, MaterialField, Param};
 pub use problem::{Control, Problem, run_value};

@@ -6,20 +6,22 @@
 //! (`Solver<Dual64, D>` on the configuration lifted with that parameter seeded): both are the
 //! exact derivative of the same discrete map, so they agree to round-off (1e-10 relative; the
 //! two differ only in the order of the nodal sums, the adjoint recomputing the grid serially).
-//! A central finite difference (Richardson-extrapolated, truncation O(δ⁴)) checks the dual
-//! oracle itself, to 1e-6 relative, at the largest step δ ≤ 10⁻⁴ |θ| whose perturbed runs take the forward run's branches in every step (the
-//! map is piecewise smooth: across a stick/slip or yield switch a difference measures the
-//! jump). The step is a compromise: a loss of order one that moves by 1e-11 when the viscosity
+//! A central finite difference (`loam_inverse::check::central_difference`:
+//! Richardson-extrapolated, truncation O(δ⁴)) checks the dual oracle itself, to 1e-6 relative,
+//! at the largest step δ ≤ 10⁻⁴ |θ| whose perturbed runs take the forward run's branches in
+//! every step (the map is piecewise smooth: across a stick/slip or yield switch a difference
+//! measures the jump). The step is a compromise: a loss of order one that moves by 1e-11 when the viscosity
 //! moves by δ = 5e-8 loses its difference in the round-off of the run (plain central
 //! difference against the dual on the fluid scene: 5e-11 at δ = 10⁻³ |θ|, 1e-7 at 10⁻⁴, 1e-5
 //! at 10⁻⁶, 1e-3 at 10⁻⁸), while ν of the Neo-Hookean block has a large third derivative
 //! (3.7e-6 at 10⁻³, 3e-8 at 3·10⁻⁴, 1e-9 at 10⁻⁴).
 
-use loam_core::step::{NodeState, ParticleBranch, StepRecord};
+use loam_core::Particles;
 use loam_core::tensor::Vector;
-use loam_core::{Particles, Scalar};
-use loam_explicit::{Config, Solver};
-use loam_inverse::{MaterialField, Objective, Param, TrackedPositions, gradient};
+use loam_explicit::Solver;
+use loam_inverse::{
+    Control, MaterialField, Objective, Param, Problem, TrackedPositions, check, gradient,
+};
 use num_dual::Dual64;
 use std::collections::BTreeMap;
 
@@ -47,121 +49,9 @@ fn objective<const D: usize>(
     }
 }
 
-/// The loss of a run in any scalar type: the same sum as [`TrackedPositions`].
-fn run_loss<T: Scalar, const D: usize>(
-    config: Config<T, D>,
-    mut p: Particles<T, D>,
-    steps: usize,
-    obj: &TrackedPositions<D>,
-) -> T {
-    let mut solver = Solver::new(config, &p).expect("solver");
-    let mut loss = T::zero();
-    let mut add = |s: usize, p: &Particles<T, D>| {
-        if let Some(targets) = obj.targets.get(&s) {
-            for (i, x) in targets {
-                let d = p.x[*i] - x.map(T::cst);
-                loss += d.norm_squared() * T::cst(obj.weight);
-            }
-        }
-    };
-    add(0, &p);
-    for s in 1..=steps {
-        solver.step(&mut p, f64::INFINITY).expect("step");
-        add(s, &p);
-    }
-    loss
-}
-
-/// The forward-mode derivative of the loss with respect to `param`.
-fn dual_derivative<const D: usize>(
-    config: &Config<f64, D>,
-    particles: &Particles<f64, D>,
-    steps: usize,
-    obj: &TrackedPositions<D>,
-    param: Param,
-) -> f64 {
-    let seeded = param.seeded(config).expect("param");
-    let mut p: Particles<Dual64, D> = particles.lift();
-    if let Param::Material(m, MaterialField::Density) = param {
-        // The density reaches the run through the masses m_p = ρ₀ V⁰_p.
-        for i in 0..p.len() {
-            if particles.material[i] as usize == m {
-                p.mass[i].eps = particles.volume0[i];
-            }
-        }
-    }
-    run_loss(seeded, p, steps, obj).eps
-}
-
-/// The branches one step took: contact and wall states of the nodes, projections and return
-/// regions of the particles.
-type Branches = (Vec<(usize, NodeState)>, Vec<ParticleBranch>);
-
-/// The branches every step of a run took.
-fn branches<const D: usize>(
-    config: &Config<f64, D>,
-    particles: &Particles<f64, D>,
-    steps: usize,
-) -> Vec<Branches> {
-    let mut solver = Solver::new(config.clone(), particles).expect("solver");
-    let mut p = particles.clone();
-    (0..steps)
-        .map(|_| {
-            let mut record = StepRecord::default();
-            solver
-                .step_recorded(&mut p, f64::INFINITY, &mut record)
-                .expect("step");
-            (record.nodes, record.particles)
-        })
-        .collect()
-}
-
-/// The central difference of the loss with respect to `param`, Richardson-extrapolated,
-/// `(4 D(δ/2) − D(δ))/3` with `D(δ) = (L(θ + δ) − L(θ − δ))/(2δ)` (truncation O(δ⁴)), at the
-/// largest `δ = rel · |θ|` (rel from 10⁻⁴ down to 10⁻⁶) for which the four perturbed runs take
-/// the branches of the unperturbed run in every step: a difference across a branch switch (a
-/// node going from stick to slip, a particle starting to yield) measures the jump, not the
-/// derivative. Returns the difference and `rel`.
-fn central_difference<const D: usize>(
-    config: &Config<f64, D>,
-    particles: &Particles<f64, D>,
-    steps: usize,
-    obj: &TrackedPositions<D>,
-    param: Param,
-) -> (f64, f64) {
-    let value = param.value(config).expect("param");
-    let base = branches(config, particles, steps);
-    let perturbed = |theta: f64| {
-        let mut c = config.clone();
-        param.set(&mut c, theta).expect("set");
-        let mut p = particles.clone();
-        if let Param::Material(m, MaterialField::Density) = param {
-            // The masses m_p = ρ₀ V⁰_p are built from the density.
-            for i in 0..p.len() {
-                if p.material[i] as usize == m {
-                    p.mass[i] = theta * p.volume0[i];
-                }
-            }
-        }
-        (c, p)
-    };
-    let at = |(c, p): (Config<f64, D>, Particles<f64, D>)| run_loss(c, p, steps, obj);
-    for rel in [1e-4, 3e-5, 1e-5, 3e-6, 1e-6] {
-        let delta = rel * value.abs().max(1e-3);
-        let runs = [delta, -delta, 0.5 * delta, -0.5 * delta].map(|d| perturbed(value + d));
-        if runs.iter().all(|(c, p)| branches(c, p, steps) == base) {
-            let [up, down, half_up, half_down] = runs;
-            let d1 = (at(up) - at(down)) / (2.0 * delta);
-            let d2 = (at(half_up) - at(half_down)) / delta;
-            return ((4.0 * d2 - d1) / 3.0, rel);
-        }
-    }
-    panic!("{param}: every perturbation down to 1e-6 switches a branch");
-}
-
-/// Checks every parameter: adjoint = dual to 1e-10, and dual = central difference to 1e-6
-/// except for those in `no_difference`; also the initial-velocity gradient (x component, all particles) against
-/// the dual run with a seeded initial velocity.
+/// Checks every parameter and the initial velocity (x component, every particle) as the
+/// unknowns of a [`Problem`]: adjoint = dual to 1e-10, and dual = central difference
+/// ([`check::central_difference`]) to 1e-6 except for those in `no_difference`.
 fn check<const D: usize>(
     toml: &str,
     steps: usize,
@@ -171,47 +61,60 @@ fn check<const D: usize>(
     no_difference: &[Param],
 ) {
     let (config, particles) = scene::<D>(toml);
-    let obj = objective(particles.len(), steps, stride, target);
-    let grad = gradient(&config, &particles, steps, params, &obj, None).expect("gradient");
-    let plain = run_loss(config.clone(), particles.clone(), steps, &obj);
+    let objective = objective(particles.len(), steps, stride, target);
+    let mut direction = [0.0; D];
+    direction[0] = 1.0;
+    let controls: Vec<Control> = (params.iter().map(|&p| Control::Param(p)))
+        .chain([Control::InitialVelocity {
+            material: None,
+            direction: direction.to_vec(),
+        }])
+        .collect();
+    let mut problem = Problem {
+        config,
+        initial: particles,
+        steps,
+        controls,
+        objective,
+        segment: None,
+    };
+    let theta = problem.values().expect("values");
+    let (loss, grad) = problem.gradient(&theta).expect("gradient");
+    let plain = problem.loss(&theta).expect("loss");
     assert!(
-        (grad.loss - plain).abs() <= 1e-12 * plain.abs(),
-        "loss {} vs {plain}",
-        grad.loss
+        (loss - plain).abs() <= 1e-12 * plain.abs(),
+        "loss {loss} vs {plain}"
     );
-    for (k, &param) in params.iter().enumerate() {
-        let dual = dual_derivative(&config, &particles, steps, &obj, param);
-        let adj = grad.params[k];
-        let scale = dual.abs().max(1e-12 * grad.loss.abs());
-        println!("{param}: adjoint {adj:.12e}, dual {dual:.12e}");
+    for (k, control) in problem.controls.iter().enumerate() {
+        let dual = problem.dual_derivative(&theta, k).expect("dual");
+        let adj = grad[k];
+        let scale = dual.abs().max(1e-12 * loss.abs());
+        println!("{control:?}: adjoint {adj:.12e}, dual {dual:.12e}");
         assert!(
             (adj - dual).abs() <= 1e-10 * scale,
-            "{param}: adjoint {adj:e} vs dual {dual:e}"
+            "{control:?}: adjoint {adj:e} vs dual {dual:e}"
         );
-        if !no_difference.contains(&param) {
-            let (fd, rel) = central_difference(&config, &particles, steps, &obj, param);
-            println!("{param}: central difference {fd:.12e} (δ = {rel:e} |θ|)");
+        let Control::Param(param) = control else {
+            continue;
+        };
+        if !no_difference.contains(param) {
+            let fd = check::central_difference(&problem, &theta, k)
+                .expect("difference")
+                .unwrap_or_else(|| panic!("{param}: every perturbation switches a branch"));
+            println!(
+                "{param}: central difference {:.12e} (δ = {:e} |θ|)",
+                fd.value, fd.relative_step
+            );
             assert!(
-                (fd - dual).abs() <= 1e-6 * scale,
-                "{param}: central difference {fd:e} vs dual {dual:e}"
+                (fd.value - dual).abs() <= 1e-6 * scale,
+                "{param}: central difference {:e} vs dual {dual:e}",
+                fd.value
             );
         }
     }
-    // Initial velocity, x component, every particle.
-    let mut p: Particles<Dual64, D> = particles.lift();
-    for v in &mut p.v {
-        v[0].eps = 1.0;
-    }
-    let dual = run_loss(config.lift(), p, steps, &obj).eps;
-    let adj: f64 = grad.initial.v.iter().map(|v| v[0]).sum();
-    println!("v0_x: adjoint {adj:.12e}, dual {dual:.12e}");
-    assert!(
-        (adj - dual).abs() <= 1e-10 * dual.abs().max(1e-12),
-        "v0_x: adjoint {adj:e} vs dual {dual:e}"
-    );
     // The segment length does not change the result (checkpointing is exact).
-    let every = gradient(&config, &particles, steps, params, &obj, Some(1)).expect("gradient");
-    assert_eq!(every.params, grad.params);
+    problem.segment = Some(1);
+    assert_eq!(problem.gradient(&theta).expect("gradient").1, grad);
 }
 
 #[test]

@@ -645,7 +645,7 @@ pub fn build<const D: usize>(
             }
             let first = s.first.unwrap_or(s.every);
             let observed: BTreeSet<usize> = (first..=steps).step_by(s.every).collect();
-            let ids = observed::choose(particles.len(), s.particles, s.seed);
+            let ids = loam_inverse::choose(particles.len(), s.particles, s.seed);
             Observations::record(&config, &particles, steps, &observed, &ids, boxes, weights)
                 .map_err(|e| Invalid(format!("{}: the truth run: {e}", path.display())))?
         }

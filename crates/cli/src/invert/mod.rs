@@ -17,7 +17,7 @@ use crate::run::interrupt;
 use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
 use loam_inverse::optimise::norm;
-use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser};
+use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser, check};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -213,12 +213,18 @@ fn check_one<const D: usize>(
     let size = theta[k].abs().max(1e-3);
     let delta = 1e-4 * size;
     let fd = (at(delta)? - at(-delta)?) / (2.0 * delta);
-    let mut r = [0.0; 4];
-    for (i, r) in r.iter_mut().enumerate() {
-        let h = 1e-2 * size / f64::from(1u32 << i);
-        *r = (at(h)? - loss - h * adjoint).abs();
-    }
-    Ok((dual, fd, r))
+    let mut direction = vec![0.0; theta.len()];
+    direction[k] = 1.0;
+    let r = check::taylor_remainders(
+        &inv.problem,
+        theta,
+        loss,
+        adjoint,
+        &direction,
+        1e-2 * size,
+        4,
+    )?;
+    Ok((dual, fd, [r[0], r[1], r[2], r[3]]))
 }
 
 /// `loam invert FILE [--out DIR] [--resume]`.

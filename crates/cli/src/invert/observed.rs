@@ -166,22 +166,6 @@ pub fn write<const D: usize>(
     std::fs::write(file, s)
 }
 
-/// `count` distinct particle ids out of `n`, pseudo-random from `seed` (splitmix64 driving
-/// a partial Fisher–Yates shuffle), in increasing order: the same for the same arguments on
-/// every machine.
-pub fn choose(n: usize, count: usize, seed: u64) -> Vec<usize> {
-    let mut rng = loam_inverse::SplitMix64::new(seed);
-    let mut next = || rng.next_u64();
-    let mut ids: Vec<usize> = (0..n).collect();
-    for i in 0..count.min(n) {
-        let j = i + (next() % (n - i) as u64) as usize;
-        ids.swap(i, j);
-    }
-    ids.truncate(count.min(n));
-    ids.sort_unstable();
-    ids
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,14 +198,5 @@ mod tests {
         .unwrap();
         let err = read_tracked::<2>(&file, &grid).unwrap_err();
         assert!(err.contains("line 4") && err.contains("`9`"), "{err}");
-    }
-
-    #[test]
-    fn choice_is_distinct_sorted_and_reproducible() {
-        let a = choose(1000, 100, 7);
-        assert_eq!(a, choose(1000, 100, 7));
-        assert_ne!(a, choose(1000, 100, 8));
-        assert!(a.windows(2).all(|w| w[0] < w[1]) && a.len() == 100 && a[99] < 1000);
-        assert_eq!(choose(5, 9, 1), vec![0, 1, 2, 3, 4]);
     }
 }
