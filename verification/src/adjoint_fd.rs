@@ -191,8 +191,7 @@ fn check_scene<const D: usize>(
         steps,
         &observed,
         &ids,
-        boxes,
-        (1.0, 1.0),
+        Observations::with_monitors(boxes),
     )
     .map_err(adjoint_error)?;
     let mut controls: Vec<Control> = (spec.smooth.iter().chain(spec.friction))

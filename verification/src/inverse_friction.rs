@@ -58,8 +58,7 @@ pub fn run(_size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         steps,
         &observed,
         &ids,
-        Vec::new(),
-        (1.0, 1.0),
+        Observations::with_monitors(Vec::new()),
     )
     .map_err(failed)?;
     let problem = Problem {

@@ -110,12 +110,18 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
     for (name, ids, boxes, (config, particles, steps, _, _)) in variants {
         let steps = *steps;
         let observed: BTreeSet<usize> = (0..FRAMES).map(|i| steps - i * EVERY).collect();
-        let objective =
-            Observations::record(config, particles, steps, &observed, ids, boxes, (1.0, 1.0))
-                .map_err(|source| VerifyError::Adjoint {
-                    case: CASE.into(),
-                    source,
-                })?;
+        let objective = Observations::record(
+            config,
+            particles,
+            steps,
+            &observed,
+            ids,
+            Observations::with_monitors(boxes.clone()),
+        )
+        .map_err(|source| VerifyError::Adjoint {
+            case: CASE.into(),
+            source,
+        })?;
         let problem = Problem {
             config: config.clone(),
             initial: particles.clone(),

@@ -74,17 +74,31 @@ pub fn write_plot(
         f64::NEG_INFINITY,
     );
     for s in series {
-        for &(x, y) in &s.points {
+        for &(x, y) in s
+            .points
+            .iter()
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+        {
             x0 = x0.min(x);
             x1 = x1.max(x);
             y0 = y0.min(y);
             y1 = y1.max(y);
         }
     }
+    if !(x0.is_finite() && y0.is_finite()) {
+        // Nothing finite to draw: an empty unit frame.
+        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    }
     if x1.partial_cmp(&x0) != Some(std::cmp::Ordering::Greater) {
         x1 = x0 + 1.0;
     }
-    let pad = 0.05 * (y1 - y0).abs().max(1e-12);
+    // A flat series gets a range of a millionth of its magnitude: a range below the
+    // spacing of the numbers themselves would leave the axis no key points to find.
+    let pad = 0.05
+        * (y1 - y0)
+            .abs()
+            .max(1e-6 * y0.abs().max(y1.abs()))
+            .max(1e-12);
     let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
     let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
         root.fill(&WHITE)?;

@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 18] = [
+pub const SCENES: [CaseScene; 19] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -58,6 +58,7 @@ pub const SCENES: [CaseScene; 18] = [
     case_scene!("adjoint_block_3d"),
     case_scene!("inverse_v0"),
     case_scene!("inverse_friction"),
+    case_scene!("inverse_mlp"),
 ];
 
 /// The reference scene `name` (a stem of [`SCENES`]), parsed and validated.

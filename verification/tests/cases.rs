@@ -111,3 +111,8 @@ fn inverse_v0() {
 fn inverse_friction() {
     check("inverse-friction");
 }
+
+#[test]
+fn inverse_mlp() {
+    check("inverse-mlp");
+}

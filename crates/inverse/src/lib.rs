@@ -11,7 +11,8 @@
 //! - [`gradient`] runs the forward pass with checkpoints every `K ≈ √T` steps and the reverse
 //!   pass segment by segment, so memory grows as `√T`, not `T`.
 //! - [`Param`] names a parameter; [`Objective`] is a loss over the run's states
-//!   ([`TrackedPositions`], [`VelocityMonitors`], their sum [`Observations`]).
+//!   ([`TrackedPositions`], [`VelocityMonitors`], [`DepositProfile`], their sum
+//!   [`Observations`]).
 //! - [`Problem`] is an inversion's loss as a function of its unknowns ([`Control`]: the
 //!   parameters, initial velocities and velocity fields given by an MLP, [`VelocityField`]),
 //!   with its gradient by the adjoint and, as the oracle,
@@ -26,6 +27,7 @@
 
 mod adjoint_state;
 pub mod check;
+mod deposit;
 mod error;
 mod field;
 mod gradient;
@@ -39,6 +41,7 @@ mod step;
 mod variable;
 
 pub use adjoint_state::ParticleAdjoint;
+pub use deposit::{DepositProfile, Station};
 pub use error::AdjointError;
 pub use field::{Mlp, SplitMix64, VelocityField};
 pub use gradient::{Gradient, gradient, segment_length};

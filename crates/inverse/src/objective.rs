@@ -28,12 +28,22 @@ pub trait ScalarObjective<const D: usize>: Objective<D> {
 
 /// Squared mismatch of tracked particle positions:
 /// `ℓ_n = Σ_(p, x*) ∈ targets[n] w ‖x_p − x*‖²` (`w` the weight).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct TrackedPositions<const D: usize> {
     /// Per step, the observed particles and their observed positions.
     pub targets: BTreeMap<usize, Vec<(usize, Vector<f64, D>)>>,
     /// Weight `w` of every squared distance.
     pub weight: f64,
+}
+
+impl<const D: usize> Default for TrackedPositions<D> {
+    /// No targets, weight 1.
+    fn default() -> Self {
+        Self {
+            targets: BTreeMap::new(),
+            weight: 1.0,
+        }
+    }
 }
 
 impl<const D: usize> Objective<D> for TrackedPositions<D> {

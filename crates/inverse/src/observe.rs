@@ -1,7 +1,9 @@
-//! Observations of a run as objectives: tracked particle positions and Eulerian velocity
-//! monitors, their sum, and synthetic observations recorded from a "truth" run.
+//! Observations of a run as objectives: tracked particle positions, Eulerian velocity
+//! monitors and a deposit profile, their sum, and synthetic observations recorded from a
+//! "truth" run.
 
 use crate::adjoint_state::ParticleAdjoint;
+use crate::deposit::DepositProfile;
 use crate::error::AdjointError;
 use crate::objective::{Objective, ScalarObjective, TrackedPositions};
 use loam_core::tensor::Vector;
@@ -58,7 +60,7 @@ impl<const D: usize> MonitorBox<D> {
 /// particles entering or leaving the box (a jump, whose derivative is zero almost
 /// everywhere). With `M = Σ m_p`, `∂ℓ/∂v_p = 2w (v̄ − v*) m_p / M` and
 /// `∂ℓ/∂m_p = 2w (v̄ − v*)·(v_p − v̄) / M`.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct VelocityMonitors<const D: usize> {
     /// The boxes.
     pub boxes: Vec<MonitorBox<D>>,
@@ -66,6 +68,17 @@ pub struct VelocityMonitors<const D: usize> {
     pub targets: BTreeMap<usize, Vec<(usize, Vector<f64, D>)>>,
     /// Weight `w` of every squared difference.
     pub weight: f64,
+}
+
+impl<const D: usize> Default for VelocityMonitors<D> {
+    /// No boxes, no targets, weight 1.
+    fn default() -> Self {
+        Self {
+            boxes: Vec::new(),
+            targets: BTreeMap::new(),
+            weight: 1.0,
+        }
+    }
 }
 
 impl<const D: usize> Objective<D> for VelocityMonitors<D> {
@@ -104,29 +117,46 @@ impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
     }
 }
 
-/// Every observation of an inversion: `L = L_tracked + L_monitors`.
+/// Every observation of an inversion: `L = L_tracked + L_monitors + L_deposit`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Observations<const D: usize> {
     /// Tracked particle positions.
     pub tracked: TrackedPositions<D>,
     /// Eulerian velocity monitors.
     pub monitors: VelocityMonitors<D>,
+    /// Deposit depths at stations.
+    pub deposit: DepositProfile<D>,
 }
 
 impl<const D: usize> Observations<D> {
+    /// No targets yet: velocity monitors in `boxes`, every weight 1 (the sensors of
+    /// [`Observations::record`] when nothing but particles and boxes is observed).
+    pub fn with_monitors(boxes: Vec<MonitorBox<D>>) -> Self {
+        Self {
+            monitors: VelocityMonitors {
+                boxes,
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+
     /// The steps at which something is observed, in order.
     pub fn steps(&self) -> BTreeSet<usize> {
         self.tracked
             .targets
             .keys()
             .chain(self.monitors.targets.keys())
+            .chain(self.deposit.targets.keys())
             .copied()
             .collect()
     }
 
     /// Synthetic observations: runs `config` from `initial` for `steps` steps and records,
     /// at each of `observed` (steps, 0 the initial state), the positions of the particles
-    /// `ids` and the mean velocity in every box of `boxes`; the weights are those given.
+    /// `ids` and the mean velocity in every monitor box of `sensors`, and after the last
+    /// step the depth at every deposit station of `sensors` (the final deposit). The boxes,
+    /// stations and weights are those of `sensors`, whose targets are replaced.
     ///
     /// # Errors
     /// A run that is refused or stops.
@@ -136,21 +166,19 @@ impl<const D: usize> Observations<D> {
         steps: usize,
         observed: &BTreeSet<usize>,
         ids: &[usize],
-        boxes: Vec<MonitorBox<D>>,
-        weights: (f64, f64),
+        sensors: Self,
     ) -> Result<Self, AdjointError> {
-        let mut out = Self {
-            tracked: TrackedPositions {
-                targets: BTreeMap::new(),
-                weight: weights.0,
-            },
-            monitors: VelocityMonitors {
-                boxes,
-                targets: BTreeMap::new(),
-                weight: weights.1,
-            },
-        };
+        let mut out = sensors;
+        out.tracked.targets.clear();
+        out.monitors.targets.clear();
+        out.deposit.targets.clear();
         let mut record = |s: usize, p: &Particles<f64, D>| {
+            if s == steps && !out.deposit.stations.is_empty() {
+                let h = (out.deposit.stations.iter().enumerate())
+                    .map(|(k, station)| (k, station.depth(p, out.deposit.up)))
+                    .collect();
+                out.deposit.targets.insert(s, h);
+            }
             if !observed.contains(&s) {
                 return;
             }
@@ -184,13 +212,16 @@ impl<const D: usize> Objective<D> for Observations<D> {
         mut adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64 {
         self.tracked.term(step, particles, adjoint.as_deref_mut())
-            + self.monitors.term(step, particles, adjoint)
+            + self.monitors.term(step, particles, adjoint.as_deref_mut())
+            + self.deposit.term(step, particles, adjoint)
     }
 }
 
 impl<const D: usize> ScalarObjective<D> for Observations<D> {
     fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T {
-        self.tracked.value(step, particles) + self.monitors.value(step, particles)
+        self.tracked.value(step, particles)
+            + self.monitors.value(step, particles)
+            + self.deposit.value(step, particles)
     }
 }
 

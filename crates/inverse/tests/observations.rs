@@ -1,7 +1,7 @@
 //! Observations and inverse problems against forward-mode duals.
 //!
-//! Synthetic observations (tracked positions and velocity monitors) are recorded from a
-//! truth run; the loss at other values of the unknowns must have the adjoint gradient of
+//! Synthetic observations (tracked positions, velocity monitors and the final deposit
+//! depth at stations) are recorded from a truth run; the loss at other values of the unknowns must have the adjoint gradient of
 //! [`Problem::gradient`] equal to the dual derivative of [`Problem::dual_derivative`] (both
 //! exact derivatives of the same discrete map: 1e-10 relative, the round-off of summing the
 //! nodal contributions in another order, as in `adjoint.rs`), and the dual derivative must
@@ -12,8 +12,8 @@ use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Config;
 use loam_inverse::{
-    Control, MaterialField, MonitorBox, Observations, Param, Problem, VelocityField,
-    VelocityMonitors,
+    Control, DepositProfile, MaterialField, MonitorBox, Observations, Param, Problem, Station,
+    TrackedPositions, VelocityField, VelocityMonitors,
 };
 use std::collections::BTreeSet;
 
@@ -28,7 +28,8 @@ fn scene() -> (Config<f64, 2>, Particles<f64, 2>) {
 const STEPS: usize = 50;
 
 /// Two boxes on the floor in the path of the flow, observed every 10 steps with every 9th
-/// particle.
+/// particle, and the final depth at three stations (under the column, at its toe and
+/// ahead of it).
 fn truth_observations(config: &Config<f64, 2>, particles: &Particles<f64, 2>) -> Observations<2> {
     let boxes = vec![
         MonitorBox {
@@ -42,8 +43,28 @@ fn truth_observations(config: &Config<f64, 2>, particles: &Particles<f64, 2>) ->
     ];
     let observed: BTreeSet<usize> = (10..=STEPS).step_by(10).collect();
     let ids: Vec<usize> = (0..particles.len()).step_by(9).collect();
-    Observations::record(config, particles, STEPS, &observed, &ids, boxes, (1.0, 0.5))
-        .expect("truth run")
+    let stations = [0.03, 0.08, 0.125].map(|x| Station {
+        at: Vector::from([x, 0.0]),
+        width: 0.02,
+    });
+    let sensors = Observations {
+        tracked: TrackedPositions {
+            weight: 1.0,
+            ..Default::default()
+        },
+        monitors: VelocityMonitors {
+            boxes,
+            weight: 0.5,
+            ..Default::default()
+        },
+        deposit: DepositProfile {
+            stations: stations.to_vec(),
+            up: 1,
+            weight: 10.0,
+            ..Default::default()
+        },
+    };
+    Observations::record(config, particles, STEPS, &observed, &ids, sensors).expect("truth run")
 }
 
 fn controls() -> Vec<Control> {
@@ -100,10 +121,21 @@ fn check(
 }
 
 #[test]
-fn tracked_and_monitor_losses_have_exact_adjoints() {
+fn tracked_monitor_and_deposit_losses_have_exact_adjoints() {
     let (config, particles) = scene();
     let objective = truth_observations(&config, &particles);
     assert!(!objective.monitors.targets.is_empty() && !objective.tracked.targets.is_empty());
+    // The deposit is observed once, after the last step, at every station, and the flow
+    // has reached the stations (a depth of zero would test nothing).
+    assert_eq!(
+        objective.deposit.targets.keys().collect::<Vec<_>>(),
+        [&STEPS]
+    );
+    assert!(
+        objective.deposit.targets[&STEPS]
+            .iter()
+            .all(|&(_, h)| h > 1e-3)
+    );
     let problem = Problem {
         config,
         initial: particles,
@@ -125,11 +157,11 @@ fn monitor_loss_alone_matches_the_dual_run_and_differences() {
     let (config, particles) = scene();
     let all = truth_observations(&config, &particles);
     let objective = Observations {
-        tracked: Default::default(),
         monitors: VelocityMonitors {
             weight: 2.0,
             ..all.monitors
         },
+        ..Default::default()
     };
     let problem = Problem {
         config,
@@ -146,6 +178,33 @@ fn monitor_loss_alone_matches_the_dual_run_and_differences() {
         segment: Some(7),
     };
     check(&problem, &[0.07, 0.45], &[0, 1], true);
+}
+
+#[test]
+fn deposit_loss_alone_matches_the_dual_run_and_differences() {
+    // The depth is a smooth (C¹ B-spline) function of the positions and `det F`, so central
+    // differences of the loss converge like those of the other observations.
+    let (config, particles) = scene();
+    let all = truth_observations(&config, &particles);
+    let objective = Observations {
+        deposit: all.deposit,
+        ..Default::default()
+    };
+    let problem = Problem {
+        config,
+        initial: particles,
+        steps: STEPS,
+        controls: vec![
+            Control::Param(Param::Friction(1)),
+            Control::InitialVelocity {
+                material: None,
+                direction: vec![1.0, 0.0],
+            },
+        ],
+        objective,
+        segment: Some(9),
+    };
+    check(&problem, &[0.2, 0.5], &[0, 1], true);
 }
 
 #[test]

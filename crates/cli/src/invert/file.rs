@@ -6,7 +6,7 @@ use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
 use loam_inverse::{
-    Control, MonitorBox, Observations, Param, Problem, ReverseStep, Transform, Variable,
+    Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station, Transform, Variable,
     VelocityField,
 };
 use loam_scene::{Built, Issue, Location, Scene, SceneError, SceneFormat, SolverPlan};
@@ -105,6 +105,26 @@ pub struct ObservationsSpec {
     /// The monitor boxes.
     #[serde(default)]
     pub monitors: Vec<MonitorSpec>,
+    /// CSV of deposit depths (`step|time, station, depth`).
+    pub deposit: Option<PathBuf>,
+    /// Weight of every squared depth mismatch (default 1).
+    pub deposit_weight: Option<f64>,
+    /// The deposit stations.
+    #[serde(default)]
+    pub stations: Vec<StationSpec>,
+}
+
+/// `[[observations.stations]]`: where on the floor the deposit depth is measured.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StationSpec {
+    /// Its name in the deposit CSV.
+    pub name: String,
+    /// Its horizontal coordinates: `D − 1` numbers, the axes in order without the vertical
+    /// one (the axis of gravity).
+    pub at: Vec<f64>,
+    /// The width `b` of the smoothing kernel (default: the grid's cell size).
+    pub width: Option<f64>,
 }
 
 /// `[[observations.monitors]]`: a box `[lo, hi)`.
@@ -129,8 +149,9 @@ pub struct SyntheticSpec {
     /// Seed of the choice (default 0).
     #[serde(default)]
     pub seed: u64,
-    /// Observe every this many steps.
-    pub every: usize,
+    /// Observe the tracked particles and the monitors every this many steps (needed when
+    /// there are any).
+    pub every: Option<usize>,
     /// First observed step (default `every`).
     pub first: Option<usize>,
     /// The truth run's scene (default the forward scene), relative to the inversion file:
@@ -241,6 +262,8 @@ pub struct Inversion<const D: usize> {
     pub initial: Vec<f64>,
     /// The monitors' names.
     pub monitor_names: Vec<String>,
+    /// The deposit stations' names.
+    pub station_names: Vec<String>,
 }
 
 /// Why an inversion could not be set up: the message is printed as is (exit 2).
@@ -528,14 +551,61 @@ pub fn build<const D: usize>(
             hi: Vector::from_iterator(m.hi.iter().copied()),
         });
     }
+    // Deposit stations, on the floor: the vertical is the axis of gravity (the last axis
+    // without gravity).
+    let g = (built.explicit_config()).map_or_else(Vector::zeros, |c| c.gravity);
+    let up = (0..D)
+        .rev()
+        .max_by(|&a, &b| g[a].abs().total_cmp(&g[b].abs()))
+        .filter(|&a| g[a] != 0.0)
+        .unwrap_or(D - 1);
+    let mut station_names: Vec<String> = Vec::new();
+    let mut stations = Vec::new();
+    for (i, s) in file.observations.stations.iter().enumerate() {
+        let at = |f: &str| format!("observations.stations[{i}].{f}");
+        if station_names.contains(&s.name) {
+            issue(at("name"), format!("station `{}` is defined twice", s.name));
+        }
+        station_names.push(s.name.clone());
+        let width = s.width.unwrap_or(scene.grid.cell_size);
+        if !(width.is_finite() && width > 0.0) {
+            issue(
+                at("width"),
+                format!("expected a positive width, got {width}"),
+            );
+        }
+        if s.at.len() != D - 1 || s.at.iter().any(|x| !x.is_finite()) {
+            issue(
+                at("at"),
+                format!(
+                    "expected {} finite horizontal coordinate{} (the axes other than the \
+                     vertical, axis {up})",
+                    D - 1,
+                    if D == 2 { "" } else { "s" }
+                ),
+            );
+            continue;
+        }
+        let mut horizontal = s.at.iter();
+        let point = Vector::from_fn(|a, _| {
+            if a == up {
+                0.0
+            } else {
+                *horizontal.next().expect("D − 1 coordinates")
+            }
+        });
+        stations.push(Station { at: point, width });
+    }
     let o = &file.observations;
     let weights = (
         o.tracked_weight.unwrap_or(1.0),
         o.velocity_weight.unwrap_or(1.0),
+        o.deposit_weight.unwrap_or(1.0),
     );
     for (field, w) in [
         ("tracked_weight", weights.0),
         ("velocity_weight", weights.1),
+        ("deposit_weight", weights.2),
     ] {
         if !(w.is_finite() && w >= 0.0) {
             issue(
@@ -549,6 +619,7 @@ pub fn build<const D: usize>(
             for (field, given) in [
                 ("tracked", o.tracked.is_some()),
                 ("velocity", o.velocity.is_some()),
+                ("deposit", o.deposit.is_some()),
             ] {
                 if given {
                     issue(
@@ -559,8 +630,15 @@ pub fn build<const D: usize>(
                     );
                 }
             }
-            if s.every == 0 {
-                issue("synthetic.every".into(), "expected at least 1 step".into());
+            match s.every {
+                Some(0) => issue("synthetic.every".into(), "expected at least 1 step".into()),
+                None if s.particles > 0 || !boxes.is_empty() => issue(
+                    "synthetic.every".into(),
+                    "expected the steps between observations of the tracked particles and \
+                     monitors"
+                        .into(),
+                ),
+                _ => {}
             }
             if s.particles > built.particles.len() {
                 issue(
@@ -568,10 +646,12 @@ pub fn build<const D: usize>(
                     format!("the scene has only {} particles", built.particles.len()),
                 );
             }
-            if s.particles == 0 && boxes.is_empty() {
+            if s.particles == 0 && boxes.is_empty() && stations.is_empty() {
                 issue(
                     "synthetic.particles".into(),
-                    "nothing to observe: track particles or define monitors".into(),
+                    "nothing to observe: track particles, or define monitors or deposit \
+                     stations"
+                        .into(),
                 );
             }
             if !file.velocity_field.is_empty() && s.scene.is_none() {
@@ -594,11 +674,18 @@ pub fn build<const D: usize>(
             }
         }
         None => {
-            if o.tracked.is_none() && o.velocity.is_none() {
+            if o.tracked.is_none() && o.velocity.is_none() && o.deposit.is_none() {
                 issue(
                     "observations".into(),
-                    "expected `tracked` or `velocity` (a CSV file), or a [synthetic] section"
+                    "expected `tracked`, `velocity` or `deposit` (a CSV file), or a [synthetic] \
+                     section"
                         .into(),
+                );
+            }
+            if o.deposit.is_some() && stations.is_empty() {
+                issue(
+                    "observations.stations".into(),
+                    "the deposit file needs deposit stations".into(),
                 );
             }
             if o.velocity.is_some() && boxes.is_empty() {
@@ -625,6 +712,12 @@ pub fn build<const D: usize>(
     let values = problem.values().map_err(|e| Invalid(e.to_string()))?;
     initial.extend_from_slice(&values[scalars..]);
     let mut truth_initial = None;
+    let mut sensors = Observations::with_monitors(boxes);
+    sensors.tracked.weight = weights.0;
+    sensors.monitors.weight = weights.1;
+    sensors.deposit.weight = weights.2;
+    sensors.deposit.stations = stations;
+    sensors.deposit.up = up;
     problem.objective = match &file.synthetic {
         Some(s) => {
             let truth = truth.as_deref().expect("checked above");
@@ -643,10 +736,12 @@ pub fn build<const D: usize>(
             if s.scene.is_some() {
                 truth_initial = Some(particles.clone());
             }
-            let first = s.first.unwrap_or(s.every);
-            let observed: BTreeSet<usize> = (first..=steps).step_by(s.every).collect();
+            // Without `every` nothing but the final deposit is observed.
+            let every = s.every.unwrap_or(steps + 1);
+            let first = s.first.unwrap_or(every);
+            let observed: BTreeSet<usize> = (first..=steps).step_by(every).collect();
             let ids = loam_inverse::choose(particles.len(), s.particles, s.seed);
-            Observations::record(&config, &particles, steps, &observed, &ids, boxes, weights)
+            Observations::record(&config, &particles, steps, &observed, &ids, sensors)
                 .map_err(|e| Invalid(format!("{}: the truth run: {e}", path.display())))?
         }
         None => {
@@ -656,10 +751,7 @@ pub fn build<const D: usize>(
                 steps,
                 particles: problem.initial.len(),
             };
-            let mut out = Observations::default();
-            out.tracked.weight = weights.0;
-            out.monitors.weight = weights.1;
-            out.monitors.boxes = boxes;
+            let mut out = sensors;
             let mut errors = Vec::new();
             if let Some(f) = &o.tracked {
                 match observed::read_tracked::<D>(&dir.join(f), &at) {
@@ -671,6 +763,12 @@ pub fn build<const D: usize>(
                 match observed::read_velocity::<D>(&dir.join(f), &at, &monitor_names) {
                     Ok(t) => out.monitors.targets = t,
                     Err(msg) => errors.push(Issue::new("observations.velocity", msg)),
+                }
+            }
+            if let Some(f) = &o.deposit {
+                match observed::read_deposit(&dir.join(f), &at, &station_names) {
+                    Ok(t) => out.deposit.targets = t,
+                    Err(msg) => errors.push(Issue::new("observations.deposit", msg)),
                 }
             }
             if !errors.is_empty() {
@@ -691,6 +789,7 @@ pub fn build<const D: usize>(
         truth_initial,
         initial,
         monitor_names,
+        station_names,
     }
     .named())
 }

@@ -16,6 +16,7 @@ use crate::Outcome;
 use crate::run::interrupt;
 use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
+use loam_core::tensor::Vector;
 use loam_inverse::optimise::norm;
 use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser, check};
 use std::cell::{Cell, RefCell};
@@ -496,6 +497,20 @@ fn write_synthetic<const D: usize>(inv: &Inversion<D>, dir: &Path) -> Result<(),
             "monitor",
             ["vx", "vy", "vz"],
             Some(&inv.monitor_names),
+        )
+        .map_err(|e| err(&f, e))?;
+    }
+    if !o.deposit.targets.is_empty() {
+        let f = dir.join("deposit.csv");
+        let rows: observed::Targets<1> = (o.deposit.targets.iter())
+            .map(|(&s, r)| (s, r.iter().map(|&(i, h)| (i, Vector::from([h]))).collect()))
+            .collect();
+        observed::write(
+            &f,
+            &rows,
+            "station",
+            ["depth", "", ""],
+            Some(&inv.station_names),
         )
         .map_err(|e| err(&f, e))?;
     }

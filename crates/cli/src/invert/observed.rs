@@ -4,7 +4,9 @@
 //! Tracked positions: a header `step,id,x,y` (2D; `z` too in 3D) or `time,id,x,y`, then one
 //! row per particle and observed step. Monitor velocities: `step,monitor,vx,vy` (`vz`) or
 //! `time,...`, one row per monitor and observed step, `monitor` a name of
-//! `[[observations.monitors]]`. A time must fall on a step (`t = n Δt` within 10⁻³ Δt).
+//! `[[observations.monitors]]`. Deposit depths: `step,station,depth` or `time,...`, one row
+//! per station and observed step, `station` a name of `[[observations.stations]]`. A time
+//! must fall on a step (`t = n Δt` within 10⁻³ Δt).
 //! Blank lines and lines starting with `#` are skipped.
 
 use loam_core::tensor::Vector;
@@ -144,6 +146,28 @@ pub fn read_velocity<const D: usize>(
             .position(|m| m == s)
             .ok_or_else(|| format!("unknown monitor `{s}`; defined: {}", monitors.join(", ")))
     })
+}
+
+/// Reads a deposit-depth file: per step, `(station, depth)`.
+pub fn read_deposit(
+    file: &Path,
+    grid: &Grid,
+    stations: &[String],
+) -> Result<BTreeMap<usize, Vec<(usize, f64)>>, String> {
+    let rows = read::<1>(file, grid, ("station", ["depth", "", ""]), &|s| {
+        stations
+            .iter()
+            .position(|m| m == s)
+            .ok_or_else(|| format!("unknown station `{s}`; defined: {}", stations.join(", ")))
+    })?;
+    Ok(depths(&rows))
+}
+
+/// Depth targets from one-component vectors (the rows [`read`] gives).
+fn depths(rows: &Targets<1>) -> BTreeMap<usize, Vec<(usize, f64)>> {
+    (rows.iter())
+        .map(|(&s, r)| (s, r.iter().map(|&(i, v)| (i, v[0])).collect()))
+        .collect()
 }
 
 /// Writes targets as a CSV file read back by [`read_tracked`] or [`read_velocity`]
