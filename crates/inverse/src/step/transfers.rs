@@ -20,7 +20,7 @@ pub(super) struct Site<'a, const D: usize> {
     shape: Shape,
     x: Vector<f64, D>,
     half_width: Vector<f64, D>,
-    stencil: Stencil<f64, D>,
+    stencil: &'a Stencil<f64, D>,
 }
 
 impl<'a, const D: usize> Site<'a, D> {
@@ -30,7 +30,7 @@ impl<'a, const D: usize> Site<'a, D> {
         shape: Shape,
         x: Vector<f64, D>,
         half_width: Vector<f64, D>,
-        stencil: Stencil<f64, D>,
+        stencil: &'a Stencil<f64, D>,
     ) -> Self {
         Self {
             grid,
@@ -43,7 +43,7 @@ impl<'a, const D: usize> Site<'a, D> {
 
     /// The stencil at the particle.
     pub fn stencil(&self) -> &Stencil<f64, D> {
-        &self.stencil
+        self.stencil
     }
 
     /// Calls `f(node, w, ∇w, x_i − x_p)` for every node of the stencil (`node` the flat grid
@@ -86,7 +86,7 @@ pub(super) struct GatherForm {
 }
 
 /// The adjoint of a G2P gather `G = Σ_i (w v_i, w (v_i − vⁿ_i), v_i ⊗ ∇w, k/h² w v_i ⊗ o_i)` at
-/// one particle: writes `(node, v̄ share, v̄ⁿ share)` per stencil node into `out`,
+/// one particle: writes `(v̄ share, v̄ⁿ share)` per stencil node into `out` (in stencil order),
 /// `v̄_i = w Ḡ.v + w Ḡ.dv + Ḡ.grad ∇w + (k/h²) w Ḡ.aff o_i`, `v̄ⁿ_i = −w Ḡ.dv`, and returns
 /// `x̄_p = ∂(Ḡ · G)/∂x_p` with the nodal velocities held. `old` is empty unless FLIP.
 pub(super) fn gather_adjoint<const D: usize>(
@@ -95,7 +95,7 @@ pub(super) fn gather_adjoint<const D: usize>(
     g_bar: &Gathered<f64, D>,
     velocity: &[Vector<f64, D>],
     old: &[Vector<f64, D>],
-    out: &mut [(usize, Vector<f64, D>, Vector<f64, D>)],
+    out: &mut [(Vector<f64, D>, Vector<f64, D>)],
 ) -> Vector<f64, D> {
     let grad_bar = if form.affine_is_gradient {
         g_bar.grad_v + g_bar.affine
@@ -113,24 +113,23 @@ pub(super) fn gather_adjoint<const D: usize>(
     let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
     let mut k = 0;
     site.each(|n, w, gradient, offset| {
-        let ao = aff_bar.map(|aff| aff * offset);
-        let mut a = gvd * w;
+        // t = Ḡ.v + Ḡ.dv + Ā o_i: the node's share is w t (plus the ∇w term), and its
+        // weight derivative's factor v_i·t.
+        let t = match &aff_bar {
+            Some(aff) => gvd + aff * offset,
+            None => gvd,
+        };
+        let mut a = t * w;
         if !closed {
             a += grad_bar * gradient;
         }
-        if let Some(ao) = ao {
-            a += ao * w;
-        }
-        out[k] = (n, a, if flip { -g_bar.dv * w } else { Vector::zeros() });
+        out[k] = (a, if flip { -g_bar.dv * w } else { Vector::zeros() });
         k += 1;
         if closed {
             let vi = velocity[n];
-            let mut s = vi.dot(&gvd);
+            let mut s = vi.dot(&t);
             if flip {
                 s -= old[n].dot(&g_bar.dv);
-            }
-            if let Some(ao) = ao {
-                s += vi.dot(&ao);
             }
             x_bar += gradient * s;
             wv += vi * w;
