@@ -18,8 +18,8 @@
 //! enforced, its reflection, and the gather of `L` from that field; the reverse runs their
 //! adjoints in between (`musl.rs`).
 //!
-//! The grid of the step is recomputed from the start-of-step particles (every node's sums in
-//! particle order). Branches (stick/slip, separable walls, the projection of shallow wall crossings,
+//! The grid of the step is recomputed from the start-of-step particles (serially, in particle
+//! order). Branches (stick/slip, separable walls, the projection of shallow wall crossings,
 //! yield and return region) are taken on real parts, so every local derivative is that of the
 //! branch the recomputed step takes, which is the forward pass's: the same real arithmetic on
 //! the same inputs, except that the nodal sums add in another order (the forward sums block by
@@ -27,10 +27,9 @@
 //! exactly on a switch could then take the other branch; `tests/adjoint.rs` checks the
 //! gradient against forward-mode duals on scenes with stick, slip and yield.
 //!
-//! Sums over particles into nodes (P2G and the scatters) add every node's terms in particle
-//! order, in parallel over bands of node layers, and the parameters' shares are summed per
-//! fixed chunk of particles or nodes and then in chunk order: the gradient has the same bits
-//! at any thread count.
+//! Sums over particles into nodes (the scatters) run serially in particle order, and the
+//! parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
+//! order: the gradient has the same bits at any thread count.
 
 mod fluid_mls;
 mod kernels;
@@ -47,7 +46,7 @@ use loam_core::constitutive::Material;
 use loam_core::stencil::{Layout, particle_half_width};
 use loam_core::step::{NodeLaw, NodeState, NodeSums, P2g, momentum_update, on_a_face};
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
-use loam_core::{Grid, Particles, Scheme, Shape, ShapeFunction, Stencil, Transfer};
+use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
 use loam_explicit::{Config, MASS_EPS};
 use nalgebra::Matrix3;
 use num_dual::Dual64;
@@ -56,9 +55,6 @@ use transfers::{GatherForm, NodeAdjoints, Site};
 
 /// Particles or nodes per parallel task (a fixed split, so that sums have a fixed order).
 const CHUNK: usize = 256;
-
-/// Node layers (along the last axis) per band of [`add_to_nodes`].
-const BAND_LAYERS: usize = 2;
 
 /// The reverse of one step, for one configuration and parameter list: the lifted
 /// configurations (one constant, one per parameter with that parameter seeded) and the grid
@@ -77,18 +73,12 @@ pub struct ReverseStep<const D: usize> {
     /// Every particle's stencil at the start of the step being reversed, formed once and
     /// shared by the reverse passes.
     stencils: Vec<Stencil<f64, D>>,
-    /// Per band of [`BAND_LAYERS`] node layers along the last axis, the particles whose
-    /// stencils reach it, in particle order (see [`add_to_nodes`]).
-    bands: Vec<Vec<usize>>,
 }
 
 /// The grid of one step, recomputed, and the adjoints of its fields.
 struct GridScratch<const D: usize> {
     /// P2G sums, folded: the node update's inputs.
     sums: Vec<NodeSums<f64, D>>,
-    /// Every particle's P2G contributions to the nodes of its stencil (in stencil order),
-    /// before they are added up.
-    contributions: Vec<NodeSums<f64, D>>,
     /// Start-of-step grid velocity `vⁿ_i` (reflected; FLIP reads it).
     v_old: Vec<Vector<f64, D>>,
     /// Updated grid velocity `v̂_i` (after contact, walls and the reflection).
@@ -141,50 +131,8 @@ impl<const D: usize> ParticleShare<D> {
     }
 }
 
-/// A scatter to the nodes: `(v̄ share, v̄ⁿ share)` per stencil node of every particle, in
-/// stencil order.
-type Scatter<const D: usize> = Vec<(Vector<f64, D>, Vector<f64, D>)>;
-
-/// The band of node layers along the last axis that layer `layer` belongs to.
-fn band_of(layer: isize) -> usize {
-    layer as usize / BAND_LAYERS
-}
-
-/// Adds every particle's values on the nodes of its stencil (`values`, `len` per particle in
-/// stencil order) into `nodes` by `add`, the terms of every node in particle order. The bands
-/// of `bands` (node layers along the last axis, with the particles that reach each) are
-/// summed in parallel; a node's sum has the same order, so the same bits, at any thread count.
-fn add_to_nodes<E: Sync, N: Send, const D: usize>(
-    grid: &Grid<D>,
-    stencils: &[Stencil<f64, D>],
-    bands: &[Vec<usize>],
-    (values, len): (&[E], usize),
-    nodes: &mut [N],
-    add: impl Fn(&mut N, &E) + Sync,
-) {
-    let layout = Layout::grid(grid);
-    let layer: usize = grid.nodes()[..D - 1].iter().product();
-    nodes
-        .par_chunks_mut(layer * BAND_LAYERS)
-        .zip(bands.par_iter())
-        .enumerate()
-        .for_each(|(band, (out, particles))| {
-            let first = band * layer * BAND_LAYERS;
-            let range = first..first + out.len();
-            for &i in particles {
-                let (stencil, v) = (&stencils[i], &values[i * len..(i + 1) * len]);
-                let mut k = 0;
-                stencil.for_each_row(&layout, |row| {
-                    for j in 0..stencil.width() {
-                        if range.contains(&(row.index + j)) {
-                            add(&mut out[row.index + j - first], &v[k + j]);
-                        }
-                    }
-                    k += stencil.width();
-                });
-            }
-        });
-}
+/// A scatter to the nodes: `(node, v̄ share, v̄ⁿ share)` per stencil node of every particle.
+type Scatter<const D: usize> = Vec<(usize, Vector<f64, D>, Vector<f64, D>)>;
 
 /// Packs the particle's end-of-step state fields `F, σ`, plastic strain and tensor (the
 /// [`kernels::End`] block).
@@ -243,7 +191,6 @@ impl<const D: usize> ReverseStep<D> {
             particle_params,
             grid: GridScratch {
                 sums: vec![NodeSums::zero(); n],
-                contributions: Vec::new(),
                 v_old: vec![Vector::zeros(); n],
                 v_hat: vec![Vector::zeros(); n],
                 states: vec![NodeState::default(); n],
@@ -255,7 +202,6 @@ impl<const D: usize> ReverseStep<D> {
                 adj_v_old: vec![Vector::zeros(); n],
             },
             stencils: Vec::new(),
-            bands: Vec::new(),
             config: config.clone(),
         })
     }
@@ -324,8 +270,7 @@ impl<const D: usize> ReverseStep<D> {
         particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i])
     }
 
-    /// Forms every particle's stencil at the start of the step (in parallel) and the bands'
-    /// particle lists.
+    /// Forms every particle's stencil at the start of the step (in parallel).
     fn locate(&mut self, p: &Particles<f64, D>) {
         let mut stencils = std::mem::take(&mut self.stencils);
         let cfg = &self.config;
@@ -336,17 +281,6 @@ impl<const D: usize> ReverseStep<D> {
                 .with_min_len(CHUNK)
                 .map(|i| Stencil::new(cfg.shape, &cfg.grid, &p.x[i], &self.half_width(p, i))),
         );
-        let layers = cfg.grid.nodes()[D - 1];
-        self.bands.resize(layers.div_ceil(BAND_LAYERS), Vec::new());
-        for band in &mut self.bands {
-            band.clear();
-        }
-        for (i, st) in stencils.iter().enumerate() {
-            let last = st.base[D - 1];
-            for band in band_of(last)..=band_of(last + st.width() as isize - 1) {
-                self.bands[band].push(i);
-            }
-        }
         self.stencils = stencils;
     }
 
@@ -383,41 +317,19 @@ impl<const D: usize> ReverseStep<D> {
         MASS_EPS * p.mass.iter().fold(0.0f64, |a, &m| a.max(m))
     }
 
-    /// Stages 1 and 2 of the forward step from the start-of-step particles: P2G, the fold of
-    /// the ghosts, the node update, the reflection. Each particle's P2G contributions are
-    /// formed in parallel into its own stencil-sized buffer and then added to the nodes in
-    /// particle order ([`add_to_nodes`]); the node update runs in parallel (it is per node).
+    /// Stages 1 and 2 of the forward step from the start-of-step particles: P2G (serially, in
+    /// particle order), the fold of the ghosts, the node update (per node, in parallel), the
+    /// reflection.
     fn recompute_grid(&mut self, p: &Particles<f64, D>, time: f64, dt: f64) {
         let cfg = &self.config;
         let g = &mut self.grid;
-        let stencils = &self.stencils;
-        let stage = P2g::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
-        let len = cfg.shape.support_width().pow(D as u32);
-        g.contributions.resize(p.len() * len, NodeSums::zero());
-        g.contributions
-            .par_chunks_mut(len)
-            .enumerate()
-            .with_min_len(CHUNK)
-            .for_each(|(i, local)| {
-                local.fill(NodeSums::zero());
-                let mut stencil = stencils[i];
-                let cube = Layout::cube(stencil.base.map(|b| b as usize), stencil.b);
-                stage.particle(p, i, &mut stencil, &cube, local);
-            });
         g.sums.fill(NodeSums::zero());
-        let values = (&g.contributions[..], len);
-        add_to_nodes(
-            &cfg.grid,
-            stencils,
-            &self.bands,
-            values,
-            &mut g.sums,
-            |e, c| {
-                e.m += c.m;
-                e.p += c.p;
-                e.f += c.f;
-            },
-        );
+        let layout = Layout::grid(&cfg.grid);
+        let stage = P2g::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
+        let mut stencil = Stencil::new(cfg.shape, &cfg.grid, &p.x[0], &p.half_width0[0]);
+        for i in 0..p.len() {
+            stage.particle(p, i, &mut stencil, &layout, &mut g.sums);
+        }
         let mut mass: Vec<f64> = g.sums.iter().map(|s| s.m).collect();
         let mut mom: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.p).collect();
         let mut force: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.f).collect();
@@ -457,33 +369,36 @@ impl<const D: usize> ReverseStep<D> {
         }
     }
 
-    /// Adds a scatter into `adj` after zeroing it, and the `vⁿ` shares into `adj_old` when
-    /// given, in particle order ([`add_to_nodes`]).
+    /// Adds a scatter into `adj` (serially, in particle order) after zeroing it, and the `vⁿ`
+    /// shares into `adj_old` when given.
     fn add_scatter(
-        &self,
         scatter: &Scatter<D>,
         adj: &mut [Vector<f64, D>],
-        adj_old: Option<&mut [Vector<f64, D>]>,
+        mut adj_old: Option<&mut [Vector<f64, D>]>,
     ) {
-        let (grid, stencils, bands) = (&self.config.grid, &self.stencils, &self.bands);
-        let len = self.config.shape.support_width().pow(D as u32);
         adj.fill(Vector::zeros());
-        add_to_nodes(grid, stencils, bands, (scatter, len), adj, |e, s| *e += s.0);
-        if let Some(old) = adj_old {
+        if let Some(old) = adj_old.as_deref_mut() {
             old.fill(Vector::zeros());
-            add_to_nodes(grid, stencils, bands, (scatter, len), old, |e, s| *e += s.1);
+        }
+        for &(node, a, a_old) in scatter {
+            adj[node] += a;
+            if let Some(old) = adj_old.as_deref_mut() {
+                old[node] += a_old;
+            }
         }
     }
 
     /// The adjoint of the first grid's velocities from the G2P scatter: `v̂̄` (and `v̄ⁿ` for
     /// FLIP) summed in particle order, then the transpose of their reflection.
     fn scatter_to_first_grid(&mut self, scatter: &Scatter<D>) {
-        let flip = self.config.transfer.needs_old_grid_velocity();
-        let mut adj_v_hat = std::mem::take(&mut self.grid.adj_v_hat);
-        let mut adj_v_old = std::mem::take(&mut self.grid.adj_v_old);
-        self.add_scatter(scatter, &mut adj_v_hat, flip.then_some(&mut adj_v_old[..]));
-        let (cfg, g) = (&self.config, &mut self.grid);
-        (g.adj_v_hat, g.adj_v_old) = (adj_v_hat, adj_v_old);
+        let cfg = &self.config;
+        let flip = cfg.transfer.needs_old_grid_velocity();
+        let g = &mut self.grid;
+        Self::add_scatter(
+            scatter,
+            &mut g.adj_v_hat,
+            flip.then_some(&mut g.adj_v_old[..]),
+        );
         cfg.boundary
             .reflect_ghosts_adjoint(&cfg.grid, &mut g.adj_v_hat);
         if flip {

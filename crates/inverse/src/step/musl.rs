@@ -100,7 +100,7 @@ impl<const D: usize> ReverseStep<D> {
         let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut moved_bar = vec![(Vector::zeros(), Vector::zeros()); p.len()];
         let mut scatter: Scatter<D> =
-            vec![(Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
+            vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
         let nparams = gradient.len();
         let parts: Vec<Vec<f64>> = shares
             .par_chunks_mut(CHUNK)
@@ -151,7 +151,7 @@ impl<const D: usize> ReverseStep<D> {
             .collect();
         add_parts(gradient, parts);
         let mut adj_v2 = vec![Vector::zeros(); n_nodes];
-        self.add_scatter(&scatter, &mut adj_v2, None);
+        Self::add_scatter(&scatter, &mut adj_v2, None);
         cfg.boundary.reflect_ghosts_adjoint(grid, &mut adj_v2);
 
         // Reverse of the second projection, per live node.

@@ -86,7 +86,7 @@ pub(super) struct GatherForm {
 }
 
 /// The adjoint of a G2P gather `G = Σ_i (w v_i, w (v_i − vⁿ_i), v_i ⊗ ∇w, k/h² w v_i ⊗ o_i)` at
-/// one particle: writes `(v̄ share, v̄ⁿ share)` per stencil node into `out` (in stencil order),
+/// one particle: writes `(node, v̄ share, v̄ⁿ share)` per stencil node into `out`,
 /// `v̄_i = w Ḡ.v + w Ḡ.dv + Ḡ.grad ∇w + (k/h²) w Ḡ.aff o_i`, `v̄ⁿ_i = −w Ḡ.dv`, and returns
 /// `x̄_p = ∂(Ḡ · G)/∂x_p` with the nodal velocities held. `old` is empty unless FLIP.
 pub(super) fn gather_adjoint<const D: usize>(
@@ -95,7 +95,7 @@ pub(super) fn gather_adjoint<const D: usize>(
     g_bar: &Gathered<f64, D>,
     velocity: &[Vector<f64, D>],
     old: &[Vector<f64, D>],
-    out: &mut [(Vector<f64, D>, Vector<f64, D>)],
+    out: &mut [(usize, Vector<f64, D>, Vector<f64, D>)],
 ) -> Vector<f64, D> {
     let grad_bar = if form.affine_is_gradient {
         g_bar.grad_v + g_bar.affine
@@ -123,7 +123,7 @@ pub(super) fn gather_adjoint<const D: usize>(
         if !closed {
             a += grad_bar * gradient;
         }
-        out[k] = (a, if flip { -g_bar.dv * w } else { Vector::zeros() });
+        out[k] = (n, a, if flip { -g_bar.dv * w } else { Vector::zeros() });
         k += 1;
         if closed {
             let vi = velocity[n];

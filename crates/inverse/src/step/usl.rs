@@ -51,7 +51,7 @@ impl<const D: usize> ReverseStep<D> {
             .collect();
         let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut scatter: Scatter<D> =
-            vec![(Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
+            vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
         let nparams = gradient.len();
         let parts: Vec<Vec<f64>> = shares
             .par_chunks_mut(CHUNK)
