@@ -292,7 +292,7 @@ impl<const D: usize> ReverseStep<D> {
             cfg.shape,
             p.x[i],
             self.half_width(p, i),
-            self.stencils[i],
+            &self.stencils[i],
         )
     }
 
@@ -318,7 +318,8 @@ impl<const D: usize> ReverseStep<D> {
     }
 
     /// Stages 1 and 2 of the forward step from the start-of-step particles: P2G (serially, in
-    /// particle order), the fold of the ghosts, the node update, the reflection.
+    /// particle order), the fold of the ghosts, the node update (per node, in parallel), the
+    /// reflection.
     fn recompute_grid(&mut self, p: &Particles<f64, D>, time: f64, dt: f64) {
         let cfg = &self.config;
         let g = &mut self.grid;
@@ -336,21 +337,32 @@ impl<const D: usize> ReverseStep<D> {
             .fold_ghosts(&cfg.grid, Some(&mut mass), &mut mom, Some(&mut force));
         let floor = Self::mass_floor(p);
         let law = NodeLaw::new(&cfg.grid, &cfg.boundary, &cfg.contact, time + dt);
-        for n in 0..mass.len() {
-            g.sums[n] = NodeSums {
-                m: mass[n],
-                p: mom[n],
-                f: force[n],
-            };
-            g.live[n] = mass[n] > floor;
-            (g.v_old[n], g.v_hat[n], g.states[n]) = if g.live[n] {
-                let (v_old, mut v) = momentum_update(mass[n], &mom[n], &force[n], &cfg.gravity, dt);
-                let state = law.apply(cfg.grid.multi(n), &mut v);
-                (v_old, v, state)
-            } else {
-                (Vector::zeros(), Vector::zeros(), NodeState::default())
-            };
-        }
+        let gravity = cfg.gravity;
+        (
+            &mut g.sums,
+            &mut g.live,
+            &mut g.v_old,
+            &mut g.v_hat,
+            &mut g.states,
+        )
+            .into_par_iter()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(n, (sums, live, v_old, v_hat, state))| {
+                *sums = NodeSums {
+                    m: mass[n],
+                    p: mom[n],
+                    f: force[n],
+                };
+                *live = mass[n] > floor;
+                (*v_old, *v_hat, *state) = if *live {
+                    let (v_old, mut v) = momentum_update(mass[n], &mom[n], &force[n], &gravity, dt);
+                    let state = law.apply(cfg.grid.multi(n), &mut v);
+                    (v_old, v, state)
+                } else {
+                    (Vector::zeros(), Vector::zeros(), NodeState::default())
+                };
+            });
         cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_hat);
         if cfg.transfer.needs_old_grid_velocity() {
             cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_old);

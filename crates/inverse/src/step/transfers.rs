@@ -20,7 +20,7 @@ pub(super) struct Site<'a, const D: usize> {
     shape: Shape,
     x: Vector<f64, D>,
     half_width: Vector<f64, D>,
-    stencil: Stencil<f64, D>,
+    stencil: &'a Stencil<f64, D>,
 }
 
 impl<'a, const D: usize> Site<'a, D> {
@@ -30,7 +30,7 @@ impl<'a, const D: usize> Site<'a, D> {
         shape: Shape,
         x: Vector<f64, D>,
         half_width: Vector<f64, D>,
-        stencil: Stencil<f64, D>,
+        stencil: &'a Stencil<f64, D>,
     ) -> Self {
         Self {
             grid,
@@ -43,7 +43,7 @@ impl<'a, const D: usize> Site<'a, D> {
 
     /// The stencil at the particle.
     pub fn stencil(&self) -> &Stencil<f64, D> {
-        &self.stencil
+        self.stencil
     }
 
     /// Calls `f(node, w, ∇w, x_i − x_p)` for every node of the stencil (`node` the flat grid
@@ -113,24 +113,23 @@ pub(super) fn gather_adjoint<const D: usize>(
     let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
     let mut k = 0;
     site.each(|n, w, gradient, offset| {
-        let ao = aff_bar.map(|aff| aff * offset);
-        let mut a = gvd * w;
+        // t = Ḡ.v + Ḡ.dv + Ā o_i: the node's share is w t (plus the ∇w term), and its
+        // weight derivative's factor v_i·t.
+        let t = match &aff_bar {
+            Some(aff) => gvd + aff * offset,
+            None => gvd,
+        };
+        let mut a = t * w;
         if !closed {
             a += grad_bar * gradient;
-        }
-        if let Some(ao) = ao {
-            a += ao * w;
         }
         out[k] = (n, a, if flip { -g_bar.dv * w } else { Vector::zeros() });
         k += 1;
         if closed {
             let vi = velocity[n];
-            let mut s = vi.dot(&gvd);
+            let mut s = vi.dot(&t);
             if flip {
                 s -= old[n].dot(&g_bar.dv);
-            }
-            if let Some(ao) = ao {
-                s += vi.dot(&ao);
             }
             x_bar += gradient * s;
             wv += vi * w;
