@@ -52,7 +52,7 @@ macro_rules! bench_scene {
 }
 
 /// The explicit bench scenes.
-pub const EXPLICIT_SCENES: [BenchScene; 7] = [
+pub const EXPLICIT_SCENES: [BenchScene; 10] = [
     bench_scene!("block_2d_10k", "benches/scenes/block_2d_10k.toml"),
     bench_scene!("block_2d_100k", "benches/scenes/block_2d_100k.toml"),
     bench_scene!("block_3d_100k", "benches/scenes/block_3d_100k.toml"),
@@ -66,6 +66,9 @@ pub const EXPLICIT_SCENES: [BenchScene; 7] = [
         "benches/scenes/dambreak_friction_1m.toml"
     ),
     bench_scene!("column_3d_93k", "benches/scenes/column_3d_93k.toml"),
+    bench_scene!("dambreak_3d_125k", "benches/scenes/dambreak_3d_125k.toml"),
+    bench_scene!("dambreak_3d_1m", "benches/scenes/dambreak_3d_1m.toml"),
+    bench_scene!("dambreak_3d_1920k", "benches/scenes/dambreak_3d_1920k.toml"),
 ];
 
 /// The solver inputs of the explicit bench scene `name` (a stem of [`EXPLICIT_SCENES`]) in

@@ -26,50 +26,78 @@ struct Bench {
     name: &'static str,
     description: &'static str,
     steps: usize,
+    /// Timed steps with `--device gpu` (0: not a GPU bench).
+    gpu_steps: usize,
 }
 
 /// The benches, in the order `loam bench` runs them. The default step counts keep each one
 /// to a few seconds on two cores, except `dambreak`, which runs the whole 0.4 s scene.
-const BENCHES: [Bench; 8] = [
+const BENCHES: [Bench; 11] = [
     Bench {
         name: "dambreak",
         description: "friction dam-break, 6,000 particles, the whole 0.4 s (13,333 steps of 3e-5 s)",
         steps: 13_333,
+        gpu_steps: 0,
     },
     Bench {
         name: "dambreak-96k",
         description: "friction dam-break at 4× the resolution, 96,000 particles",
         steps: 200,
+        gpu_steps: 0,
     },
     Bench {
         name: "dambreak-1m",
         description: "friction dam-break at 13× the resolution, 1,014,000 particles",
         steps: 20,
+        gpu_steps: 0,
     },
     Bench {
         name: "block-2d",
         description: "2D Neo-Hookean block collapse, 101,124 particles",
         steps: 100,
+        gpu_steps: 0,
     },
     Bench {
         name: "block-3d",
         description: "3D Neo-Hookean block collapse, 110,592 particles",
         steps: 50,
+        gpu_steps: 0,
     },
     Bench {
         name: "column-3d",
         description: "3D Drucker–Prager column collapse on a Coulomb floor, 93,312 particles",
         steps: 50,
+        gpu_steps: 0,
     },
     Bench {
         name: "cantilever",
         description: "implicit reference cantilever, 5,760 particles, 50 load steps (f64 only)",
         steps: 0,
+        gpu_steps: 0,
     },
     Bench {
         name: "gradient",
         description: "gradient of the friction dam-break by the adjoint / its forward run (f64 only)",
         steps: 1000,
+        gpu_steps: 0,
+    },
+    Bench {
+        name: "dambreak-3d-125k",
+        description: "3D water dam-break, 125,000 particles (CPU or GPU)",
+        steps: 50,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "dambreak-3d-1m",
+        description: "3D water dam-break, 1,000,000 particles (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "dambreak-3d-1920k",
+        description: "3D water dam-break, 1,920,000 particles, JAX-MPM's size (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
     },
 ];
 
@@ -101,6 +129,7 @@ pub fn bench(
     list: bool,
     steps: Option<usize>,
     f32: bool,
+    gpu: bool,
     json: Option<&Path>,
 ) -> Outcome {
     if list {
@@ -124,11 +153,14 @@ pub fn bench(
         }
     }
     if selected.is_empty() {
-        selected = BENCHES.iter().collect();
+        selected = BENCHES.iter().filter(|b| !gpu || b.gpu_steps > 0).collect();
     }
     if steps == Some(0) {
         eprintln!("error: --steps must be at least 1");
         return Outcome::BadInput;
+    }
+    if gpu {
+        return gpu_benches(&selected, steps, json);
     }
     println!("{} ({} threads)", cpu_model(), rayon::current_num_threads());
     println!(
@@ -190,6 +222,92 @@ pub fn bench(
 }
 
 /// Times `steps` explicit steps of the bench `name` in precision `T`.
+/// The GPU benches (`--device gpu`): the 3D dam-breaks in f32 on the first adapter.
+fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -> Outcome {
+    if let Some(b) = selected.iter().find(|b| b.gpu_steps == 0) {
+        let gpu: Vec<&str> = BENCHES
+            .iter()
+            .filter(|b| b.gpu_steps > 0)
+            .map(|b| b.name)
+            .collect();
+        eprintln!(
+            "error: bench `{}` runs on the CPU only; the GPU benches are {}",
+            b.name,
+            gpu.join(", ")
+        );
+        return Outcome::BadInput;
+    }
+    let device = match loam_gpu::Gpu::new(false) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Outcome::Failed;
+        }
+    };
+    println!("{} (atomics: {:?})", device.name(), device.atomics());
+    println!(
+        "{:<18} {:>9} {:>10} {:>7} {:>10} {:>14}",
+        "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s"
+    );
+    let mut results = Vec::new();
+    for b in selected {
+        let scene = match b.name {
+            "dambreak-3d-125k" => "dambreak_3d_125k",
+            "dambreak-3d-1m" => "dambreak_3d_1m",
+            _ => "dambreak_3d_1920k",
+        };
+        let m = match time_gpu_steps(&device, b.name, scene, steps.unwrap_or(b.gpu_steps)) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("error: {}: {e}", b.name);
+                return Outcome::Failed;
+            }
+        };
+        println!(
+            "{:<18} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}",
+            m.name,
+            m.precision,
+            m.particles,
+            m.steps,
+            m.wall,
+            m.rate()
+        );
+        results.push(m);
+    }
+    if let Some(path) = json
+        && let Err(e) = write_json(path, &results)
+    {
+        eprintln!("error: cannot write {}: {e}", path.display());
+        return Outcome::Failed;
+    }
+    Outcome::Ok
+}
+
+/// [`time_steps`] on the GPU: the steps are recorded and submitted in batches, with the
+/// stability flags read back every `loam_gpu::CHECK_EVERY` steps and at the end (so the wall
+/// time covers the finished work).
+fn time_gpu_steps(
+    device: &loam_gpu::Gpu,
+    name: &'static str,
+    scene: &str,
+    steps: usize,
+) -> Result<Measured, loam_gpu::GpuError> {
+    let (config, particles) = explicit_scene::<f32, 3>(scene);
+    let mut solver = loam_gpu::GpuSolver::new(device, &config, &particles)?;
+    solver.advance(WARM_UP_STEPS)?;
+    let start = Instant::now();
+    solver.advance(steps)?;
+    Ok(Measured {
+        name,
+        precision: "f32",
+        particles: particles.len(),
+        steps,
+        wall: start.elapsed().as_secs_f64(),
+        iterations: None,
+        ratio: None,
+    })
+}
+
 fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {
     match name {
         "dambreak" => time_steps::<T, 2>(name, "dambreak_friction", steps),
@@ -198,6 +316,9 @@ fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {
         "block-2d" => time_steps::<T, 2>(name, "block_2d_100k", steps),
         "block-3d" => time_steps::<T, 3>(name, "block_3d_100k", steps),
         "column-3d" => time_steps::<T, 3>(name, "column_3d_93k", steps),
+        "dambreak-3d-125k" => time_steps::<T, 3>(name, "dambreak_3d_125k", steps),
+        "dambreak-3d-1m" => time_steps::<T, 3>(name, "dambreak_3d_1m", steps),
+        "dambreak-3d-1920k" => time_steps::<T, 3>(name, "dambreak_3d_1920k", steps),
         _ => unreachable!("`{name}` is in BENCHES"),
     }
 }

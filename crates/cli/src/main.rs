@@ -116,10 +116,23 @@ enum Command {
         /// Run the explicit benches in single precision.
         #[arg(long)]
         f32: bool,
+        /// Where the explicit benches run: `gpu` runs the 3D dam-breaks (default: all three)
+        /// in f32 on the first GPU adapter (Vulkan, Metal or DX12).
+        #[arg(long, value_enum, default_value_t = Device::Cpu)]
+        device: Device,
         /// Write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
     },
+}
+
+/// The processor an explicit run or bench uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Device {
+    /// The CPU solver (all features, f64 or f32).
+    Cpu,
+    /// The GPU solver of `loam-gpu` (f32; fluid scenes with walls).
+    Gpu,
 }
 
 /// The outcome of a command: which exit code, after the command printed its own messages.
@@ -208,8 +221,16 @@ fn main() -> ExitCode {
             list,
             steps,
             f32,
+            device,
             json,
-        } => bench::bench(&benches, list, steps, f32, json.as_deref()),
+        } => bench::bench(
+            &benches,
+            list,
+            steps,
+            f32,
+            device == Device::Gpu,
+            json.as_deref(),
+        ),
     };
     match outcome {
         Outcome::Ok => ExitCode::SUCCESS,

@@ -1,0 +1,93 @@
+//! The adapter and the device: which GPU runs the step, and how it adds floats atomically.
+
+use crate::error::GpuError;
+
+/// How the particle-to-grid scatter adds f32 values into the grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Atomics {
+    /// Native `atomicAdd` on `atomic<f32>` (`Features::SHADER_FLOAT32_ATOMIC`).
+    Native,
+    /// A compare-exchange loop on `atomic<u32>` holding the f32 bits (any adapter).
+    CompareExchange,
+}
+
+/// An open GPU device and what the step needs to know of it.
+#[derive(Clone, Debug)]
+pub struct Gpu {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    atomics: Atomics,
+}
+
+impl Gpu {
+    /// Opens the system's preferred high-performance adapter. Native f32 atomics are used
+    /// where the adapter offers them unless `compare_exchange` asks for the fallback.
+    pub fn new(compare_exchange: bool) -> Result<Self, GpuError> {
+        pollster::block_on(Self::open(compare_exchange))
+    }
+
+    async fn open(compare_exchange: bool) -> Result<Self, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                ..wgpu::RequestAdapterOptions::default()
+            })
+            .await
+            .map_err(|e| GpuError::NoAdapter {
+                reason: e.to_string(),
+            })?;
+        let native = adapter
+            .features()
+            .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
+        let atomics = if native && !compare_exchange {
+            Atomics::Native
+        } else {
+            Atomics::CompareExchange
+        };
+        let required_features = match atomics {
+            Atomics::Native => wgpu::Features::SHADER_FLOAT32_ATOMIC,
+            Atomics::CompareExchange => wgpu::Features::empty(),
+        };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("loam"),
+                required_features,
+                required_limits: adapter.limits(),
+                ..wgpu::DeviceDescriptor::default()
+            })
+            .await
+            .map_err(|e| GpuError::NoAdapter {
+                reason: format!("the adapter could not open a device: {e}"),
+            })?;
+        Ok(Self {
+            device,
+            queue,
+            info: adapter.get_info(),
+            atomics,
+        })
+    }
+
+    /// The adapter's name, back-end and kind, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan,
+    /// Cpu)`.
+    pub fn name(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    /// How the scatter adds floats on this device.
+    pub fn atomics(&self) -> Atomics {
+        self.atomics
+    }
+
+    /// The largest storage buffer one binding may hold, in bytes.
+    pub fn max_binding(&self) -> u64 {
+        self.device.limits().max_storage_buffer_binding_size
+    }
+}

@@ -1,0 +1,67 @@
+//! What can go wrong on the GPU path.
+
+/// An error of the GPU path: no adapter, a scene it cannot run yet, or a step that went bad.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter was found (or none could open a device).
+    #[error(
+        "no GPU adapter: {reason}. The GPU path needs a Vulkan, Metal or DX12 adapter; on Linux \
+         without a GPU, Mesa's software Vulkan driver (lavapipe) is one: \
+         `apt-get install mesa-vulkan-drivers`"
+    )]
+    NoAdapter {
+        /// What the lookup reported.
+        reason: String,
+    },
+    /// The scene uses a feature the GPU path does not support yet.
+    #[error("`{field}`: {what} is not supported on the GPU yet (run it with device = \"cpu\")")]
+    Unsupported {
+        /// The scene field that selects the feature.
+        field: String,
+        /// The feature.
+        what: String,
+    },
+    /// Particles whose stencil left the grid.
+    #[error("step {step}: {count} particle(s) left the grid (ids {ids:?})")]
+    LeftGrid {
+        /// The last step of the checked run of steps.
+        step: usize,
+        /// How many particles.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+    },
+    /// Particles with a non-finite position, velocity, deformation gradient or stress.
+    #[error("step {step}: non-finite state in {count} particle(s) (ids {ids:?})")]
+    NonFinite {
+        /// The last step of the checked run of steps.
+        step: usize,
+        /// How many particles.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+    },
+    /// Particles with det F ≤ 0.
+    #[error("step {step}: inverted deformation gradient in {count} particle(s) (ids {ids:?})")]
+    Inverted {
+        /// The last step of the checked run of steps.
+        step: usize,
+        /// How many particles.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+    },
+    /// Particles outside a walled face of the domain.
+    #[error("step {step}: {count} particle(s) crossed a wall (ids {ids:?})")]
+    Escaped {
+        /// The last step of the checked run of steps.
+        step: usize,
+        /// How many particles.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+    },
+    /// A buffer could not be read back.
+    #[error("reading back from the GPU failed: {0}")]
+    Readback(String),
+}

@@ -1,0 +1,21 @@
+//! The explicit MPM step of loam on a GPU, through wgpu (Vulkan, Metal, DX12), in f32.
+//!
+//! [`GpuSolver`] runs the same step as `loam_explicit::Solver` with `T = f32` (the test
+//! oracle): quadratic B-spline stencil, PIC / APIC / TPIC / MLS transfers, USL or MUSL, the
+//! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
+//! and the weakly compressible fluid. Particles and grid live on the device; the host reads
+//! back the stability flags every [`CHECK_EVERY`] steps and the particles when asked.
+//!
+//! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
+//! solid materials, friction segments, obstacles, FLIP, the adaptive time step, shapes other
+//! than the quadratic B-spline.
+
+mod device;
+mod error;
+mod params;
+mod solver;
+mod step;
+
+pub use device::{Atomics, Gpu};
+pub use error::GpuError;
+pub use solver::{CHECK_EVERY, GpuSolver};

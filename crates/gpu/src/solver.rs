@@ -1,0 +1,386 @@
+//! [`GpuSolver`]: the particle and grid buffers on the device, the run of steps, the checks
+//! and the read-back.
+
+use crate::device::Gpu;
+use crate::error::GpuError;
+use crate::params::{self, Params};
+use crate::step::{Kernels, Variant};
+use loam_core::tensor::{Tensor, Vector};
+use loam_core::{Boundary, Grid, Particles, WallKind};
+use loam_explicit::Config;
+use wgpu::util::DeviceExt;
+
+/// Steps recorded into one command buffer.
+const STEPS_PER_SUBMIT: usize = 32;
+
+/// Steps between two reads of the stability flags.
+pub const CHECK_EVERY: usize = 128;
+
+/// Flag counters (non-finite, inverted, escaped, left the grid) and 16 ids per kind, as
+/// `common.wgsl` lays them out.
+const FLAG_KINDS: usize = 4;
+const MAX_IDS: usize = 16;
+const FLAG_WORDS: usize = FLAG_KINDS * (1 + MAX_IDS);
+
+/// The explicit step of a [`Config`] on the GPU, in f32: particles and grid stay on the device
+/// and only the stability flags come back between runs of steps.
+pub struct GpuSolver<const D: usize> {
+    gpu: Gpu,
+    kernels: Kernels,
+    bind_group: wgpu::BindGroup,
+    kin: wgpu::Buffer,
+    aff: wgpu::Buffer,
+    def: wgpu::Buffer,
+    mat: wgpu::Buffer,
+    flags: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    grid: Grid<D>,
+    boundary: Boundary<D>,
+    particles: usize,
+    nodes: usize,
+    dt: f64,
+    steps: usize,
+    time: f64,
+}
+
+fn storage(gpu: &Gpu, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
+fn zeroed(gpu: &Gpu, label: &str, words: usize) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (4 * words.max(1)) as u64,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+fn flat_vectors<const D: usize>(v: &[Vector<f32, D>], out: &mut Vec<f32>) {
+    out.extend(v.iter().flat_map(|x| x.iter().copied()));
+}
+
+fn flat_tensors<const D: usize>(t: &[Tensor<f32, D>]) -> Vec<f32> {
+    t.iter()
+        .flat_map(|m| (0..D * D).map(move |k| m[(k / D, k % D)]))
+        .collect()
+}
+
+fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl<const D: usize> GpuSolver<D> {
+    /// Uploads `particles` and compiles the step of `config` (the lifted f32 config the CPU
+    /// solver takes); fails with [`GpuError::Unsupported`] naming the scene field of a
+    /// feature the GPU path lacks.
+    pub fn new(
+        gpu: &Gpu,
+        config: &Config<f32, D>,
+        particles: &Particles<f32, D>,
+    ) -> Result<Self, GpuError> {
+        let dt = params::check(config)?;
+        let n = particles.len();
+        let nodes = config.grid.num_nodes();
+        let max_mass = particles.mass.iter().fold(0.0f64, |m, &x| m.max(x as f64));
+        let prm: Params = params::params(config, dt, n, max_mass);
+        let variant = Variant {
+            dim: D,
+            atomics: gpu.atomics(),
+            transfer: params::transfer_code(config.transfer)?,
+            musl: params::is_musl(config),
+        };
+        let mut kin = Vec::with_capacity(3 * D * n);
+        flat_vectors(&particles.x, &mut kin);
+        flat_vectors(&particles.v, &mut kin);
+        flat_vectors(&particles.x, &mut kin);
+        let mut mat = Vec::with_capacity(9 * n);
+        for s in &particles.stress {
+            mat.extend([
+                s[(0, 0)],
+                s[(1, 1)],
+                s[(2, 2)],
+                s[(0, 1)],
+                s[(0, 2)],
+                s[(1, 2)],
+            ]);
+        }
+        mat.extend(&particles.mass);
+        mat.extend(&particles.volume0);
+        mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
+        let materials = params::materials(config);
+        let buffers = [
+            (
+                "particle kinematics",
+                bytemuck::cast_slice::<f32, u8>(&kin).len(),
+            ),
+            ("particle C", 4 * D * D * n),
+            ("particle F", 4 * D * D * n),
+            ("particle stress and mass", 4 * mat.len()),
+            ("grid accumulator", 4 * (1 + 2 * D) * nodes),
+            ("grid velocity", 4 * (D + 1) * nodes),
+        ];
+        for (what, bytes) in buffers {
+            if bytes as u64 > gpu.max_binding() {
+                return Err(GpuError::Unsupported {
+                    field: "grid.cell_size".into(),
+                    what: format!(
+                        "a {what} buffer of {} MiB (this adapter binds at most {} MiB)",
+                        bytes >> 20,
+                        gpu.max_binding() >> 20
+                    ),
+                });
+            }
+        }
+        let uniform = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("params"),
+                contents: bytemuck::bytes_of(&prm),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let kin = storage(gpu, "kinematics", bytemuck::cast_slice(&kin));
+        let aff = storage(
+            gpu,
+            "affine",
+            bytemuck::cast_slice(&flat_tensors(&particles.c)),
+        );
+        let def = storage(
+            gpu,
+            "deformation",
+            bytemuck::cast_slice(&flat_tensors(&particles.f)),
+        );
+        let mat = storage(gpu, "stress and mass", bytemuck::cast_slice(&mat));
+        let acc = zeroed(gpu, "accumulator", (1 + 2 * D) * nodes);
+        let nodev = zeroed(gpu, "node velocity", (D + 1) * nodes);
+        let flags = zeroed(gpu, "flags", FLAG_WORDS);
+        let mats = storage(gpu, "materials", bytemuck::cast_slice(&materials));
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let rw = Storage { read_only: false };
+        let mut entries = vec![layout_entry(0, Uniform)];
+        entries.extend((1..=7).map(|b| layout_entry(b, rw)));
+        entries.push(layout_entry(8, Storage { read_only: true }));
+        let layout = gpu
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("loam step"),
+                entries: &entries,
+            });
+        let bound = [
+            &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &mats,
+        ];
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("loam step"),
+            layout: &layout,
+            entries: &bound
+                .iter()
+                .enumerate()
+                .map(|(b, buffer)| wgpu::BindGroupEntry {
+                    binding: b as u32,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
+        });
+        let kernels = Kernels::new(&gpu.device, &layout, variant);
+        Ok(Self {
+            gpu: gpu.clone(),
+            kernels,
+            bind_group,
+            kin,
+            aff,
+            def,
+            mat,
+            flags,
+            acc,
+            grid: config.grid.clone(),
+            boundary: config.boundary,
+            particles: n,
+            nodes,
+            dt,
+            steps: 0,
+            time: 0.0,
+        })
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Simulated time (the sum of the steps, in f64 on the host).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// The fixed time step.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Records `steps` steps into command buffers of [`STEPS_PER_SUBMIT`] steps each and
+    /// submits them, without waiting.
+    fn submit(&mut self, steps: usize) {
+        let mut left = steps;
+        while left > 0 {
+            let k = left.min(STEPS_PER_SUBMIT);
+            let mut encoder =
+                self.gpu
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("steps"),
+                    });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("steps"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, &self.bind_group, &[]);
+                for _ in 0..k {
+                    self.kernels.step(&mut pass, self.particles, self.nodes, D);
+                }
+            }
+            self.gpu.queue.submit([encoder.finish()]);
+            left -= k;
+            self.steps += k;
+            self.time += k as f64 * self.dt;
+        }
+    }
+
+    /// Takes `steps` steps, reading the stability flags back every [`CHECK_EVERY`] steps and
+    /// at the end; the first flag raised stops the run with the ids of the particles.
+    pub fn advance(&mut self, steps: usize) -> Result<(), GpuError> {
+        let mut left = steps;
+        while left > 0 {
+            let k = left.min(CHECK_EVERY);
+            self.submit(k);
+            self.check()?;
+            left -= k;
+        }
+        Ok(())
+    }
+
+    /// Reads `words` f32 words of `buffer` back.
+    fn read(&self, buffer: &wgpu::Buffer, words: usize) -> Result<Vec<f32>, GpuError> {
+        let size = (4 * words) as u64;
+        let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("read-back"),
+            });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+        self.gpu.queue.submit([encoder.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let out = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(out)
+    }
+
+    /// Reads the stability flags; an error names the first kind raised and its particles.
+    pub fn check(&self) -> Result<(), GpuError> {
+        let words: Vec<u32> = self
+            .read(&self.flags, FLAG_WORDS)?
+            .iter()
+            .map(|x| x.to_bits())
+            .collect();
+        let step = self.steps;
+        for kind in 0..FLAG_KINDS {
+            let count = words[kind];
+            if count == 0 {
+                continue;
+            }
+            let start = FLAG_KINDS + kind * MAX_IDS;
+            let mut ids = words[start..start + (count as usize).min(MAX_IDS)].to_vec();
+            ids.sort_unstable();
+            return Err(match kind {
+                0 => GpuError::NonFinite { step, count, ids },
+                1 => GpuError::Inverted { step, count, ids },
+                2 => GpuError::Escaped { step, count, ids },
+                _ => GpuError::LeftGrid { step, count, ids },
+            });
+        }
+        Ok(())
+    }
+
+    /// The mass on the grid after the last step's transfer, over the nodes that are not
+    /// ghosts behind a bilateral wall (those were folded onto their mirrors): the particles'
+    /// total mass up to f32 round-off.
+    pub fn grid_mass(&self) -> Result<f64, GpuError> {
+        let acc = self.read(&self.acc, (1 + 2 * D) * self.nodes)?;
+        let (pad, cells) = (self.grid.pad, self.grid.cells);
+        let folded = |a: usize, side: usize| {
+            let w = self.boundary.walls[a][side];
+            w.kind != WallKind::Free && !w.separable
+        };
+        let mut total = 0.0;
+        for n in 0..self.nodes {
+            let idx = self.grid.multi(n);
+            let ghost = (0..D).any(|a| {
+                (folded(a, 0) && idx[a] < pad) || (folded(a, 1) && idx[a] > pad + cells[a])
+            });
+            if !ghost {
+                total += acc[n * (1 + 2 * D)] as f64;
+            }
+        }
+        Ok(total)
+    }
+
+    /// Copies the device's particle state (x, v, C, F, stress) into `particles` (the particles
+    /// the solver was built from).
+    pub fn read_particles(&self, particles: &mut Particles<f32, D>) -> Result<(), GpuError> {
+        let n = self.particles;
+        let kin = self.read(&self.kin, 2 * D * n)?;
+        let aff = self.read(&self.aff, D * D * n)?;
+        let def = self.read(&self.def, D * D * n)?;
+        let mat = self.read(&self.mat, 6 * n)?;
+        for i in 0..n {
+            particles.x[i] = Vector::from_fn(|a, _| kin[i * D + a]);
+            particles.v[i] = Vector::from_fn(|a, _| kin[D * n + i * D + a]);
+            particles.c[i] = Tensor::from_fn(|r, c| aff[i * D * D + r * D + c]);
+            particles.f[i] = Tensor::from_fn(|r, c| def[i * D * D + r * D + c]);
+            let s = &mat[6 * i..6 * i + 6];
+            particles.stress[i] =
+                nalgebra::Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,372 @@
+// Shared by every kernel of the explicit step: the bindings, the quadratic B-spline stencil,
+// particle and node accessors, the wall law and the stability flags.
+//
+// The launcher prepends the constants `D` (dimension), `NK` (stencil rows along z: 3 in 3D,
+// 1 in 2D), `S` (accumulator entries per node, 1 + 2D), `WG` (workgroup size), `TRANSFER`,
+// `MUSL`, `AXIS` (for the per-axis ghost passes) and the accumulator binding with its
+// `acc_add` / `acc_load` / `acc_store` (native f32 atomics, or a compare-exchange loop on the
+// f32 bits where the adapter has none).
+//
+// Vectors are vec3 and tensors mat3x3 in every dimension: in 2D the z entries are zero (the
+// deformation gradient carries F_zz = 1), which leaves every in-plane value bit for bit as the
+// D-dimensional formula gives it.
+
+const TRANSFER_PIC: u32 = 0u;
+const TRANSFER_APIC: u32 = 1u;
+const TRANSFER_TPIC: u32 = 2u;
+const TRANSFER_MLS: u32 = 3u;
+
+const WALL_FREE: u32 = 0u;
+const WALL_FIXED: u32 = 1u;
+const WALL_SLIP: u32 = 2u;
+const WALL_NO_SLIP: u32 = 3u;
+const WALL_SEPARABLE: u32 = 16u;
+
+// Stability flags: counters, then up to MAX_IDS particle ids per kind.
+const FLAG_NON_FINITE: u32 = 0u;
+const FLAG_INVERTED: u32 = 1u;
+const FLAG_ESCAPED: u32 = 2u;
+const FLAG_LEFT_GRID: u32 = 3u;
+const FLAG_KINDS: u32 = 4u;
+const MAX_IDS: u32 = 16u;
+
+struct Params {
+    origin: vec4<f32>,
+    // Walled bounds of the domain per axis (±f32::MAX where the face is free).
+    lo: vec4<f32>,
+    hi: vec4<f32>,
+    gravity: vec4<f32>,
+    // Nodes per axis; w: all nodes.
+    nodes: vec4<u32>,
+    cells: vec4<u32>,
+    // Per axis: wall kind | WALL_SEPARABLE of the lower and the upper face.
+    wall_lo: vec4<u32>,
+    wall_hi: vec4<u32>,
+    h: f32,
+    inv_h: f32,
+    dt: f32,
+    mass_floor: f32,
+    // 1/κ h², the inverse of the APIC inertia tensor of the quadratic B-spline.
+    apic_scale: f32,
+    // How far past a separable wall a particle is projected back onto it.
+    depth: f32,
+    particles: u32,
+    pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> prm: Params;
+// Particle kinematics, structure of arrays: x (D n), v (D n), x at the end of the step (D n,
+// MUSL).
+@group(0) @binding(1) var<storage, read_write> kin: array<f32>;
+// Affine velocity C, D² per particle (row-major).
+@group(0) @binding(2) var<storage, read_write> aff: array<f32>;
+// Deformation gradient F, D² per particle (row-major).
+@group(0) @binding(3) var<storage, read_write> def: array<f32>;
+// Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
+// bits).
+@group(0) @binding(4) var<storage, read_write> mat: array<f32>;
+// Node velocities (D N), then the wall bits that acted on each node (N, u32 bits).
+@group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
+@group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
+// Per material: bulk modulus, Tait exponent, viscosity, 0.
+@group(0) @binding(8) var<storage, read> materials: array<vec4<f32>>;
+
+// The accumulator entry `e` (0: mass, 1..=D: momentum, D+1..=2D: force) of node `n`.
+fn acc_at(n: u32, e: u32) -> u32 {
+    return n * S + e;
+}
+
+// ---- grid-stride loops (at most 65,535 workgroups are dispatched per dimension) ----
+
+fn stride(groups: vec3<u32>) -> u32 {
+    return groups.x * WG;
+}
+
+// ---- particle fields ----
+
+fn load_vec(offset: u32, i: u32) -> vec3<f32> {
+    var r = vec3<f32>(0.0);
+    for (var a = 0u; a < D; a++) {
+        r[a] = kin[offset + i * D + a];
+    }
+    return r;
+}
+
+fn store_vec(offset: u32, i: u32, x: vec3<f32>) {
+    for (var a = 0u; a < D; a++) {
+        kin[offset + i * D + a] = x[a];
+    }
+}
+
+fn x_at() -> u32 {
+    return 0u;
+}
+
+fn v_at() -> u32 {
+    return D * prm.particles;
+}
+
+fn x_next_at() -> u32 {
+    return 2u * D * prm.particles;
+}
+
+// A D × D tensor as a mat3x3 (column c, row r at m[c][r]); `fill` goes to the zz entry in 2D.
+fn load_c(i: u32) -> mat3x3<f32> {
+    var m = mat3x3<f32>();
+    for (var r = 0u; r < D; r++) {
+        for (var c = 0u; c < D; c++) {
+            m[c][r] = aff[i * D * D + r * D + c];
+        }
+    }
+    return m;
+}
+
+fn store_c(i: u32, m: mat3x3<f32>) {
+    for (var r = 0u; r < D; r++) {
+        for (var c = 0u; c < D; c++) {
+            aff[i * D * D + r * D + c] = m[c][r];
+        }
+    }
+}
+
+fn load_f(i: u32) -> mat3x3<f32> {
+    var m = mat3x3<f32>();
+    m[2][2] = 1.0;
+    for (var r = 0u; r < D; r++) {
+        for (var c = 0u; c < D; c++) {
+            m[c][r] = def[i * D * D + r * D + c];
+        }
+    }
+    return m;
+}
+
+fn store_f(i: u32, m: mat3x3<f32>) {
+    for (var r = 0u; r < D; r++) {
+        for (var c = 0u; c < D; c++) {
+            def[i * D * D + r * D + c] = m[c][r];
+        }
+    }
+}
+
+fn load_stress(i: u32) -> mat3x3<f32> {
+    let s = array<f32, 6>(
+        mat[6u * i], mat[6u * i + 1u], mat[6u * i + 2u],
+        mat[6u * i + 3u], mat[6u * i + 4u], mat[6u * i + 5u],
+    );
+    return mat3x3<f32>(
+        vec3<f32>(s[0], s[3], s[4]),
+        vec3<f32>(s[3], s[1], s[5]),
+        vec3<f32>(s[4], s[5], s[2]),
+    );
+}
+
+fn store_stress(i: u32, s: mat3x3<f32>) {
+    mat[6u * i] = s[0][0];
+    mat[6u * i + 1u] = s[1][1];
+    mat[6u * i + 2u] = s[2][2];
+    mat[6u * i + 3u] = s[1][0];
+    mat[6u * i + 4u] = s[2][0];
+    mat[6u * i + 5u] = s[2][1];
+}
+
+fn mass_of(i: u32) -> f32 {
+    return mat[6u * prm.particles + i];
+}
+
+fn volume0_of(i: u32) -> f32 {
+    return mat[7u * prm.particles + i];
+}
+
+fn material_of(i: u32) -> u32 {
+    return bitcast<u32>(mat[8u * prm.particles + i]);
+}
+
+// The in-plane determinant (the D × D one: F_zz = 1 in 2D adds nothing).
+fn det3(m: mat3x3<f32>) -> f32 {
+    return m[0][0] * (m[1][1] * m[2][2] - m[2][1] * m[1][2])
+        - m[1][0] * (m[0][1] * m[2][2] - m[2][1] * m[0][2])
+        + m[2][0] * (m[0][1] * m[1][2] - m[1][1] * m[0][2]);
+}
+
+// ---- node fields ----
+
+fn node_v(n: u32) -> vec3<f32> {
+    var r = vec3<f32>(0.0);
+    for (var a = 0u; a < D; a++) {
+        r[a] = nodev[n * D + a];
+    }
+    return r;
+}
+
+fn set_node_v(n: u32, v: vec3<f32>) {
+    for (var a = 0u; a < D; a++) {
+        nodev[n * D + a] = v[a];
+    }
+}
+
+fn node_state(n: u32) -> u32 {
+    return bitcast<u32>(nodev[D * prm.nodes.w + n]);
+}
+
+fn set_node_state(n: u32, s: u32) {
+    nodev[D * prm.nodes.w + n] = bitcast<f32>(s);
+}
+
+fn node_index(n: u32) -> vec3<u32> {
+    let nx = prm.nodes.x;
+    let ny = prm.nodes.y;
+    return vec3<u32>(n % nx, (n / nx) % ny, n / (nx * ny));
+}
+
+fn node_flat(idx: vec3<u32>) -> u32 {
+    return idx.x + prm.nodes.x * (idx.y + prm.nodes.y * idx.z);
+}
+
+// ---- the quadratic B-spline stencil ----
+
+// The 1D factors of one axis: weights, their derivatives and the offsets x_i − x_p of the
+// three nodes from `base`.
+struct Axis {
+    w: vec3<f32>,
+    dw: vec3<f32>,
+    o: vec3<f32>,
+    base: i32,
+}
+
+struct Stencil {
+    ax: array<Axis, 3>,
+    // Flat index of the first node.
+    first: u32,
+    // False when a node of the stencil is off the grid.
+    on_grid: bool,
+}
+
+fn quadratic(xi: f32) -> Axis {
+    let base = i32(floor(xi - 0.5));
+    let f = xi - f32(base);
+    let a = 1.5 - f;
+    let m = f - 1.0;
+    let p = f - 0.5;
+    var r: Axis;
+    r.base = base;
+    r.w = vec3<f32>(0.5 * a * a, 0.75 - m * m, 0.5 * p * p);
+    r.dw = vec3<f32>(-a * prm.inv_h, -2.0 * m * prm.inv_h, p * prm.inv_h);
+    r.o = (vec3<f32>(f32(base), f32(base + 1), f32(base + 2)) - xi) * prm.h;
+    return r;
+}
+
+fn stencil(x: vec3<f32>) -> Stencil {
+    var st: Stencil;
+    st.on_grid = true;
+    // The z axis of a 2D stencil: one row of weight 1.
+    st.ax[2].w = vec3<f32>(1.0, 0.0, 0.0);
+    st.ax[2].dw = vec3<f32>(0.0);
+    st.ax[2].o = vec3<f32>(0.0);
+    st.ax[2].base = 0;
+    var idx = vec3<u32>(0u);
+    for (var a = 0u; a < D; a++) {
+        let xi = (x[a] - prm.origin[a]) * prm.inv_h;
+        st.ax[a] = quadratic(xi);
+        let b = st.ax[a].base;
+        // Also false for a NaN coordinate, whose base is unspecified.
+        st.on_grid = st.on_grid && b >= 0 && b + 3 <= i32(prm.nodes[a]) && xi == xi;
+        idx[a] = u32(max(b, 0));
+    }
+    st.first = node_flat(idx);
+    return st;
+}
+
+// One row of the stencil: nodes first + i (i < 3) at fixed (j, k), with the factors of the
+// axes above 0.
+struct Row {
+    index: u32,
+    weight: f32,
+    gradient: vec3<f32>,
+    offset: vec3<f32>,
+}
+
+fn row(st: Stencil, j: u32, k: u32) -> Row {
+    var r: Row;
+    r.index = st.first + prm.nodes.x * (j + prm.nodes.y * k);
+    r.gradient = vec3<f32>(0.0);
+    r.offset = vec3<f32>(0.0);
+    if D == 2u {
+        r.weight = st.ax[1].w[j];
+        r.gradient[1] = st.ax[1].dw[j];
+    } else {
+        r.weight = st.ax[1].w[j] * st.ax[2].w[k];
+        r.gradient[1] = st.ax[1].dw[j] * st.ax[2].w[k];
+        r.gradient[2] = st.ax[1].w[j] * st.ax[2].dw[k];
+        r.offset[2] = st.ax[2].o[k];
+    }
+    r.offset[1] = st.ax[1].o[j];
+    return r;
+}
+
+// ---- walls ----
+
+fn wall_of(axis: u32, side: u32) -> u32 {
+    if side == 0u {
+        return prm.wall_lo[axis];
+    }
+    return prm.wall_hi[axis];
+}
+
+fn on_face(idx: vec3<u32>, axis: u32, side: u32) -> bool {
+    if side == 0u {
+        return idx[axis] <= prm.pad;
+    }
+    return idx[axis] >= prm.pad + prm.cells[axis];
+}
+
+// The wall law on a node's velocity. `given` holds the separable walls that acted in the
+// first pass (MUSL's second velocity repeats them); with `decide` the separable walls act
+// where the velocity points into them, and the bits of those that did are returned.
+fn walls(idx: vec3<u32>, v: ptr<function, vec3<f32>>, given: u32, decide: bool) -> u32 {
+    var acted = 0u;
+    for (var axis = 0u; axis < D; axis++) {
+        for (var side = 0u; side < 2u; side++) {
+            let wall = wall_of(axis, side);
+            let kind = wall & 15u;
+            if kind == WALL_FREE || !on_face(idx, axis, side) {
+                continue;
+            }
+            let bit = 1u << (2u * axis + side);
+            let separable = (wall & WALL_SEPARABLE) != 0u;
+            var acts = true;
+            if separable {
+                if decide {
+                    var vn = (*v)[axis];
+                    if side == 0u {
+                        vn = -vn;
+                    }
+                    acts = vn > 0.0;
+                } else {
+                    acts = (given & bit) != 0u;
+                }
+                if acts {
+                    acted |= bit;
+                }
+            }
+            if kind == WALL_FIXED || (kind == WALL_NO_SLIP && acts) {
+                *v = vec3<f32>(0.0);
+            } else if kind == WALL_SLIP && acts {
+                (*v)[axis] = 0.0;
+            }
+        }
+    }
+    return acted;
+}
+
+// ---- flags ----
+
+fn raise(kind: u32, i: u32) {
+    let slot = atomicAdd(&flags[kind], 1u);
+    if slot < MAX_IDS {
+        atomicStore(&flags[FLAG_KINDS + kind * MAX_IDS + slot], i);
+    }
+}
+
+fn finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}

@@ -1,0 +1,213 @@
+// Grid to particle and the end of the particle's step: the gather (PIC / APIC / TPIC / MLS,
+// row by row as loam-core's `g2p` in transfer.rs), MUSL's second scatter of momentum, and the
+// update of F and the stress with the wall projection and the stability flags (loam-core's
+// `particle_end`). Launched by step/mod.rs with common.wgsl in front.
+
+struct Gathered {
+    v: vec3<f32>,
+    // Σ w v (x_i − x_p)ᵀ / (κ h²) (APIC and MLS).
+    affine: mat3x3<f32>,
+    // Σ v ∇wᵀ.
+    grad_v: mat3x3<f32>,
+}
+
+fn gather(st: Stencil) -> Gathered {
+    var g: Gathered;
+    g.v = vec3<f32>(0.0);
+    g.affine = mat3x3<f32>();
+    g.grad_v = mat3x3<f32>();
+    let ax0 = st.ax[0];
+    for (var k = 0u; k < NK; k++) {
+        for (var j = 0u; j < 3u; j++) {
+            let r = row(st, j, k);
+            var s = vec3<f32>(0.0);
+            var so = vec3<f32>(0.0);
+            var sd = vec3<f32>(0.0);
+            for (var n = 0u; n < 3u; n++) {
+                let vi = node_v(r.index + n);
+                let nv = vi * ax0.w[n];
+                s += nv;
+                so += nv * ax0.o[n];
+                sd += vi * ax0.dw[n];
+            }
+            let sw = s * r.weight;
+            g.v += sw;
+            g.affine[0] += so * r.weight;
+            g.grad_v[0] += sd * r.weight;
+            for (var c = 1u; c < D; c++) {
+                g.affine[c] += sw * r.offset[c];
+                g.grad_v[c] += s * r.gradient[c];
+            }
+        }
+    }
+    g.affine = g.affine * prm.apic_scale;
+    return g;
+}
+
+// The particle's new affine velocity C.
+fn affine_of(g: Gathered) -> mat3x3<f32> {
+    if TRANSFER == TRANSFER_APIC || TRANSFER == TRANSFER_MLS {
+        return g.affine;
+    }
+    if TRANSFER == TRANSFER_TPIC {
+        return g.grad_v;
+    }
+    return mat3x3<f32>();
+}
+
+// The velocity gradient of the step: the affine field for MLS, ∇v otherwise.
+fn velocity_gradient(g: Gathered) -> mat3x3<f32> {
+    if TRANSFER == TRANSFER_MLS {
+        return g.affine;
+    }
+    return g.grad_v;
+}
+
+// Tait pressure p(J) = (K/γ)(J^−γ − 1); a whole γ up to 64 by repeated squaring.
+fn pressure(m: vec4<f32>, j: f32) -> f32 {
+    var power: f32;
+    var n = u32(m.w);
+    if n > 0u {
+        var acc = 1.0;
+        var base = j;
+        loop {
+            if (n & 1u) == 1u {
+                acc *= base;
+            }
+            n = n >> 1u;
+            if n == 0u {
+                break;
+            }
+            base *= base;
+        }
+        power = 1.0 / acc;
+    } else {
+        power = exp(-m.y * log(j));
+    }
+    return (m.x / m.y) * (power - 1.0);
+}
+
+fn fluid_stress(m: vec4<f32>, f: mat3x3<f32>, l: mat3x3<f32>) -> mat3x3<f32> {
+    let p = pressure(m, det3(f));
+    let iso = mat3x3<f32>(vec3<f32>(-p, 0.0, 0.0), vec3<f32>(0.0, -p, 0.0), vec3<f32>(0.0, 0.0, -p));
+    if m.z == 0.0 {
+        return iso;
+    }
+    let d = (l + transpose(l)) * 0.5;
+    let tr = (d[0][0] + d[1][1] + d[2][2]) / 3.0;
+    let dev = d - mat3x3<f32>(vec3<f32>(tr, 0.0, 0.0), vec3<f32>(0.0, tr, 0.0), vec3<f32>(0.0, 0.0, tr));
+    return dev * (m.z * 2.0) + iso;
+}
+
+// Project a particle just past a separable wall back onto it (removing its velocity into the
+// wall), update F and the stress, store x, v, F, σ and raise the stability flags.
+fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
+    var x = x0;
+    var v = v0;
+    for (var a = 0u; a < D; a++) {
+        let lo_sep = (prm.wall_lo[a] & WALL_SEPARABLE) != 0u;
+        let hi_sep = (prm.wall_hi[a] & WALL_SEPARABLE) != 0u;
+        if lo_sep && x[a] < prm.lo[a] && x[a] >= prm.lo[a] - prm.depth {
+            x[a] = prm.lo[a];
+            v[a] = max(v[a], 0.0);
+        } else if hi_sep && x[a] > prm.hi[a] && x[a] <= prm.hi[a] + prm.depth {
+            x[a] = prm.hi[a];
+            v[a] = min(v[a], 0.0);
+        }
+    }
+    var f = load_f(i);
+    var delta_f = mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0)) + l * prm.dt;
+    if D == 2u {
+        delta_f[2][2] = 1.0;
+    }
+    f = delta_f * f;
+    let stress = fluid_stress(materials[material_of(i)], f, l);
+    store_vec(x_at(), i, x);
+    store_vec(v_at(), i, v);
+    store_f(i, f);
+    store_stress(i, stress);
+    var sum = 0.0;
+    for (var a = 0u; a < 3u; a++) {
+        sum += x[a] + v[a] + f[a][0] + f[a][1] + f[a][2];
+        sum += stress[a][0] + stress[a][1] + stress[a][2];
+    }
+    if !finite(sum) {
+        raise(FLAG_NON_FINITE, i);
+    } else if det3(f) <= 0.0 {
+        raise(FLAG_INVERTED, i);
+    } else {
+        var out = false;
+        for (var a = 0u; a < D; a++) {
+            out = out || x[a] < prm.lo[a] || x[a] > prm.hi[a];
+        }
+        if out {
+            raise(FLAG_ESCAPED, i);
+        }
+    }
+}
+
+// USL: gather, move the particle, and end its step.
+@compute @workgroup_size(WG)
+fn g2p_usl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    for (var i = gid.x; i < prm.particles; i += stride(groups)) {
+        let x = load_vec(x_at(), i);
+        let st = stencil(x);
+        if !st.on_grid {
+            continue;
+        }
+        let g = gather(st);
+        store_c(i, affine_of(g));
+        end_particle(i, x + g.v * prm.dt, g.v, velocity_gradient(g));
+    }
+}
+
+// MUSL, first half: gather, keep the moved position aside, and scatter the momentum of the
+// new velocity from the start-of-step position.
+@compute @workgroup_size(WG)
+fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    for (var i = gid.x; i < prm.particles; i += stride(groups)) {
+        let x = load_vec(x_at(), i);
+        let st = stencil(x);
+        if !st.on_grid {
+            continue;
+        }
+        let g = gather(st);
+        let c = affine_of(g);
+        store_vec(x_next_at(), i, x + g.v * prm.dt);
+        store_vec(v_at(), i, g.v);
+        store_c(i, c);
+        let m = mass_of(i);
+        let mc = c * m;
+        let mv = g.v * m;
+        let ax0 = st.ax[0];
+        for (var k = 0u; k < NK; k++) {
+            for (var j = 0u; j < 3u; j++) {
+                let r = row(st, j, k);
+                var p_row = mv;
+                for (var col = 1u; col < D; col++) {
+                    p_row += mc[col] * r.offset[col];
+                }
+                for (var n = 0u; n < 3u; n++) {
+                    let p = (p_row + mc[0] * ax0.o[n]) * (ax0.w[n] * r.weight);
+                    for (var a = 0u; a < D; a++) {
+                        acc_add(acc_at(r.index + n, 1u + a), p[a]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+// MUSL, second half: the velocity gradient from the second grid velocity at the start-of-step
+// stencil, then the end of the step at the moved position.
+@compute @workgroup_size(WG)
+fn end_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    for (var i = gid.x; i < prm.particles; i += stride(groups)) {
+        let st = stencil(load_vec(x_at(), i));
+        if !st.on_grid {
+            continue;
+        }
+        let l = velocity_gradient(gather(st));
+        end_particle(i, load_vec(x_next_at(), i), load_vec(v_at(), i), l);
+    }
+}

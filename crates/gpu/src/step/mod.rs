@@ -1,0 +1,183 @@
+//! The kernels of one explicit step and the order they run in.
+//!
+//! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags) goes in
+//! front of each kernel file, after a header of constants: the dimension, the transfer, the
+//! scheme, the axis of the ghost passes, and the accumulator with its atomic add (native f32
+//! atomics, or a compare-exchange loop on the bits).
+//!
+//! One step, all on the device (each dispatch sees the writes of the one before):
+//!
+//! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force.
+//! 2. `fold` per axis: ghost layers behind bilateral walls onto their mirrors.
+//! 3. `update`: the momentum update and the wall law per node; `reflect` per axis.
+//! 4. USL: `g2p_usl` gathers, moves and ends each particle's step. MUSL: `g2p_musl` gathers
+//!    and scatters the new momentum, `fold` (momentum only), `second_velocity`, `reflect`,
+//!    then `end_musl`.
+
+use crate::device::Atomics;
+
+/// Threads per workgroup of every kernel.
+pub(crate) const WORKGROUP: u32 = 128;
+
+/// The most workgroups one dispatch may have along a dimension; the kernels stride over the
+/// rest.
+const MAX_GROUPS: u32 = 65_535;
+
+const COMMON: &str = include_str!("common.wgsl");
+const P2G: &str = include_str!("p2g.wgsl");
+const GRID: &str = include_str!("grid.wgsl");
+const G2P: &str = include_str!("g2p.wgsl");
+
+/// What a step's kernels are compiled for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Variant {
+    pub dim: usize,
+    pub atomics: Atomics,
+    /// `TRANSFER_*` of common.wgsl.
+    pub transfer: u32,
+    pub musl: bool,
+}
+
+impl Variant {
+    fn source(&self, body: &str, axis: usize, fold_all: bool) -> String {
+        let d = self.dim;
+        let accumulator = match self.atomics {
+            Atomics::Native => {
+                "@group(0) @binding(5) var<storage, read_write> acc: array<atomic<f32>>;
+fn acc_add(i: u32, x: f32) { atomicAdd(&acc[i], x); }
+fn acc_load(i: u32) -> f32 { return atomicLoad(&acc[i]); }
+fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], x); }
+"
+            }
+            Atomics::CompareExchange => {
+                "@group(0) @binding(5) var<storage, read_write> acc: array<atomic<u32>>;
+fn acc_add(i: u32, x: f32) {
+    var old = atomicLoad(&acc[i]);
+    loop {
+        let r = atomicCompareExchangeWeak(&acc[i], old, bitcast<u32>(bitcast<f32>(old) + x));
+        if r.exchanged { break; }
+        old = r.old_value;
+    }
+}
+fn acc_load(i: u32) -> f32 { return bitcast<f32>(atomicLoad(&acc[i])); }
+fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
+"
+            }
+        };
+        format!(
+            "const D: u32 = {d}u;\nconst NK: u32 = {nk}u;\nconst S: u32 = {s}u;\n\
+             const WG: u32 = {WORKGROUP}u;\nconst TRANSFER: u32 = {t}u;\nconst MUSL: bool = {m};\n\
+             const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
+             {accumulator}{COMMON}\n{body}",
+            nk = if d == 3 { 3 } else { 1 },
+            s = 1 + 2 * d,
+            t = self.transfer,
+            m = self.musl,
+        )
+    }
+}
+
+/// The compute pipelines of one step.
+pub(crate) struct Kernels {
+    clear: wgpu::ComputePipeline,
+    p2g: wgpu::ComputePipeline,
+    /// Per axis: the first fold (mass, momentum, force) and MUSL's (momentum).
+    fold: Vec<[wgpu::ComputePipeline; 2]>,
+    reflect: Vec<wgpu::ComputePipeline>,
+    update: wgpu::ComputePipeline,
+    second_velocity: wgpu::ComputePipeline,
+    g2p_usl: wgpu::ComputePipeline,
+    g2p_musl: wgpu::ComputePipeline,
+    end_musl: wgpu::ComputePipeline,
+    musl: bool,
+}
+
+/// Workgroups for `n` threads, capped at [`MAX_GROUPS`].
+pub(crate) fn groups(n: usize) -> u32 {
+    n.div_ceil(WORKGROUP as usize).clamp(1, MAX_GROUPS as usize) as u32
+}
+
+impl Kernels {
+    /// Compiles the kernels of `variant` against `layout` (the bindings of common.wgsl).
+    pub fn new(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, variant: Variant) -> Self {
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("loam step"),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+        let module = |body: &str, axis: usize, fold_all: bool| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("loam step"),
+                source: wgpu::ShaderSource::Wgsl(variant.source(body, axis, fold_all).into()),
+            })
+        };
+        let pipeline = |module: &wgpu::ShaderModule, entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                cache: None,
+            })
+        };
+        let p2g = module(P2G, 0, true);
+        let g2p = module(G2P, 0, true);
+        let grid: Vec<[wgpu::ShaderModule; 2]> = (0..variant.dim)
+            .map(|a| [module(GRID, a, true), module(GRID, a, false)])
+            .collect();
+        Self {
+            clear: pipeline(&p2g, "clear"),
+            p2g: pipeline(&p2g, "p2g"),
+            fold: grid
+                .iter()
+                .map(|[all, momentum]| [pipeline(all, "fold"), pipeline(momentum, "fold")])
+                .collect(),
+            reflect: grid.iter().map(|[m, _]| pipeline(m, "reflect")).collect(),
+            update: pipeline(&grid[0][0], "update"),
+            second_velocity: pipeline(&grid[0][0], "second_velocity"),
+            g2p_usl: pipeline(&g2p, "g2p_usl"),
+            g2p_musl: pipeline(&g2p, "g2p_musl"),
+            end_musl: pipeline(&g2p, "end_musl"),
+            musl: variant.musl,
+        }
+    }
+
+    /// Records one step into `pass`, for `particles` particles on `nodes` nodes (the bind
+    /// group must be set).
+    pub fn step(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        particles: usize,
+        nodes: usize,
+        dim: usize,
+    ) {
+        let (gp, gn) = (groups(particles), groups(nodes));
+        let mut run = |p: &wgpu::ComputePipeline, g: u32| {
+            pass.set_pipeline(p);
+            pass.dispatch_workgroups(g, 1, 1);
+        };
+        run(&self.clear, groups(nodes * (1 + 2 * dim)));
+        run(&self.p2g, gp);
+        for [all, _] in &self.fold {
+            run(all, gn);
+        }
+        run(&self.update, gn);
+        for r in &self.reflect {
+            run(r, gn);
+        }
+        if self.musl {
+            run(&self.g2p_musl, gp);
+            for [_, momentum] in &self.fold {
+                run(momentum, gn);
+            }
+            run(&self.second_velocity, gn);
+            for r in &self.reflect {
+                run(r, gn);
+            }
+            run(&self.end_musl, gp);
+        } else {
+            run(&self.g2p_usl, gp);
+        }
+    }
+}
