@@ -332,6 +332,13 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
             "outside the bounds",
         ),
         (
+            format!(
+                "{head}{synth}[[parameters]]\nname = \"friction[1]\"\ninitial = 0.0\ntruth = 0.0\ntransform = \"softplus\"\n"
+            ),
+            "parameters[0].initial",
+            "starts positive",
+        ),
+        (
             format!("{head}{param}"),
             "observations",
             "expected `tracked`",

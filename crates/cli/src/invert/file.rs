@@ -463,10 +463,17 @@ pub fn build<const D: usize>(
             let Some(v) = value else { continue };
             if !v.is_finite() {
                 issue(at(field), format!("expected a finite number, got {v}"));
-            } else if p.transform == Transform::Softplus && v <= 0.0 {
+            } else if p.transform == Transform::Softplus && field == "initial" && v <= 0.0 {
                 issue(
                     at(field),
-                    format!("a softplus parameter is positive; got {v}"),
+                    format!("a softplus parameter starts positive; got {v}"),
+                );
+            } else if p.transform == Transform::Softplus && v < 0.0 {
+                // The truth may sit on the softplus's limit (a frictionless segment, μ = 0):
+                // the optimiser approaches it, the truth run uses it as it is.
+                issue(
+                    at(field),
+                    format!("a softplus parameter is not negative; got {v}"),
                 );
             } else if let Some((lo, hi)) = bounds
                 && !(lo..=hi).contains(&v)
