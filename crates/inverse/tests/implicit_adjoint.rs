@@ -7,16 +7,16 @@ use loam_core::Particles;
 use loam_implicit::ImplicitConfig;
 use loam_inverse::MaterialField;
 use loam_inverse::implicit::{
-    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, Schedule,
+    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, Schedule, check,
     run_recorded,
 };
 use loam_scene::Scene;
 
-/// The scene of `tests/scenes/cantilever_hencky.toml` (described there).
-const CANTILEVER: &str = include_str!("scenes/cantilever_hencky.toml");
+/// The scene of `verification/scenes/implicit_cantilever.toml` (described there).
+const CANTILEVER: &str = include_str!("../../../verification/scenes/implicit_cantilever.toml");
 
-/// The scene of `tests/scenes/footing_j2.toml` (described there).
-const FOOTING: &str = include_str!("scenes/footing_j2.toml");
+/// The scene of `verification/scenes/implicit_footing.toml` (described there).
+const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footing.toml");
 
 fn scene(toml: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
     let built = Scene::from_toml_str(toml)
@@ -33,35 +33,11 @@ fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Richardson-extrapolated central difference of the loss along unknown `k`,
-/// `(4 D(δ/2) − D(δ))/3` with `D(δ) = (L(θ + δ) − L(θ − δ))/(2δ)`, `δ = 10⁻⁴ |θ_k|`:
-/// truncation `O(δ⁴)` (~1e-16 relative), round-off `ε_L / δ` with `ε_L` the loss's
-/// round-off and solver error (Newton converged to 1e-12 of the load): ~1e-9 relative. The
-/// perturbed runs replay the sub-steps of the run at `θ` (`schedule`): a perturbed Newton
-/// needing one more iteration would otherwise cut a step the reference did not (the footing's
-/// third step converges in exactly its 5 allowed iterations), a different discrete map.
-fn central_difference(
-    problem: &ImplicitProblem<2>,
-    theta: &[f64],
-    schedule: &Schedule,
-    k: usize,
-) -> f64 {
-    let delta = 1e-4 * theta[k].abs();
-    let at = |d: f64| {
-        let mut t = theta.to_vec();
-        t[k] += d;
-        problem.loss(&t, Some(schedule)).expect("perturbed run")
-    };
-    let d1 = (at(delta) - at(-delta)) / (2.0 * delta);
-    let d2 = (at(0.5 * delta) - at(-0.5 * delta)) / delta;
-    (4.0 * d2 - d1) / 3.0
-}
-
-/// Taylor remainders `|L(θ + h v) − L(θ) − h ∇L·v|` for `h = 10⁻³ / 2ⁱ`, `i < 4`, on the
-/// sub-steps of the run at `θ`, and the ratios of consecutive ones. The step is small enough
-/// that no particle's position crosses a knot of the quadratic B-splines (whose second
-/// derivative jumps there) between the perturbed runs, and the smallest remainder (~1e-6 of
-/// the loss) stays far above its round-off.
+/// The Taylor remainders of `problem` at `θ` along `v` for `h = 10⁻³ / 2ⁱ`, `i < 4`, and
+/// the ratios of consecutive ones. The step is small enough that no particle's position
+/// crosses a knot of the quadratic B-splines (whose second derivative jumps there) between
+/// the perturbed runs, and the smallest remainder (~1e-6 of the loss) stays far above its
+/// round-off.
 fn taylor_ratios(
     problem: &ImplicitProblem<2>,
     theta: &[f64],
@@ -70,13 +46,8 @@ fn taylor_ratios(
 ) -> Vec<f64> {
     let g = problem.gradient(theta).expect("gradient");
     let slope: f64 = g.gradient.iter().zip(v).map(|(g, v)| g * v).sum();
-    let remainders: Vec<f64> = (0..4)
-        .map(|i| {
-            let h = 1e-3 / f64::from(1u32 << i);
-            let t: Vec<f64> = theta.iter().zip(v).map(|(t, v)| t + h * v).collect();
-            (problem.loss(&t, Some(schedule)).expect("run") - g.loss - h * slope).abs()
-        })
-        .collect();
+    let remainders = check::taylor_remainders(problem, theta, schedule, g.loss, slope, v, 1e-3, 4)
+        .expect("Taylor runs");
     println!("Taylor remainders {remainders:?}");
     remainders.windows(2).map(|w| w[0] / w[1]).collect()
 }
@@ -88,8 +59,13 @@ fn check(name: &str, problem: &ImplicitProblem<2>) {
     let schedule = problem.schedule(&theta).expect("run");
     let adjoint = problem.gradient(&theta).expect("adjoint");
     let dual = problem.dual_gradient(&theta).expect("dual");
+    // Richardson-extrapolated at δ = 10⁻⁴ |θ_k|: truncation O(δ⁴) ~1e-16 relative, round-off
+    // ε_L / δ with ε_L the loss's round-off and solver error (Newton converged to 1e-12 of
+    // the load): ~1e-9 relative. The perturbed runs replay the sub-steps of the run at θ
+    // (the footing's third step converges in exactly its 5 allowed iterations; a perturbed
+    // Newton needing a sixth would cut it, a different discrete map).
     let fd: Vec<f64> = (0..theta.len())
-        .map(|k| central_difference(problem, &theta, &schedule, k))
+        .map(|k| check::central_difference(problem, &theta, &schedule, k, 1e-4).expect("runs"))
         .collect();
     for (k, p) in problem.params.iter().enumerate() {
         println!(

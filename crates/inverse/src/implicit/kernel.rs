@@ -25,7 +25,7 @@
 //! (`D + D² + 11`); `∂ψₚ/∂Δu_i` goes through `ΔF`: with a perturbation `E` added to `ΔF`,
 //! `∂ψₚ/∂Δu_{i,a} = Σ_b ∂ψₚ/∂E_ab ∂_b N_i + x̄'_a N_i` (`D²` evaluations).
 
-use loam_core::constitutive::MaterialState;
+use loam_core::constitutive::{MaterialState, Model};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{Grid, Material, Scalar, Shape, Stencil};
@@ -274,8 +274,16 @@ pub fn psi_by_delta_f<const D: usize>(
     Some(out)
 }
 
+/// Whether a model reads and updates its history (J2, Drucker–Prager). The others return it
+/// unchanged and their stress does not depend on it, so its adjoint passes through a step as
+/// it is (`h̄ = h̄'`) without an evaluation.
+pub fn carries_history<T>(material: &Material<T>) -> bool {
+    matches!(material.model, Model::J2(_) | Model::DruckerPrager(_))
+}
+
 /// `∂ψₚ/∂sₚ` in the order of [`ParticleState::component`], by one `Dual64` evaluation per
-/// component; `None` at an inverted state.
+/// component (the history's `∂ψₚ/∂h = h̄'` taken directly for a model without one);
+/// `None` at an inverted state.
 pub fn psi_by_state<const D: usize>(
     setting: &Setting<'_, D>,
     material: &Material<Dual64>,
@@ -287,9 +295,14 @@ pub fn psi_by_state<const D: usize>(
     let loads = lift_loads(loads);
     let du = |n: usize, c: usize| Dual64::from_re(du(n, c));
     let zero = Tensor::<Dual64, D>::zeros();
+    let history = D + D * D..D + D * D + 10;
+    let passes = !carries_history(material);
     let mut seed = vec![0.0; state_len(D)];
     (0..state_len(D))
         .map(|k| {
+            if passes && history.contains(&k) {
+                return Some(cotangent.end[k]);
+            }
             seed[k] = 1.0;
             let s = state.dual(&seed);
             seed[k] = 0.0;

@@ -9,10 +9,12 @@
 //!   vector–Jacobian products by `Dual64` evaluations.
 //! - [`adjoint`]: backwards over the sub-steps, one transposed solve `Jᵀλ = …` with the
 //!   sub-step's tangent, then the state's adjoint and the parameters' shares per particle.
-//! - [`tangent`]: the forward-mode dual derivative (the oracle).
+//! - [`tangent`]: the forward-mode dual derivative (the oracle); [`check`]: central
+//!   differences and the Taylor test on the reference run's sub-steps.
 //! - [`ImplicitParam`], [`ImplicitObservations`]: what is differentiated and observed.
 
 pub mod adjoint;
+pub mod check;
 pub mod kernel;
 mod observe;
 mod params;
