@@ -52,13 +52,8 @@ pub const fn state_len(d: usize) -> usize {
 }
 
 impl<const D: usize> ParticleState<f64, D> {
-    /// The `k`-th component ([`state_len`] in all: x, F row by row, plastic strain, `bₑ` row
-    /// by row, mass).
-    pub fn component(&self, k: usize) -> f64 {
-        self.components()[k]
-    }
-
-    /// All components in the order of [`ParticleState::component`].
+    /// All components ([`state_len`] in all): x, F row by row, plastic strain, `bₑ` row by
+    /// row, mass.
     pub fn components(&self) -> Vec<f64> {
         let mut out = Vec::with_capacity(state_len(D));
         out.extend(self.x.iter());
@@ -87,7 +82,7 @@ impl<const D: usize> ParticleState<f64, D> {
 }
 
 impl<const D: usize> ParticleState<Dual64, D> {
-    /// The derivative parts in the order of [`ParticleState::component`].
+    /// The derivative parts in the order of [`ParticleState::components`].
     pub fn tangent(&self) -> Vec<f64> {
         let mut out = Vec::with_capacity(state_len(D));
         out.extend(self.x.iter().map(|v| v.eps));
@@ -205,7 +200,7 @@ pub struct Cotangent<'a, const D: usize> {
     pub internal: &'a [Vector<f64, D>],
     /// `c_i` per grid node.
     pub external: &'a [Vector<f64, D>],
-    /// `(x̄', F̄', h̄', m̄')` of the end state, in the order of [`ParticleState::component`].
+    /// `(x̄', F̄', h̄', m̄')` of the end state, in the order of [`ParticleState::components`].
     pub end: &'a [f64],
 }
 
@@ -281,7 +276,7 @@ pub fn carries_history<T>(material: &Material<T>) -> bool {
     matches!(material.model, Model::J2(_) | Model::DruckerPrager(_))
 }
 
-/// `∂ψₚ/∂sₚ` in the order of [`ParticleState::component`], by one `Dual64` evaluation per
+/// `∂ψₚ/∂sₚ` in the order of [`ParticleState::components`], by one `Dual64` evaluation per
 /// component (the history's `∂ψₚ/∂h = h̄'` taken directly for a model without one);
 /// `None` at an inverted state.
 pub fn psi_by_state<const D: usize>(
