@@ -17,6 +17,7 @@ pub mod elastica;
 pub mod fe_beam;
 pub mod footing;
 pub mod granular;
+pub mod implicit_adjoint_fd;
 pub mod incline;
 pub mod inverse_friction;
 pub mod inverse_mlp;
@@ -299,6 +300,11 @@ pub fn cases() -> Vec<Case> {
             name: "adjoint-fd",
             description: "discrete adjoint vs forward-mode duals (1e-10) vs branch-aware central differences (1e-6), Taylor test: fluid on friction segments, Neo-Hookean block vs moving obstacle, Drucker–Prager column, 3D block; USL and MUSL",
             run: adjoint_fd::run,
+        },
+        Case {
+            name: "implicit-adjoint-fd",
+            description: "adjoint of quasi-static implicit runs vs forward-mode duals (1e-10) vs central differences on the reference's sub-steps (1e-6), Taylor test: Hencky cantilever (E, ν, tip load, ρ₀), J2 footing with a cut load step (σ_y, E, H, settlement)",
+            run: implicit_adjoint_fd::run,
         },
         Case {
             name: "inverse-v0",

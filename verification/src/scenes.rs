@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 19] = [
+pub const SCENES: [CaseScene; 21] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -59,6 +59,8 @@ pub const SCENES: [CaseScene; 19] = [
     case_scene!("inverse_v0"),
     case_scene!("inverse_friction"),
     case_scene!("inverse_mlp"),
+    case_scene!("implicit_cantilever"),
+    case_scene!("implicit_footing"),
 ];
 
 /// The reference scene `name` (a stem of [`SCENES`]), parsed and validated.

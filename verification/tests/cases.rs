@@ -103,6 +103,11 @@ fn adjoint_fd() {
 }
 
 #[test]
+fn implicit_adjoint_fd() {
+    check("implicit-adjoint-fd");
+}
+
+#[test]
 fn inverse_v0() {
     check("inverse-v0");
 }

@@ -31,10 +31,12 @@ pub struct Frozen<const D: usize> {
     pub material: usize,
 }
 
-/// `ΔF = I + Σ_i Δu_i ⊗ ∇N_i` from the nodal increments `du(flat, component)`.
+/// `ΔF = I + Σ_i Δu_i ⊗ ∇N_i` from the nodal increments `du(flat, component)`, for a stencil
+/// of scalar type `S` (`f64` in the solver; a dual type where the particle position is
+/// differentiated) and increments of type `T`.
 #[inline]
-pub fn delta_f<T: Scalar, const D: usize>(
-    stencil: &Stencil<f64, D>,
+pub fn delta_f<S: Scalar, T: Scalar + From<S>, const D: usize>(
+    stencil: &Stencil<S, D>,
     mut du: impl FnMut(usize, usize) -> T,
 ) -> Tensor<T, D> {
     let mut g = Tensor::<T, D>::identity();
@@ -42,7 +44,7 @@ pub fn delta_f<T: Scalar, const D: usize>(
         for a in 0..D {
             let u = du(n.flat, a);
             for b in 0..D {
-                g[(a, b)] += u * T::cst(n.gradient[b]);
+                g[(a, b)] += u * T::from(n.gradient[b]);
             }
         }
     });
@@ -67,19 +69,33 @@ pub fn particle_stress<T: Scalar, const D: usize>(
     frozen: &Frozen<D>,
     delta_f: &Tensor<T, D>,
 ) -> Option<(Tensor<T, D>, Matrix3<T>, MaterialState<T>)> {
+    stress_update(
+        material,
+        &frozen.f_n.map(T::cst),
+        &lift_state(&frozen.state),
+        T::cst(frozen.volume0),
+        delta_f,
+    )
+}
+
+/// [`particle_stress`] with the start-of-step deformation gradient `Fⁿ`, history and
+/// reference volume `V⁰` given in the scalar type itself, so that a derivative with respect to
+/// the particle's own state is the same code with dual inputs: `F = ΔF Fⁿ`,
+/// `(τ, history) = kirchhoff_update(ΔF, F, historyⁿ)`, and `V⁰ τ ΔF⁻ᵀ`.
+#[inline]
+pub fn stress_update<T: Scalar, const D: usize>(
+    material: &Material<T>,
+    f_n: &Tensor<T, D>,
+    state: &MaterialState<T>,
+    volume0: T,
+    delta_f: &Tensor<T, D>,
+) -> Option<(Tensor<T, D>, Matrix3<T>, MaterialState<T>)> {
     if det(delta_f).re() <= 0.0 {
         return None;
     }
-    let f = delta_f * frozen.f_n.map(T::cst);
-    let (tau, state) = material.kirchhoff_update(
-        &to3(delta_f, T::one()),
-        &to3(&f, T::one()),
-        &lift_state(&frozen.state),
-    );
+    let f = delta_f * f_n;
+    let (tau, state) =
+        material.kirchhoff_update(&to3(delta_f, T::one()), &to3(&f, T::one()), state);
     let dfinv_t = inverse(delta_f)?.transpose();
-    Some((
-        from3::<T, D>(&tau) * dfinv_t * T::cst(frozen.volume0),
-        tau,
-        state,
-    ))
+    Some((from3::<T, D>(&tau) * dfinv_t * volume0, tau, state))
 }

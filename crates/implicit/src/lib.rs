@@ -21,4 +21,4 @@ pub mod system;
 pub use dofs::NodeDof;
 pub use loam_core::{NodeConstraint, PointLoad};
 pub use newton::{NewtonReport, NewtonSettings, TangentMethod};
-pub use solver::{ImplicitConfig, ImplicitError, ImplicitSolver, StepReport};
+pub use solver::{AcceptedStep, ImplicitConfig, ImplicitError, ImplicitSolver, StepReport};

@@ -128,6 +128,22 @@ impl<const D: usize> StepReport<D> {
     }
 }
 
+/// A converged (sub-)step from load factor `from` to `to`, as [`ImplicitSolver::step_observed`]
+/// accepts it.
+#[derive(Clone, Copy, Debug)]
+pub struct AcceptedStep<'a, const D: usize> {
+    /// The load step it belongs to (1-based).
+    pub step: usize,
+    /// Load factor at its start.
+    pub from: f64,
+    /// Load factor at its end.
+    pub to: f64,
+    /// The particles at its start.
+    pub start: &'a Particles<f64, D>,
+    /// The converged unknowns `Δu` of [`ImplicitSolver::system`]`(start, from, to)`.
+    pub solution: &'a [f64],
+}
+
 /// Lets every node that particles reach but that is too weakly supported to take part in the
 /// step follow an active node instead of staying put. With `Δu_j = 0`, a particle whose stencil
 /// reaches node `j` with weight `w` is strained by `Δu ⊗ ∇N_j` (`|∇N_j| ≈ √(2w)/h` for quadratic
@@ -412,67 +428,34 @@ impl<const D: usize> ImplicitSolver<D> {
         &mut self,
         particles: &mut Particles<f64, D>,
     ) -> Result<StepReport<D>, ImplicitError> {
-        let n = self.config.load_steps as f64;
-        let target = (self.steps + 1) as f64 / n;
-        let mut report = StepReport {
-            step: self.steps + 1,
-            load_factor: self.load_factor,
-            unknowns: 0,
-            solves: Vec::new(),
-            cuts: 0,
-            constraint_forces: vec![Vector::zeros(); self.config.constraints.len()],
-        };
+        self.step_observed(particles, |_| {})
+    }
+
+    /// [`ImplicitSolver::step`], handing every accepted (sub-)step to `accepted` before the
+    /// particles take its update: a step cut into halves is the sequence of its accepted
+    /// sub-steps, in order. [`ImplicitSolver::system`] on [`AcceptedStep::start`] with its load
+    /// factors rebuilds the same system, so a reverse pass needs nothing else.
+    pub fn step_observed(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+        mut accepted: impl FnMut(AcceptedStep<'_, D>),
+    ) -> Result<StepReport<D>, ImplicitError> {
+        let target = self.target();
+        let mut report = self.new_report();
         let mut from = self.load_factor;
         let mut size = target - from;
         while target - from > 1e-12 * size.max(1e-300) {
             let to = (from + size).min(target);
-            let system = self.system(particles, from, to)?;
-            report.unknowns = system.len();
-            let (x, newton) = solve(
-                &system,
-                &self.materials,
-                &self.config.newton,
-                &mut self.linear,
-                self.config.grid.h,
-            );
-            let converged = newton.converged;
-            let mut failure = newton.failure.clone();
-            report.solves.push(newton);
-            let update = if converged {
-                match self.particle_updates(&system, &x) {
-                    Ok(u) => Some(u),
-                    Err(reason) => {
-                        failure = Some(reason);
-                        None
-                    }
-                }
-            } else {
-                None
-            };
-            if update.is_some() {
-                report.constraint_forces = self.constraint_forces(&system, &x);
-            }
-            match update {
-                Some(update) => {
-                    for (i, u) in update.into_iter().enumerate() {
-                        particles.x[i] += u.displacement;
-                        particles.v[i] += u.velocity_increment;
-                        particles.a[i] = u.acceleration;
-                        particles.f[i] = u.f;
-                        particles.stress[i] = u.stress;
-                        particles.state[i] = u.state;
-                    }
-                    from = to;
-                    self.load_factor = to;
-                }
-                None => {
+            match self.attempt(particles, &mut report, from, to, &mut accepted)? {
+                None => from = to,
+                Some(reason) => {
                     if report.cuts >= self.config.newton.max_cuts {
                         return Err(ImplicitError::NoConvergence {
                             step: report.step,
                             from,
                             to,
                             cuts: report.cuts,
-                            reason: failure.unwrap_or_default(),
+                            reason,
                         });
                     }
                     report.cuts += 1;
@@ -480,9 +463,128 @@ impl<const D: usize> ImplicitSolver<D> {
                 }
             }
         }
+        Ok(self.finish(report))
+    }
+
+    /// The next load step as the given sequence of sub-steps, ending at the load factors
+    /// `ends` (the last one is the step's target, `(steps + 1) / load_steps`), without
+    /// cutting: replays the sub-steps of another run, so that a run at perturbed parameters
+    /// takes the step sizes a reference run took ([`StepReport::cuts`] counts the sub-steps
+    /// beyond the first).
+    ///
+    /// # Errors
+    /// `ends` that do not increase to the step's target (`Config` naming `ends`), or a
+    /// sub-step that does not converge (`NoConvergence` with no cut).
+    pub fn step_planned(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+        ends: &[f64],
+        mut accepted: impl FnMut(AcceptedStep<'_, D>),
+    ) -> Result<StepReport<D>, ImplicitError> {
+        let target = self.target();
+        let increasing = ends
+            .iter()
+            .try_fold(self.load_factor, |from, &to| (to > from).then_some(to));
+        if increasing.is_none_or(|last| (last - target).abs() > 1e-12) {
+            return Err(ImplicitError::Config {
+                field: "ends".into(),
+                msg: format!(
+                    "sub-step ends {ends:?} must increase from {} to {target}",
+                    self.load_factor
+                ),
+            });
+        }
+        let mut report = self.new_report();
+        let mut from = self.load_factor;
+        for &to in ends {
+            if let Some(reason) = self.attempt(particles, &mut report, from, to, &mut accepted)? {
+                return Err(ImplicitError::NoConvergence {
+                    step: report.step,
+                    from,
+                    to,
+                    cuts: 0,
+                    reason,
+                });
+            }
+            from = to;
+        }
+        report.cuts = ends.len() - 1;
+        Ok(self.finish(report))
+    }
+
+    /// Load factor at the end of the next load step.
+    fn target(&self) -> f64 {
+        (self.steps + 1) as f64 / self.config.load_steps as f64
+    }
+
+    /// The report of the next load step before any attempt.
+    fn new_report(&self) -> StepReport<D> {
+        StepReport {
+            step: self.steps + 1,
+            load_factor: self.load_factor,
+            unknowns: 0,
+            solves: Vec::new(),
+            cuts: 0,
+            constraint_forces: vec![Vector::zeros(); self.config.constraints.len()],
+        }
+    }
+
+    /// Completes the load step of `report`.
+    fn finish(&mut self, mut report: StepReport<D>) -> StepReport<D> {
+        let target = self.target();
         self.steps += 1;
         self.load_factor = target;
         report.load_factor = target;
-        Ok(report)
+        report
+    }
+
+    /// One attempt of a sub-step from load factor `from` to `to`: on convergence the
+    /// particles take its update (after `accepted` has seen it) and `Ok(None)` is returned;
+    /// otherwise the particles are unchanged and `Ok(Some(reason))` says why it failed.
+    fn attempt(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+        report: &mut StepReport<D>,
+        from: f64,
+        to: f64,
+        accepted: &mut impl FnMut(AcceptedStep<'_, D>),
+    ) -> Result<Option<String>, ImplicitError> {
+        let system = self.system(particles, from, to)?;
+        report.unknowns = system.len();
+        let (x, newton) = solve(
+            &system,
+            &self.materials,
+            &self.config.newton,
+            &mut self.linear,
+            self.config.grid.h,
+        );
+        let converged = newton.converged;
+        let failure = newton.failure.clone();
+        report.solves.push(newton);
+        if !converged {
+            return Ok(Some(failure.unwrap_or_default()));
+        }
+        let update = match self.particle_updates(&system, &x) {
+            Ok(u) => u,
+            Err(reason) => return Ok(Some(reason)),
+        };
+        report.constraint_forces = self.constraint_forces(&system, &x);
+        accepted(AcceptedStep {
+            step: report.step,
+            from,
+            to,
+            start: particles,
+            solution: &x,
+        });
+        for (i, u) in update.into_iter().enumerate() {
+            particles.x[i] += u.displacement;
+            particles.v[i] += u.velocity_increment;
+            particles.a[i] = u.acceleration;
+            particles.f[i] = u.f;
+            particles.stress[i] = u.stress;
+            particles.state[i] = u.state;
+        }
+        self.load_factor = to;
+        Ok(None)
     }
 }

@@ -588,7 +588,7 @@ impl<const D: usize> StepSystem<D> {
                     let fr = &self.frozen[p];
                     // The seeded owner node of this colour in the stencil, if any.
                     let mut seeded = None;
-                    let g = delta_f::<DualSVec64<L>, D>(&fr.stencil, |flat, c| {
+                    let g = delta_f::<f64, DualSVec64<L>, D>(&fr.stencil, |flat, c| {
                         let v = self.dofs.value(flat, c, x);
                         match self.dofs.get(flat, c) {
                             NodeDof::Free { dof, sign } if self.colour(dof) == colour => {

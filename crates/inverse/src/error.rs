@@ -1,6 +1,8 @@
 //! Errors of gradient computations.
 
 use loam_explicit::{ConfigError, StepError};
+use loam_implicit::ImplicitError;
+use loam_implicit::linear::LinearError;
 use thiserror::Error;
 
 /// Why a gradient could not be computed.
@@ -28,6 +30,27 @@ pub enum AdjointError {
     /// The forward run stopped.
     #[error("forward run: {0}")]
     Step(#[from] StepError),
+    /// An observation that does not fit the run.
+    #[error("{field}: {msg}")]
+    Observation {
+        /// The entry and field, e.g. `observations[3].particle`.
+        field: String,
+        /// What is wrong.
+        msg: String,
+    },
+    /// The implicit forward run was refused or stopped.
+    #[error("forward run: {0}")]
+    Implicit(#[from] ImplicitError),
+    /// An adjoint or tangent system of an implicit sub-step could not be solved.
+    #[error("load step {step}: {what} system: {source}")]
+    Linear {
+        /// The load step.
+        step: usize,
+        /// `adjoint` or `tangent`.
+        what: &'static str,
+        /// The linear solver's error.
+        source: LinearError,
+    },
     /// The recomputation of a segment in the reverse pass did not reproduce the forward pass.
     #[error(
         "the reverse pass recomputed step {step} differently from the forward pass ({what}); \

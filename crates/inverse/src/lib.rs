@@ -19,6 +19,9 @@
 //!   by a forward-mode dual run; [`Variable`] reparameterises an unknown for an optimiser
 //!   (softplus, bounds); [`Optimiser`] is Adam with a decaying rate or L-BFGS.
 //!
+//! - [`implicit`]: the same for a quasi-static implicit run, by the adjoint of its load
+//!   steps (one transposed solve with each accepted sub-step's tangent).
+//!
 //! - [`check`] compares a gradient with branch-aware central differences and runs the
 //!   Taylor test; [`choose`] picks tracked particles reproducibly.
 //!
@@ -31,6 +34,7 @@ mod deposit;
 mod error;
 mod field;
 mod gradient;
+pub mod implicit;
 pub mod lanes;
 mod objective;
 mod observe;

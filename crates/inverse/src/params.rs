@@ -322,7 +322,10 @@ fn seed_lame(l: &Lame<f64>, young: bool) -> (Lame<Dual64>, f64) {
 
 /// The material lifted to `Dual64` with `field` seeded, and the field's value; `None` when
 /// the model has no such constant.
-fn seed_material(m: &Material<f64>, field: MaterialField) -> Option<(Material<Dual64>, f64)> {
+pub(crate) fn seed_material(
+    m: &Material<f64>,
+    field: MaterialField,
+) -> Option<(Material<Dual64>, f64)> {
     use MaterialField as F;
     let mut out: Material<Dual64> = m.lift();
     let one = |x: &mut Dual64| {
@@ -369,7 +372,7 @@ fn lame_of<T>(model: &mut Model<T>) -> Option<&mut Lame<T>> {
 }
 
 /// Sets `field` of `m` to `value`; `None` when the model has no such constant.
-fn set_material(m: &mut Material<f64>, field: MaterialField, value: f64) -> Option<()> {
+pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f64) -> Option<()> {
     use MaterialField as F;
     let density = m.density;
     match (field, &mut m.model) {

@@ -1,0 +1,251 @@
+//! The reverse pass over the accepted sub-steps of a quasi-static run.
+//!
+//! A sub-step maps the particle state `s` to `s' = Φ(s, Δu, θ)` where `Δu` solves
+//! `R(Δu; s, θ) = 0`; a reaction `r(s, Δu, θ)` may be observed after it. With `s̄'` the
+//! adjoint of the end state and `r̄ = ∂L/∂r`, the implicit function theorem gives
+//!
+//! ```text
+//! Jᵀ λ = (∂Φ/∂Δu)ᵀ s̄' + (∂r/∂Δu)ᵀ r̄                       (J = ∂R/∂Δu, the step's tangent)
+//! s̄   = (∂Φ/∂s)ᵀ s̄' + (∂r/∂s)ᵀ r̄ − (∂R/∂s)ᵀ λ
+//! θ̄  += (∂Φ/∂θ)ᵀ s̄' + (∂r/∂θ)ᵀ r̄ − (∂R/∂θ)ᵀ λ
+//! ```
+//!
+//! Every term is a sum over particles of derivatives of one scalar per particle,
+//! `ψₚ = Σ_i (a_i·f_int,i + c_i·f_ext,i) + s̄'ₚ·s'ₚ` ([`super::kernel`]), with `a = r̄ − λ` and
+//! `c = λ` on the nodes (through the unknown map, mirror signs included). The right-hand
+//! side is `∂ψₚ/∂Δu` with `λ = 0`; the state's adjoint `∂ψₚ/∂sₚ` and each parameter's share
+//! `∂ψₚ/∂θ` come from `Dual64` evaluations of the same kernel the solver runs.
+
+use super::kernel::{
+    Cotangent, lift_loads, psi_by_delta_f, psi_by_state, psi_derivative, state_len,
+};
+use super::observe::ImplicitObservations;
+use super::params::ImplicitParam;
+use super::record::{Replay, SubStep, Trajectory};
+use super::seeds::StepSeeds;
+use crate::error::AdjointError;
+use crate::params::MaterialField;
+use loam_core::tensor::{Tensor, Vector};
+use loam_core::{Material, Particles};
+use loam_implicit::linear::LinearSolver;
+use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
+use num_dual::Dual64;
+use rayon::prelude::*;
+
+/// The reverse pass of `run` (a forward run of `config` from `initial`): `dL/dθ` for every
+/// parameter in `params`, for the loss of `observations`.
+///
+/// # Errors
+/// A sub-step whose system cannot be rebuilt or whose adjoint system cannot be solved.
+pub fn reverse<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    params: &[ImplicitParam],
+) -> Result<Vec<f64>, AdjointError> {
+    reverse_from(config, initial, run, observations, params, 0)
+}
+
+/// The "last step only" approximation of [`reverse`]: the reverse pass of the last accepted
+/// sub-step alone, its start state held fixed (the history of the load path ignored, and
+/// observations of earlier steps with it). This is what differentiating only the last load
+/// step's residual gives; it is exact only when nothing before the last sub-step depends on
+/// the parameters.
+///
+/// # Errors
+/// As [`reverse`].
+pub fn reverse_last_substep<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    params: &[ImplicitParam],
+) -> Result<Vec<f64>, AdjointError> {
+    let last = run.substeps.len().saturating_sub(1);
+    reverse_from(config, initial, run, observations, params, last)
+}
+
+/// The reverse pass over the sub-steps `first..` of `run`.
+fn reverse_from<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    params: &[ImplicitParam],
+    first: usize,
+) -> Result<Vec<f64>, AdjointError> {
+    let solver = ImplicitSolver::new(config.clone(), initial)?;
+    let n = initial.len();
+    let nodes = config.grid.num_nodes();
+    let weights = observations.residual_weights(run);
+    let lifted: Vec<Material<Dual64>> = config.materials.iter().map(|m| m.lift()).collect();
+    // Per parameter and material, the material with that parameter seeded (if it is one of
+    // its constants).
+    let seeded: Vec<Vec<Option<Material<Dual64>>>> = params
+        .iter()
+        .map(|q| {
+            (config.materials.iter().enumerate())
+                .map(|(k, m)| q.seeded_material(k, m))
+                .collect()
+        })
+        .collect();
+    let zeros = vec![Vector::<f64, D>::zeros(); nodes];
+    let mut linear = LinearSolver::new(config.newton.linear);
+    let mut sbar = vec![vec![0.0; state_len(D)]; n];
+    let mut grad = vec![0.0; params.len()];
+    for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
+        let seeds = SubStep::ends_step(&run.substeps, i)
+            .then(|| StepSeeds::new(config, observations, &weights, sub.step));
+        for &(p, a, w) in seeds.iter().flat_map(|s| &s.displacements) {
+            sbar[p][a] += w;
+        }
+        let replay = Replay::new(&solver, initial, sub)?;
+        let system = &replay.system;
+        let inverted = |particle| {
+            AdjointError::Implicit(ImplicitError::InvalidState {
+                step: sub.step,
+                particle,
+            })
+        };
+        let a_r = (seeds.as_ref())
+            .and_then(|s| s.reaction_weights.as_deref())
+            .unwrap_or(&zeros);
+        let material = |p: usize| initial.material[p] as usize;
+        // Right-hand side: ∂ψ/∂Δu with λ = 0, through ∂ψ/∂ΔF.
+        let by_delta_f: Vec<Option<Tensor<f64, D>>> = (0..n)
+            .into_par_iter()
+            .map(|p| {
+                let cot = Cotangent {
+                    internal: a_r,
+                    external: &zeros,
+                    end: &sbar[p],
+                };
+                psi_by_delta_f(
+                    &replay.setting(p),
+                    &lifted[material(p)],
+                    &replay.state(p),
+                    &replay.loads(p),
+                    |f, a| replay.du(f, a),
+                    &cot,
+                )
+            })
+            .collect();
+        let mut rhs = vec![0.0; system.len()];
+        for (p, g) in by_delta_f.iter().enumerate() {
+            let g = g.ok_or_else(|| inverted(p))?;
+            system.frozen[p].stencil.for_each(|node| {
+                for a in 0..D {
+                    if let NodeDof::Free { dof, sign } = system.dofs.get(node.flat, a) {
+                        let through_f: f64 = (0..D).map(|b| g[(a, b)] * node.gradient[b]).sum();
+                        rhs[dof] += sign * (through_f + sbar[p][a] * node.weight);
+                    }
+                }
+            });
+        }
+        let mut lambda = vec![0.0; system.len()];
+        if rhs.iter().any(|v| *v != 0.0) {
+            let k = system
+                .tangent_local(&sub.solution, solver.materials())
+                .map_err(|e| inverted(e.particle))?;
+            linear
+                .solve_transpose(&k, &rhs, &mut lambda)
+                .map_err(|source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "adjoint",
+                    source,
+                })?;
+        }
+        // Nodal weights of ψ: a = r̄ − λ on the internal force, c = λ on the external one.
+        let mut internal = a_r.to_vec();
+        let mut external = zeros.clone();
+        for node in 0..nodes {
+            for a in 0..D {
+                if let NodeDof::Free { dof, sign } = system.dofs.get(node, a) {
+                    internal[node][a] -= sign * lambda[dof];
+                    external[node][a] += sign * lambda[dof];
+                }
+            }
+        }
+        let rates: Vec<Option<Vec<Vector<f64, D>>>> = params
+            .iter()
+            .map(|q| match *q {
+                ImplicitParam::Displacement(k, a) => replay.prescribed_rate(k, a).map(Some),
+                _ => Ok(None),
+            })
+            .collect::<Result<_, _>>()?;
+        let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
+            .into_par_iter()
+            .map(|p| {
+                let cot = Cotangent {
+                    internal: &internal,
+                    external: &external,
+                    end: &sbar[p],
+                };
+                let (setting, state, loads) = (replay.setting(p), replay.state(p), replay.loads(p));
+                let du = |f: usize, a: usize| replay.du(f, a);
+                let s = psi_by_state(&setting, &lifted[material(p)], &state, &loads, du, &cot)?;
+                let dual_state = state.dual(&vec![0.0; state_len(D)]);
+                let zero = Tensor::<Dual64, D>::zeros();
+                let mut shares = vec![0.0; params.len()];
+                for (j, q) in params.iter().enumerate() {
+                    let mut loads_d = lift_loads(&loads);
+                    let mat = &lifted[material(p)];
+                    let plain = |f: usize, a: usize| Dual64::from_re(du(f, a));
+                    let share = match *q {
+                        // Through the masses, below.
+                        ImplicitParam::Material(_, MaterialField::Density) => continue,
+                        ImplicitParam::Material(..) => {
+                            let Some(m) = &seeded[j][material(p)] else {
+                                continue;
+                            };
+                            psi_derivative(&setting, m, &dual_state, &loads_d, plain, &zero, &cot)
+                        }
+                        ImplicitParam::Gravity(a) => {
+                            loads_d.gravity[a].eps = 1.0;
+                            psi_derivative(&setting, mat, &dual_state, &loads_d, plain, &zero, &cot)
+                        }
+                        ImplicitParam::PointLoad(k, a) => {
+                            if config.point_loads[k].particle != p {
+                                continue;
+                            }
+                            loads_d.point[a].eps = 1.0;
+                            psi_derivative(&setting, mat, &dual_state, &loads_d, plain, &zero, &cot)
+                        }
+                        ImplicitParam::Displacement(..) => {
+                            let rate = rates[j].as_ref().expect("rates of displacements");
+                            let seeded_du = |f: usize, a: usize| Dual64::new(du(f, a), rate[f][a]);
+                            psi_derivative(
+                                &setting,
+                                mat,
+                                &dual_state,
+                                &loads_d,
+                                seeded_du,
+                                &zero,
+                                &cot,
+                            )
+                        }
+                    };
+                    shares[j] = share?;
+                }
+                Some((s, shares))
+            })
+            .collect();
+        for (p, r) in per_particle.into_iter().enumerate() {
+            let (s, shares) = r.ok_or_else(|| inverted(p))?;
+            sbar[p] = s;
+            grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
+        }
+    }
+    // The density acts through the masses m_p = ρ₀ V⁰_p.
+    let mass = state_len(D) - 1;
+    for (j, q) in params.iter().enumerate() {
+        if let ImplicitParam::Material(k, MaterialField::Density) = *q {
+            grad[j] = (0..n)
+                .filter(|&p| initial.material[p] as usize == k)
+                .map(|p| initial.volume0[p] * sbar[p][mass])
+                .sum();
+        }
+    }
+    Ok(grad)
+}

@@ -1,0 +1,225 @@
+//! The parameters of an implicit run a gradient is taken with respect to.
+
+use crate::error::AdjointError;
+use crate::params::{MaterialField, seed_material, set_material};
+use loam_core::{Material, Particles};
+use loam_implicit::ImplicitConfig;
+use num_dual::Dual64;
+use std::fmt;
+use std::str::FromStr;
+
+/// One scalar parameter of a quasi-static implicit run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ImplicitParam {
+    /// A constant of material `k` (`ImplicitConfig::materials[k]`): `young`, `poisson`,
+    /// `yield_stress`, `hardening` or `density` (the masses `m_p = ρ₀ V⁰_p` of its particles).
+    Material(usize, MaterialField),
+    /// Component `a` of gravity.
+    Gravity(usize),
+    /// Component `a` of the total force of point load `k` (`ImplicitConfig::point_loads[k]`).
+    PointLoad(usize, usize),
+    /// Component `a` of the total prescribed displacement of constraint `k`
+    /// (`ImplicitConfig::constraints[k]`).
+    Displacement(usize, usize),
+}
+
+impl fmt::Display for ImplicitParam {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::Material(k, field) => write!(f, "materials[{k}].{}", field.name()),
+            Self::Gravity(a) => write!(f, "gravity[{a}]"),
+            Self::PointLoad(k, a) => write!(f, "point_loads[{k}].force[{a}]"),
+            Self::Displacement(k, a) => write!(f, "constraints[{k}].displacement[{a}]"),
+        }
+    }
+}
+
+impl FromStr for ImplicitParam {
+    type Err = String;
+
+    /// Reads the form `Display` writes.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let expected = || {
+            format!(
+                "unknown parameter `{s}`; expected `materials[k].<constant>` (young, poisson, \
+                 yield_stress, hardening, density), `gravity[a]`, `point_loads[k].force[a]` or \
+                 `constraints[k].displacement[a]`"
+            )
+        };
+        let indexed = |t: &str, name: &str| -> Option<(usize, String)> {
+            let rest = t.strip_prefix(name)?.strip_prefix('[')?;
+            let (index, rest) = rest.split_once(']')?;
+            Some((index.parse().ok()?, rest.to_owned()))
+        };
+        let pair = |name: &str, inner: &str| -> Option<(usize, usize)> {
+            let (k, rest) = indexed(s, name)?;
+            let (a, tail) = indexed(&rest, inner)?;
+            tail.is_empty().then_some((k, a))
+        };
+        if let Some((k, a)) = pair("point_loads", ".force") {
+            return Ok(Self::PointLoad(k, a));
+        }
+        if let Some((k, a)) = pair("constraints", ".displacement") {
+            return Ok(Self::Displacement(k, a));
+        }
+        if let Some((a, rest)) = indexed(s, "gravity") {
+            return rest
+                .is_empty()
+                .then_some(Self::Gravity(a))
+                .ok_or_else(expected);
+        }
+        if let Some((k, rest)) = indexed(s, "materials") {
+            let field = rest.strip_prefix('.').ok_or_else(expected)?;
+            return [
+                MaterialField::Young,
+                MaterialField::Poisson,
+                MaterialField::YieldStress,
+                MaterialField::Hardening,
+                MaterialField::Density,
+            ]
+            .into_iter()
+            .find(|f| f.name() == field)
+            .map(|f| Self::Material(k, f))
+            .ok_or_else(expected);
+        }
+        Err(expected())
+    }
+}
+
+impl ImplicitParam {
+    fn error(&self, msg: impl Into<String>) -> AdjointError {
+        AdjointError::Parameter {
+            param: self.to_string(),
+            msg: msg.into(),
+        }
+    }
+
+    fn material<'a, const D: usize>(
+        &self,
+        config: &'a ImplicitConfig<D>,
+        k: usize,
+    ) -> Result<&'a Material<f64>, AdjointError> {
+        config.materials.get(k).ok_or_else(|| {
+            self.error(format!(
+                "no such material: the scene has {}",
+                config.materials.len()
+            ))
+        })
+    }
+
+    /// Its value in `config`.
+    ///
+    /// # Errors
+    /// An item the configuration does not have, a constant its model does not have, or a
+    /// constraint component that is left free.
+    pub fn value<const D: usize>(&self, config: &ImplicitConfig<D>) -> Result<f64, AdjointError> {
+        match *self {
+            Self::Material(k, field) => {
+                let m = self.material(config, k)?;
+                seed_material(m, field)
+                    .map(|s| s.1)
+                    .ok_or_else(|| self.error("the material's model has no such constant"))
+            }
+            Self::Gravity(a) => self.component::<D>(a).map(|a| config.gravity[a]),
+            Self::PointLoad(k, a) => {
+                let a = self.component::<D>(a)?;
+                let load = config.point_loads.get(k).ok_or_else(|| {
+                    self.error(format!(
+                        "no such point load: the scene has {}",
+                        config.point_loads.len()
+                    ))
+                })?;
+                Ok(load.force[a])
+            }
+            Self::Displacement(k, a) => {
+                let a = self.component::<D>(a)?;
+                let c = config.constraints.get(k).ok_or_else(|| {
+                    self.error(format!(
+                        "no such constraint: the scene has {}",
+                        config.constraints.len()
+                    ))
+                })?;
+                c.displacement[a]
+                    .ok_or_else(|| self.error("this component of the constraint is free"))
+            }
+        }
+    }
+
+    /// A component index checked against the dimension `D`.
+    fn component<const D: usize>(&self, a: usize) -> Result<usize, AdjointError> {
+        if a < D {
+            Ok(a)
+        } else {
+            Err(self.error(format!("component {a} does not exist in {D}D")))
+        }
+    }
+
+    /// Sets the parameter to `value` in `config` and, for a density, the masses of its
+    /// material's particles (`m_p = ρ₀ V⁰_p`).
+    ///
+    /// # Errors
+    /// As [`ImplicitParam::value`].
+    pub fn set<const D: usize>(
+        &self,
+        config: &mut ImplicitConfig<D>,
+        particles: &mut Particles<f64, D>,
+        value: f64,
+    ) -> Result<(), AdjointError> {
+        self.value(config)?;
+        match *self {
+            Self::Material(k, field) => {
+                set_material(&mut config.materials[k], field, value)
+                    .ok_or_else(|| self.error("the material's model has no such constant"))?;
+                if field == MaterialField::Density {
+                    for p in 0..particles.len() {
+                        if particles.material[p] as usize == k {
+                            particles.mass[p] = value * particles.volume0[p];
+                        }
+                    }
+                }
+            }
+            Self::Gravity(a) => config.gravity[a] = value,
+            Self::PointLoad(k, a) => config.point_loads[k].force[a] = value,
+            Self::Displacement(k, a) => config.constraints[k].displacement[a] = Some(value),
+        }
+        Ok(())
+    }
+
+    /// Material `k` lifted to `Dual64` with this parameter seeded when it is one of its
+    /// constants (other than the density, which acts through the masses); `None` otherwise.
+    pub fn seeded_material(&self, k: usize, material: &Material<f64>) -> Option<Material<Dual64>> {
+        match *self {
+            Self::Material(j, field) if j == k && field != MaterialField::Density => {
+                seed_material(material, field).map(|s| s.0)
+            }
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_read_back_what_display_writes() {
+        for p in [
+            ImplicitParam::Material(1, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Density),
+            ImplicitParam::Gravity(1),
+            ImplicitParam::PointLoad(2, 0),
+            ImplicitParam::Displacement(0, 1),
+        ] {
+            assert_eq!(p.to_string().parse::<ImplicitParam>(), Ok(p));
+        }
+        for bad in [
+            "materials[0].viscosity",
+            "point_loads[0].force",
+            "constraints[1].displacement[x]",
+            "friction[0]",
+        ] {
+            let err = bad.parse::<ImplicitParam>().unwrap_err();
+            assert!(err.contains(bad) && err.contains("expected"), "{err}");
+        }
+    }
+}

@@ -1,0 +1,74 @@
+//! How the observations of one load step enter the reverse and the tangent pass.
+
+use super::observe::{ImplicitObservations, Quantity};
+use loam_core::tensor::Vector;
+use loam_implicit::ImplicitConfig;
+
+/// `∂L/∂(quantity)` of the observations after one load step: per observed particle
+/// displacement component, and per grid node the weight of its internal force that the
+/// observed reactions read.
+#[derive(Clone, Debug)]
+pub struct StepSeeds<const D: usize> {
+    /// `(particle, axis, ∂L/∂u_p,a)`.
+    pub displacements: Vec<(usize, usize, f64)>,
+    /// Per grid node (flat index), `r̄_a` summed over the observed reactions whose constraint
+    /// prescribes component `a` of that node: a reaction is `Σ` of the internal force
+    /// `f_int,i,a` over the nodes `i` of its box, before any folding of ghost nodes.
+    pub reaction_weights: Option<Vec<Vector<f64, D>>>,
+}
+
+impl<const D: usize> StepSeeds<D> {
+    /// The seeds of load step `step`, from `weights = ∂L/∂m_k` of every observation.
+    pub fn new(
+        config: &ImplicitConfig<D>,
+        observations: &ImplicitObservations,
+        weights: &[f64],
+        step: usize,
+    ) -> Self {
+        let mut displacements = Vec::new();
+        let mut reactions = vec![Vector::<f64, D>::zeros(); config.constraints.len()];
+        let mut any_reaction = false;
+        for (o, &w) in observations.items.iter().zip(weights) {
+            if o.step != step {
+                continue;
+            }
+            match o.quantity {
+                Quantity::Displacement {
+                    particle,
+                    component,
+                } => displacements.push((particle, component, w)),
+                Quantity::Reaction {
+                    constraint,
+                    component,
+                } => {
+                    reactions[constraint][component] += w;
+                    any_reaction = true;
+                }
+            }
+        }
+        let reaction_weights = any_reaction.then(|| {
+            let grid = &config.grid;
+            (0..grid.num_nodes())
+                .map(|n| {
+                    let x: Vector<f64, D> = grid.node_position(grid.multi(n));
+                    let x: [f64; D] = std::array::from_fn(|a| x[a]);
+                    let mut w = Vector::<f64, D>::zeros();
+                    for (c, r) in config.constraints.iter().zip(&reactions) {
+                        if c.contains(&x, grid.h) {
+                            for a in 0..D {
+                                if c.displacement[a].is_some() {
+                                    w[a] += r[a];
+                                }
+                            }
+                        }
+                    }
+                    w
+                })
+                .collect()
+        });
+        Self {
+            displacements,
+            reaction_weights,
+        }
+    }
+}

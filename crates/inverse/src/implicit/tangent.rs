@@ -1,0 +1,157 @@
+//! The forward-mode dual derivative of a quasi-static run: the oracle of the reverse pass.
+//!
+//! The implicit solver runs in `f64` (faer's sparse factorisations are real), so the run is
+//! not re-executed with a dual scalar. What such a run would compute is this: with every
+//! particle's state a `Dual64` carrying `ṡ = ds/dθ`, Newton's iteration
+//! `Δu ← Δu − J⁻¹ R(Δu)` in duals converges, in its derivative part, to the solution of
+//! `J Δu̇ = −Ṙ` with `Ṙ` the derivative part of the residual at the converged `Δu` and `Δu̇`
+//! held at zero on the unknowns (the implicit function theorem). This pass evaluates exactly
+//! that, sub-step by sub-step in the forward order: one `Dual64` evaluation of every
+//! particle's kernel for `Ṙ`, one solve with `J`, one evaluation for the end state
+//! `ṡ' = Φ̇`. It shares the kernel with the reverse pass but none of its transposition.
+
+use super::kernel::{ParticleStep, particle_step, state_len};
+use super::observe::ImplicitObservations;
+use super::params::ImplicitParam;
+use super::record::{Replay, SubStep, Trajectory};
+use super::seeds::StepSeeds;
+use crate::error::AdjointError;
+use crate::params::MaterialField;
+use loam_core::tensor::{Tensor, Vector};
+use loam_core::{Material, Particles};
+use loam_implicit::linear::LinearSolver;
+use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
+use num_dual::Dual64;
+use rayon::prelude::*;
+
+/// `dL/dθ` of the loss of `observations` over `run` (a forward run of `config` from
+/// `initial`) by forward-mode duals.
+///
+/// # Errors
+/// As [`super::adjoint::reverse`].
+pub fn dual_derivative<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    param: ImplicitParam,
+) -> Result<f64, AdjointError> {
+    let solver = ImplicitSolver::new(config.clone(), initial)?;
+    let n = initial.len();
+    let weights = observations.residual_weights(run);
+    let materials: Vec<Material<Dual64>> = (config.materials.iter().enumerate())
+        .map(|(k, m)| param.seeded_material(k, m).unwrap_or_else(|| m.lift()))
+        .collect();
+    // ṡ at the start: the masses m_p = ρ₀ V⁰_p move with a density.
+    let mut sdot = vec![vec![0.0; state_len(D)]; n];
+    if let ImplicitParam::Material(k, MaterialField::Density) = param {
+        for p in (0..n).filter(|&p| initial.material[p] as usize == k) {
+            sdot[p][state_len(D) - 1] = initial.volume0[p];
+        }
+    }
+    let mut linear = LinearSolver::new(config.newton.linear);
+    let mut derivative = 0.0;
+    for (i, sub) in run.substeps.iter().enumerate() {
+        let replay = Replay::new(&solver, initial, sub)?;
+        let system = &replay.system;
+        let inverted = |particle| {
+            AdjointError::Implicit(ImplicitError::InvalidState {
+                step: sub.step,
+                particle,
+            })
+        };
+        let rate = match param {
+            ImplicitParam::Displacement(k, a) => Some(replay.prescribed_rate(k, a)?),
+            _ => None,
+        };
+        // Every particle's step with the unknowns' derivative parts `free` (per unknown).
+        let evaluate = |free: &[f64]| -> Result<Vec<ParticleStep<Dual64, D>>, AdjointError> {
+            let steps: Vec<Option<ParticleStep<Dual64, D>>> = (0..n)
+                .into_par_iter()
+                .map(|p| {
+                    let mut loads = super::kernel::lift_loads(&replay.loads(p));
+                    match param {
+                        ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
+                        ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
+                            loads.point[a].eps = 1.0
+                        }
+                        _ => {}
+                    }
+                    let du = |f: usize, a: usize| {
+                        let eps = match system.dofs.get(f, a) {
+                            NodeDof::Free { dof, sign } => sign * free[dof],
+                            _ => rate.as_ref().map_or(0.0, |r| r[f][a]),
+                        };
+                        Dual64::new(replay.du(f, a), eps)
+                    };
+                    particle_step(
+                        &replay.setting(p),
+                        &materials[initial.material[p] as usize],
+                        &replay.state(p).dual(&sdot[p]),
+                        &loads,
+                        du,
+                        &Tensor::<Dual64, D>::zeros(),
+                    )
+                })
+                .collect();
+            (steps.into_iter().enumerate())
+                .map(|(p, s)| s.ok_or_else(|| inverted(p)))
+                .collect()
+        };
+        // Ṙ with the unknowns held, then J Δu̇ = −Ṙ.
+        let held = evaluate(&vec![0.0; system.len()])?;
+        let mut r_dot = vec![0.0; system.len()];
+        for s in &held {
+            for node in &s.nodes {
+                for a in 0..D {
+                    if let NodeDof::Free { dof, sign } = system.dofs.get(node.flat, a) {
+                        r_dot[dof] -= sign * (node.internal[a].eps - node.external[a].eps);
+                    }
+                }
+            }
+        }
+        let mut u_dot = vec![0.0; system.len()];
+        if !system.is_empty() {
+            let k = system
+                .tangent_local(&sub.solution, solver.materials())
+                .map_err(|e| inverted(e.particle))?;
+            linear
+                .solve(&k, &r_dot, &mut u_dot)
+                .map_err(|source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "tangent",
+                    source,
+                })?;
+        }
+        let moved = evaluate(&u_dot)?;
+        for (p, s) in moved.iter().enumerate() {
+            sdot[p] = s.end.tangent();
+        }
+        if SubStep::ends_step(&run.substeps, i) {
+            let seeds = StepSeeds::new(config, observations, &weights, sub.step);
+            for &(p, a, w) in &seeds.displacements {
+                derivative += w * sdot[p][a];
+            }
+            if let Some(rw) = &seeds.reaction_weights {
+                derivative += reaction_derivative(&moved, rw);
+            }
+        }
+    }
+    Ok(derivative)
+}
+
+/// `Σ_i r̄_i · ḟ_int,i`: the derivative of the observed reactions' share of the loss.
+fn reaction_derivative<const D: usize>(
+    steps: &[ParticleStep<Dual64, D>],
+    weights: &[Vector<f64, D>],
+) -> f64 {
+    let mut total = 0.0;
+    for s in steps {
+        for node in &s.nodes {
+            for a in 0..D {
+                total += weights[node.flat][a] * node.internal[a].eps;
+            }
+        }
+    }
+    total
+}

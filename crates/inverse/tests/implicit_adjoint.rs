@@ -1,0 +1,216 @@
+//! The adjoint of quasi-static implicit runs against the forward-mode dual derivative, central
+//! finite differences and the Taylor test: a Hencky cantilever (E, ν, the tip load, the
+//! density under gravity) and a J2 footing pushed by a prescribed settlement (σ_y, E, the
+//! hardening, the settlement), over several load steps with active plasticity and a cut step.
+
+use loam_core::Particles;
+use loam_implicit::ImplicitConfig;
+use loam_inverse::MaterialField;
+use loam_inverse::implicit::{
+    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, Schedule, check,
+    run_recorded,
+};
+use loam_scene::Scene;
+
+/// The scene of `verification/scenes/implicit_cantilever.toml` (described there).
+const CANTILEVER: &str = include_str!("../../../verification/scenes/implicit_cantilever.toml");
+
+/// The scene of `verification/scenes/implicit_footing.toml` (described there).
+const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footing.toml");
+
+fn scene(toml: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    let built = Scene::from_toml_str(toml)
+        .and_then(|s| s.build::<2>())
+        .unwrap_or_else(|e| panic!("{e}"));
+    (built.implicit_config().expect("implicit"), built.particles)
+}
+
+/// The largest relative difference `max_j |a_j − b_j| / |b_j|`.
+fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (a - b).abs() / b.abs())
+        .fold(0.0, f64::max)
+}
+
+/// The Taylor remainders of `problem` at `θ` along `v` for `h = 10⁻³ / 2ⁱ`, `i < 4`, and
+/// the ratios of consecutive ones. The step is small enough that no particle's position
+/// crosses a knot of the quadratic B-splines (whose second derivative jumps there) between
+/// the perturbed runs, and the smallest remainder (~1e-6 of the loss) stays far above its
+/// round-off.
+fn taylor_ratios(
+    problem: &ImplicitProblem<2>,
+    theta: &[f64],
+    schedule: &Schedule,
+    v: &[f64],
+) -> Vec<f64> {
+    let g = problem.gradient(theta).expect("gradient");
+    let slope: f64 = g.gradient.iter().zip(v).map(|(g, v)| g * v).sum();
+    let remainders = check::taylor_remainders(problem, theta, schedule, g.loss, slope, v, 1e-3, 4)
+        .expect("Taylor runs");
+    println!("Taylor remainders {remainders:?}");
+    remainders.windows(2).map(|w| w[0] / w[1]).collect()
+}
+
+/// Checks the adjoint of `problem` against the dual derivative (1e-10), central differences
+/// (1e-6) and the Taylor test (remainder ratios within [3.5, 4.5], second order).
+fn check(name: &str, problem: &ImplicitProblem<2>) {
+    let theta = problem.values().expect("values");
+    let schedule = problem.schedule(&theta).expect("run");
+    let adjoint = problem.gradient(&theta).expect("adjoint");
+    let dual = problem.dual_gradient(&theta).expect("dual");
+    // Richardson-extrapolated at δ = 10⁻⁴ |θ_k|: truncation O(δ⁴) ~1e-16 relative, round-off
+    // ε_L / δ with ε_L the loss's round-off and solver error (Newton converged to 1e-12 of
+    // the load): ~1e-9 relative. The perturbed runs replay the sub-steps of the run at θ
+    // (the footing's third step converges in exactly its 5 allowed iterations; a perturbed
+    // Newton needing a sixth would cut it, a different discrete map).
+    let fd: Vec<f64> = (0..theta.len())
+        .map(|k| check::central_difference(problem, &theta, &schedule, k, 1e-4).expect("runs"))
+        .collect();
+    for (k, p) in problem.params.iter().enumerate() {
+        println!(
+            "{name} {p}: adjoint {:.15e} dual {:.15e} fd {:.15e}",
+            adjoint.gradient[k], dual[k], fd[k]
+        );
+    }
+    let vs_dual = relative_difference(&adjoint.gradient, &dual);
+    let vs_fd = relative_difference(&adjoint.gradient, &fd);
+    println!(
+        "{name}: loss {:.6e}, adjoint vs dual {vs_dual:.2e}, adjoint vs FD {vs_fd:.2e}, \
+         forward {:.3} s, reverse {:.3} s",
+        adjoint.loss, adjoint.forward_seconds, adjoint.reverse_seconds
+    );
+    // Both are exact derivatives of the same discrete map at the same converged solutions;
+    // they differ by the round-off of different summation orders and of solving with J and
+    // with Jᵀ (backward error ~1e-16 times the condition number of the tangents, ≲ 1e6 here).
+    assert!(vs_dual < 1e-10, "{name}: adjoint vs dual {vs_dual:.2e}");
+    // The difference quotient's own error is ~1e-9 (see `central_difference`).
+    assert!(vs_fd < 1e-6, "{name}: adjoint vs FD {vs_fd:.2e}");
+    // Relative direction (each θ_k scaled by its own size), mixed signs.
+    let direction: Vec<f64> = (0..theta.len())
+        .map(|k| [1.0, -0.6, 0.8, -0.4][k % 4] * theta[k])
+        .collect();
+    let ratios = taylor_ratios(problem, &theta, &schedule, &direction);
+    println!("{name}: Taylor ratios {ratios:.3?}");
+    // A remainder that is O(h²) falls 4× per halving; a wrong gradient leaves O(h), 2×.
+    assert!(
+        ratios.iter().all(|r| (3.5..4.5).contains(r)),
+        "{name}: Taylor ratios {ratios:?}"
+    );
+}
+
+#[test]
+fn cantilever_adjoint_matches_dual_and_differences() {
+    let (config, initial) = scene(CANTILEVER);
+    // The tip particle (the point load's) and one at mid-span on the lower face.
+    let tip = config.point_loads[0].particle;
+    let mid = (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - 1.25).abs() + (initial.x[p][1] - 2.0).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles");
+    let displacement = |step, particle, component, value| Observation {
+        step,
+        quantity: Quantity::Displacement {
+            particle,
+            component,
+        },
+        value,
+        sigma: 0.01,
+    };
+    let observations = ImplicitObservations {
+        items: vec![
+            displacement(2, tip, 1, -0.15),
+            displacement(4, tip, 1, -0.3),
+            displacement(4, tip, 0, 0.0),
+            displacement(3, mid, 1, -0.05),
+            Observation {
+                step: 4,
+                quantity: Quantity::Reaction {
+                    constraint: 0,
+                    component: 1,
+                },
+                value: 2000.0,
+                sigma: 100.0,
+            },
+        ],
+    };
+    let problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Poisson),
+            ImplicitParam::PointLoad(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations,
+    };
+    check("cantilever", &problem);
+}
+
+#[test]
+fn footing_adjoint_matches_dual_and_differences() {
+    let (config, initial) = scene(FOOTING);
+    let run = run_recorded(&config, &initial, None).expect("runs");
+    // A step was cut (a failed attempt replaced by two accepted halves), and plasticity is
+    // active and growing through the later steps.
+    assert!(
+        run.cuts >= 1,
+        "no cut step: {} sub-steps",
+        run.substeps.len()
+    );
+    let peak = |s: &loam_inverse::implicit::record::SubStep<2>| {
+        s.history
+            .iter()
+            .map(|h| h.plastic_strain)
+            .fold(0.0, f64::max)
+    };
+    let last = run.substeps.last().expect("sub-steps");
+    assert!(peak(last) > 0.01 && peak(last) > peak(&run.substeps[1]));
+    // A surface particle beside the footing.
+    let side = (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - 0.8).abs() + (initial.x[p][1] - 1.0).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles");
+    let mut items: Vec<Observation> = (1..=4)
+        .map(|step| Observation {
+            step,
+            quantity: Quantity::Reaction {
+                constraint: 0,
+                component: 1,
+            },
+            value: -30e3 - 5e3 * step as f64,
+            sigma: 1e3,
+        })
+        .collect();
+    items.push(Observation {
+        step: 4,
+        quantity: Quantity::Displacement {
+            particle: side,
+            component: 1,
+        },
+        value: 0.0,
+        sigma: 1e-3,
+    });
+    let problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Hardening),
+            ImplicitParam::Displacement(0, 1),
+        ],
+        observations: ImplicitObservations { items },
+    };
+    println!(
+        "footing: {} sub-steps for 4 load steps ({} cut)",
+        run.substeps.len(),
+        run.cuts
+    );
+    check("footing", &problem);
+}

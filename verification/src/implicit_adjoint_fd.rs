@@ -1,0 +1,262 @@
+//! `implicit-adjoint-fd`: the adjoint of quasi-static implicit runs against forward-mode duals,
+//! central finite differences and the Taylor test.
+//!
+//! Scenes (`verification/scenes/implicit_*.toml`):
+//!
+//! - `implicit_cantilever`: a Hencky cantilever under its weight and a tip load; unknowns E,
+//!   ν, the tip load and the density; the loss tracks the tip and a mid-span particle after
+//!   every load step and the clamp's vertical reaction after the last;
+//! - `implicit_footing`: half a strip footing pushed into J2 clay by a prescribed settlement,
+//!   with plasticity from the first steps and a load step cut in half (Newton may take 5
+//!   iterations); unknowns σ_y, E, the hardening and the settlement; the loss is the footing
+//!   load after every load step and the settlement of a surface point beside it.
+//!
+//! Observations are recorded from a run at the scene's values and the gradient is taken 5 %
+//! away from them (alternating signs), so the loss and its gradient are not zero. Full size
+//! doubles the load steps (8 instead of 4). Metrics per scene:
+//!
+//! - max relative |adjoint − dual| **≤ 1e-10**: both are exact derivatives of the same
+//!   discrete map at the same converged Newton solutions; they differ by summation order and
+//!   by solving with `J` and `Jᵀ` (backward error ~1e-16 times the tangent's condition number);
+//! - max relative |adjoint − central difference| **≤ 1e-6**: Richardson-extrapolated at
+//!   δ = 1e-4 |θ| on the reference run's sub-steps (truncation O(δ⁴), round-off of the loss,
+//!   Newton converged to 1e-12 of the load, over δ: ~1e-9);
+//! - the Taylor test along a mixed-sign relative direction at h = 1e-3 … 1.25e-4: observed
+//!   order log₂(r(h₀)/r(h₀/8))/3 **≥ 1.8** (2 for a correct gradient, 1 for a wrong one);
+//! - the footing's cut sub-steps **≥ 1**, so that the cut replay is exercised.
+
+use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_text};
+use loam_core::Particles;
+use loam_implicit::ImplicitConfig;
+use loam_inverse::implicit::{
+    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, check,
+    run_recorded,
+};
+use loam_inverse::{AdjointError, MaterialField};
+use std::fmt::Write as _;
+use std::path::Path;
+
+const CASE: &str = "implicit-adjoint-fd";
+
+/// What one scene gave.
+struct Outcome {
+    label: &'static str,
+    params: Vec<ImplicitParam>,
+    adjoint: Vec<f64>,
+    dual: Vec<f64>,
+    difference: Vec<f64>,
+    order: f64,
+    cuts: usize,
+}
+
+fn failed(source: AdjointError) -> VerifyError {
+    VerifyError::Adjoint {
+        case: CASE.into(),
+        source,
+    }
+}
+
+/// The scene `file` with `load_steps` load steps.
+fn setup(file: &str, load_steps: usize) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    let built = scenes::build::<2>(&scenes::scene(file));
+    let mut config = built
+        .implicit_config()
+        .expect("the scene's solver is implicit");
+    config.load_steps = load_steps;
+    (config, built.particles)
+}
+
+/// The observations `quantities` after load steps, valued from the run of `problem` at its
+/// scene's values.
+fn observe(
+    problem: &mut ImplicitProblem<2>,
+    quantities: &[(usize, Quantity, f64)],
+) -> Result<(), VerifyError> {
+    let run = run_recorded(&problem.config, &problem.initial, None).map_err(failed)?;
+    problem.observations.items = quantities
+        .iter()
+        .map(|&(step, quantity, sigma)| {
+            let mut o = Observation {
+                step,
+                quantity,
+                value: 0.0,
+                sigma,
+            };
+            o.value = ImplicitObservations::model(&o, &run);
+            o
+        })
+        .collect();
+    Ok(())
+}
+
+/// The checks on `problem` 5 % away from its scene's values.
+fn check_problem(
+    label: &'static str,
+    problem: &ImplicitProblem<2>,
+) -> Result<Outcome, VerifyError> {
+    let scene_values = problem.values().map_err(failed)?;
+    let theta: Vec<f64> = (scene_values.iter().enumerate())
+        .map(|(k, v)| v * if k % 2 == 0 { 1.05 } else { 0.95 })
+        .collect();
+    let (config, particles) = problem.setup(&theta).map_err(failed)?;
+    let run = run_recorded(&config, &particles, None).map_err(failed)?;
+    let schedule = run.schedule();
+    let g = problem.gradient(&theta).map_err(failed)?;
+    let dual = problem.dual_gradient(&theta).map_err(failed)?;
+    let difference = (0..theta.len())
+        .map(|k| check::central_difference(problem, &theta, &schedule, k, 1e-4))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(failed)?;
+    let v: Vec<f64> = (0..theta.len())
+        .map(|k| [1.0, -0.6, 0.8, -0.4][k % 4] * theta[k])
+        .collect();
+    let slope: f64 = g.gradient.iter().zip(&v).map(|(g, v)| g * v).sum();
+    let remainders =
+        check::taylor_remainders(problem, &theta, &schedule, g.loss, slope, &v, 1e-3, 4)
+            .map_err(failed)?;
+    Ok(Outcome {
+        label,
+        params: problem.params.clone(),
+        adjoint: g.gradient,
+        dual,
+        difference,
+        order: loam_inverse::check::observed_order(&remainders),
+        cuts: run.cuts,
+    })
+}
+
+/// The cantilever: E, ν, the tip load, the density.
+fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
+    let (config, initial) = setup("implicit_cantilever", load_steps);
+    let tip = config.point_loads[0].particle;
+    let mid = (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - 1.25).abs() + (initial.x[p][1] - 2.0).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles");
+    let mut quantities = Vec::new();
+    for step in 1..=load_steps {
+        for particle in [tip, mid] {
+            let quantity = Quantity::Displacement {
+                particle,
+                component: 1,
+            };
+            quantities.push((step, quantity, 0.01));
+        }
+    }
+    let reaction = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    quantities.push((load_steps, reaction, 100.0));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Poisson),
+            ImplicitParam::PointLoad(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem("cantilever", &problem)
+}
+
+/// The footing: σ_y, E, the hardening, the settlement.
+fn footing(load_steps: usize) -> Result<Outcome, VerifyError> {
+    let (config, initial) = setup("implicit_footing", load_steps);
+    let side = (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - 0.8).abs() + (initial.x[p][1] - 1.0).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles");
+    let load = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    let mut quantities: Vec<(usize, Quantity, f64)> =
+        (1..=load_steps).map(|step| (step, load, 1e3)).collect();
+    let beside = Quantity::Displacement {
+        particle: side,
+        component: 1,
+    };
+    quantities.push((load_steps, beside, 1e-3));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Hardening),
+            ImplicitParam::Displacement(0, 1),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem("footing", &problem)
+}
+
+/// Runs the case.
+///
+/// # Errors
+/// A run or a gradient that fails, or the table that cannot be written.
+pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
+    let load_steps = match size {
+        Size::Reduced => 4,
+        Size::Full => 8,
+    };
+    let outcomes = [cantilever(load_steps)?, footing(load_steps)?];
+    let mut metrics = Vec::new();
+    let mut md = String::from(
+        "| scene | unknown | adjoint | dual | central difference |\n|---|---|---|---|---|\n",
+    );
+    for o in &outcomes {
+        let relative = |other: &[f64]| {
+            (o.adjoint.iter().zip(other))
+                .map(|(a, b)| (a - b).abs() / b.abs())
+                .fold(0.0, f64::max)
+        };
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("{}: max rel |adjoint − dual|", o.label),
+            relative(&o.dual),
+            1e-10,
+        ));
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("{}: max rel |adjoint − central diff.|", o.label),
+            relative(&o.difference),
+            1e-6,
+        ));
+        metrics.push(Metric::at_least(
+            CASE,
+            &format!("{}: Taylor order", o.label),
+            o.order,
+            1.8,
+        ));
+        for (k, p) in o.params.iter().enumerate() {
+            writeln!(
+                md,
+                "| {} | {p} | {:.12e} | {:.12e} | {:.12e} |",
+                o.label, o.adjoint[k], o.dual[k], o.difference[k]
+            )
+            .expect("writing to a String");
+        }
+    }
+    metrics.push(Metric::at_least(
+        CASE,
+        "footing: cut sub-steps",
+        outcomes[1].cuts as f64,
+        1.0,
+    ));
+    let table = dir.join("implicit_adjoint_fd.md");
+    write_text(&table, &md)?;
+    Ok(CaseReport {
+        metrics,
+        files: vec![table],
+    })
+}
