@@ -6,7 +6,7 @@ use crate::error::GpuError;
 use crate::params::{self, Params};
 use crate::step::{Kernels, Variant};
 use loam_core::tensor::{Tensor, Vector};
-use loam_core::{Boundary, Grid, Particles, WallKind};
+use loam_core::{Boundary, Grid, Particles, Scalar, WallKind};
 use loam_explicit::Config;
 use wgpu::util::DeviceExt;
 
@@ -16,11 +16,13 @@ const STEPS_PER_SUBMIT: usize = 32;
 /// Steps between two reads of the stability flags.
 pub const CHECK_EVERY: usize = 128;
 
-/// Flag counters (non-finite, inverted, escaped, left the grid) and 16 ids per kind, as
-/// `common.wgsl` lays them out.
-const FLAG_KINDS: usize = 4;
+/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle), 16 ids
+/// per kind, the obstacle of the first particle inside one, and the clock, as `common.wgsl`
+/// lays them out.
+const FLAG_KINDS: usize = 5;
 const MAX_IDS: usize = 16;
-const FLAG_WORDS: usize = FLAG_KINDS * (1 + MAX_IDS);
+const FLAG_OBSTACLE: usize = FLAG_KINDS * (1 + MAX_IDS);
+const FLAG_WORDS: usize = FLAG_OBSTACLE + 2;
 
 /// The explicit step of a [`Config`] on the GPU, in f32: particles and grid stay on the device
 /// and only the stability flags come back between runs of steps.
@@ -89,6 +91,12 @@ fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLay
 }
 
 impl<const D: usize> GpuSolver<D> {
+    /// Whether the GPU path runs `config`, without a device: [`GpuError::Unsupported`] names
+    /// the scene field of the first feature it lacks.
+    pub fn supports(config: &Config<f32, D>) -> Result<(), GpuError> {
+        params::check(config).map(|_| ())
+    }
+
     /// Uploads `particles` and compiles the step of `config` (the lifted f32 config the CPU
     /// solver takes); fails with [`GpuError::Unsupported`] naming the scene field of a
     /// feature the GPU path lacks.
@@ -126,7 +134,7 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(&particles.mass);
         mat.extend(&particles.volume0);
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
-        let materials = params::materials(config);
+        let table = params::table(config);
         let buffers = [
             (
                 "particle kinematics",
@@ -172,7 +180,7 @@ impl<const D: usize> GpuSolver<D> {
         let acc = zeroed(gpu, "accumulator", (1 + 2 * D) * nodes);
         let nodev = zeroed(gpu, "node velocity", (D + 1) * nodes);
         let flags = zeroed(gpu, "flags", FLAG_WORDS);
-        let mats = storage(gpu, "materials", bytemuck::cast_slice(&materials));
+        let table = storage(gpu, "table", bytemuck::cast_slice(&table));
         use wgpu::BufferBindingType::{Storage, Uniform};
         let rw = Storage { read_only: false };
         let mut entries = vec![layout_entry(0, Uniform)];
@@ -185,7 +193,7 @@ impl<const D: usize> GpuSolver<D> {
                 entries: &entries,
             });
         let bound = [
-            &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &mats,
+            &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &table,
         ];
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("loam step"),
@@ -235,6 +243,11 @@ impl<const D: usize> GpuSolver<D> {
         self.dt
     }
 
+    /// The adapter the steps run on ([`Gpu::name`]).
+    pub fn device_name(&self) -> String {
+        self.gpu.name()
+    }
+
     /// Records `steps` steps into command buffers of [`STEPS_PER_SUBMIT`] steps each and
     /// submits them, without waiting.
     fn submit(&mut self, steps: usize) {
@@ -260,7 +273,10 @@ impl<const D: usize> GpuSolver<D> {
             self.gpu.queue.submit([encoder.finish()]);
             left -= k;
             self.steps += k;
-            self.time += k as f64 * self.dt;
+            // Summed step by step, as the CPU solver's clock is.
+            for _ in 0..k {
+                self.time += self.dt;
+            }
         }
     }
 
@@ -335,7 +351,13 @@ impl<const D: usize> GpuSolver<D> {
                 0 => GpuError::NonFinite { step, count, ids },
                 1 => GpuError::Inverted { step, count, ids },
                 2 => GpuError::Escaped { step, count, ids },
-                _ => GpuError::LeftGrid { step, count, ids },
+                3 => GpuError::LeftGrid { step, count, ids },
+                _ => GpuError::InsideObstacle {
+                    step,
+                    count,
+                    ids,
+                    obstacle: words[FLAG_OBSTACLE],
+                },
             });
         }
         Ok(())
@@ -365,21 +387,35 @@ impl<const D: usize> GpuSolver<D> {
     }
 
     /// Copies the device's particle state (x, v, C, F, stress) into `particles` (the particles
-    /// the solver was built from).
-    pub fn read_particles(&self, particles: &mut Particles<f32, D>) -> Result<(), GpuError> {
+    /// the solver was built from, in f32 or widened to another scalar type such as f64 for
+    /// output); their other fields are left as they are.
+    pub fn read_particles<T: Scalar>(
+        &self,
+        particles: &mut Particles<T, D>,
+    ) -> Result<(), GpuError> {
         let n = self.particles;
         let kin = self.read(&self.kin, 2 * D * n)?;
         let aff = self.read(&self.aff, D * D * n)?;
         let def = self.read(&self.def, D * D * n)?;
         let mat = self.read(&self.mat, 6 * n)?;
+        let t = |x: f32| T::cst(f64::from(x));
         for i in 0..n {
-            particles.x[i] = Vector::from_fn(|a, _| kin[i * D + a]);
-            particles.v[i] = Vector::from_fn(|a, _| kin[D * n + i * D + a]);
-            particles.c[i] = Tensor::from_fn(|r, c| aff[i * D * D + r * D + c]);
-            particles.f[i] = Tensor::from_fn(|r, c| def[i * D * D + r * D + c]);
+            particles.x[i] = Vector::from_fn(|a, _| t(kin[i * D + a]));
+            particles.v[i] = Vector::from_fn(|a, _| t(kin[D * n + i * D + a]));
+            particles.c[i] = Tensor::from_fn(|r, c| t(aff[i * D * D + r * D + c]));
+            particles.f[i] = Tensor::from_fn(|r, c| t(def[i * D * D + r * D + c]));
             let s = &mat[6 * i..6 * i + 6];
-            particles.stress[i] =
-                nalgebra::Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
+            particles.stress[i] = nalgebra::Matrix3::new(
+                t(s[0]),
+                t(s[3]),
+                t(s[4]),
+                t(s[3]),
+                t(s[1]),
+                t(s[5]),
+                t(s[4]),
+                t(s[5]),
+                t(s[2]),
+            );
         }
         Ok(())
     }

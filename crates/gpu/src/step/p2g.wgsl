@@ -1,9 +1,12 @@
 // Particle to grid: mass, momentum and (APIC / PIC / TPIC) internal force scattered onto the
 // accumulator with atomic adds. Launched by step/mod.rs with common.wgsl in front.
 
-// Zeroes the accumulator (every entry of every node).
+// Zeroes the accumulator (every entry of every node) and counts the step in the clock.
 @compute @workgroup_size(WG)
 fn clear(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    if gid.x == 0u {
+        atomicAdd(&flags[CLOCK], 1u);
+    }
     let total = prm.nodes.w * S;
     for (var e = gid.x; e < total; e += stride(groups)) {
         acc_store(e, 0.0);
@@ -18,7 +21,7 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
         let x = load_vec(x_at(), i);
         let st = stencil(x);
         if !st.on_grid {
-            raise(FLAG_LEFT_GRID, i);
+            _ = raise(FLAG_LEFT_GRID, i);
             continue;
         }
         let f = load_f(i);
