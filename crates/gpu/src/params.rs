@@ -34,6 +34,10 @@ pub(crate) struct Params {
     pub segments: u32,
     pub obstacles: u32,
     pub reach: f32,
+    pub time_end: f32,
+    pub adaptive: u32,
+    pub pad_a: u32,
+    pub pad_b: u32,
 }
 
 /// The most obstacles a run may have on the GPU: one bit each of a node's state, above the
@@ -69,8 +73,8 @@ fn wall_code(kind: WallKind, separable: bool) -> u32 {
     k | if separable { 16 } else { 0 }
 }
 
-/// Checks that the GPU path runs `config`, and returns its fixed time step.
-pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<f64, GpuError> {
+/// Checks that the GPU path runs `config`.
+pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuError> {
     if config.shape != Shape::QuadraticBspline {
         return Err(unsupported(
             "grid.shape_function",
@@ -92,23 +96,20 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<f64, GpuE
             ));
         }
     }
-    match config.time_step {
-        TimeStep::Fixed { dt } => Ok(dt),
-        TimeStep::Adaptive { .. } => Err(unsupported(
-            "solver.time_step",
-            "an adaptive time step (use type = \"fixed\")",
-        )),
-    }
+    Ok(())
 }
 
 /// The uniform block of a run of `particles` particles with the largest particle mass
-/// `max_mass`.
+/// `max_mass`; with an adaptive step, `dt` and `time_end` are rewritten before every step.
 pub(crate) fn params<const D: usize>(
     config: &Config<f32, D>,
-    dt: f64,
     particles: usize,
     max_mass: f64,
 ) -> Params {
+    let (dt, adaptive) = match config.time_step {
+        TimeStep::Fixed { dt } => (dt, 0),
+        TimeStep::Adaptive { max_dt, .. } => (max_dt, 1),
+    };
     let grid = &config.grid;
     let (origin, hi, nodes) = (grid.origin(), grid.hi(), grid.nodes());
     let mut p = Params::zeroed();
@@ -148,6 +149,7 @@ pub(crate) fn params<const D: usize>(
     p.segments = config.contact.segments.len() as u32;
     p.obstacles = config.contact.obstacles.len() as u32;
     p.reach = (config.contact.support * grid.h) as f32;
+    p.adaptive = adaptive;
     p
 }
 

@@ -24,8 +24,10 @@ use std::time::Instant;
 
 /// Where a frame is written: after a step (fixed step) or at a time (adaptive step).
 #[derive(Clone, Copy)]
-enum FrameAt {
+pub enum FrameAt {
+    /// After this step.
     Step(usize),
+    /// At this simulated time.
     Time(f64),
 }
 
@@ -78,8 +80,8 @@ fn step_to<const D: usize>(
 /// The solver that takes the steps: the CPU solver on the run's particles, or the GPU solver
 /// with the particles on the device.
 enum Engine<const D: usize> {
-    Cpu(Solver<f64, D>),
-    Gpu(loam_gpu::GpuSolver<D>),
+    Cpu(Box<Solver<f64, D>>),
+    Gpu(Box<loam_gpu::GpuSolver<D>>),
 }
 
 impl<const D: usize> Engine<D> {
@@ -109,15 +111,10 @@ impl<const D: usize> Engine<D> {
     ) -> Result<(), Stop> {
         match (self, at) {
             (Self::Cpu(s), _) => step_to(s, particles, at, summary, checkpoints, progress, clock),
-            (Self::Gpu(s), FrameAt::Step(target)) => {
-                gpu::step_to(s, particles, target, summary, |step, time| {
-                    let wall = clock.start.elapsed().as_secs_f64();
-                    progress.update(step, time, clock.end, wall, clock.from);
-                })
-            }
-            (Self::Gpu(_), FrameAt::Time(_)) => {
-                unreachable!("the GPU path refuses adaptive steps when it opens")
-            }
+            (Self::Gpu(s), _) => gpu::step_to(s, particles, at, summary, |step, time| {
+                let wall = clock.start.elapsed().as_secs_f64();
+                progress.update(step, time, clock.end, wall, clock.from);
+            }),
         }
     }
 }
@@ -170,7 +167,7 @@ pub fn run<const D: usize>(
     }
     let device = options.device.unwrap_or(plan.device);
     let mut engine = match device {
-        Device::Cpu => Engine::Cpu(solver),
+        Device::Cpu => Engine::Cpu(Box::new(solver)),
         Device::Gpu => {
             if start.checkpoints.is_some() || start.resume.is_some() {
                 eprintln!(
@@ -182,7 +179,7 @@ pub fn run<const D: usize>(
             }
             drop(solver);
             match gpu::open(&config, &built.particles) {
-                Ok(s) => Engine::Gpu(s),
+                Ok(s) => Engine::Gpu(Box::new(s)),
                 Err(outcome) => return outcome,
             }
         }

@@ -3,6 +3,7 @@
 //! widened to f64 for the same frame and summary output as a CPU run.
 
 use super::Stop;
+use super::explicit::FrameAt;
 use crate::Outcome;
 use loam_core::Particles;
 use loam_explicit::Config;
@@ -35,26 +36,37 @@ pub fn open<const D: usize>(
     })
 }
 
-/// Steps until step `target`, in runs of at most [`CHECK_EVERY`] steps (each ends with the
-/// stability flags read back), looking for a signal and reporting progress between runs;
-/// then reads the particles back into `particles`. `report(step, time)` draws the progress.
+/// Steps to the frame point `at` (a step, with a fixed step; a time, with an adaptive one),
+/// in runs of at most [`CHECK_EVERY`] steps (each ends with the stability flags read back),
+/// looking for a signal and reporting progress between runs; then reads the particles back
+/// into `particles`. `report(step, time)` draws the progress.
 pub fn step_to<const D: usize>(
     solver: &mut GpuSolver<D>,
     particles: &mut Particles<f64, D>,
-    target: usize,
+    at: FrameAt,
     summary: &mut RunSummary,
     mut report: impl FnMut(usize, f64),
 ) -> Result<(), Stop> {
-    while solver.steps() < target {
+    loop {
+        let done = match at {
+            FrameAt::Step(target) => solver.steps() >= target,
+            FrameAt::Time(t) => solver.next_step_cap(t).is_none(),
+        };
+        if done {
+            break;
+        }
         if super::interrupt::requested() {
             return Err(Stop::Interrupted);
         }
-        let k = (target - solver.steps()).min(CHECK_EVERY);
-        solver
-            .advance(k)
+        let stepped = match at {
+            FrameAt::Step(target) => solver.advance((target - solver.steps()).min(CHECK_EVERY)),
+            FrameAt::Time(t) => solver.advance_toward(t, CHECK_EVERY).map(|_| ()),
+        };
+        stepped
             .map_err(|e| Stop::Failed(format!("{e} (t = {:.6e} s, on the GPU)", solver.time())))?;
-        summary.dt_min = summary.dt_min.min(solver.dt());
-        summary.dt_max = summary.dt_max.max(solver.dt());
+        let (lo, hi) = solver.dt_range();
+        summary.dt_min = summary.dt_min.min(lo);
+        summary.dt_max = summary.dt_max.max(hi);
         report(solver.steps(), solver.time());
     }
     solver

@@ -31,9 +31,11 @@ const FLAG_INSIDE_OBSTACLE: u32 = 4u;
 const FLAG_KINDS: u32 = 5u;
 const MAX_IDS: u32 = 16u;
 // After the ids: the obstacle the first particle raising FLAG_INSIDE_OBSTACLE was inside,
-// then the clock (steps begun, counted by `clear`).
+// the clock (steps begun, counted by `clear`), then per material the largest particle speed
+// (f32 bits, adaptive step).
 const FLAG_OBSTACLE: u32 = FLAG_KINDS * (1u + MAX_IDS);
 const CLOCK: u32 = FLAG_OBSTACLE + 1u;
+const SPEEDS: u32 = CLOCK + 1u;
 
 struct Params {
     origin: vec4<f32>,
@@ -65,6 +67,12 @@ struct Params {
     // The obstacles' contact layer φ < reach ‖n‖₁: reach = s h, s the half-width of the
     // support in cells.
     reach: f32,
+    // With an adaptive step (adaptive ≠ 0) the host writes dt and the end-of-step time before
+    // each step.
+    time_end: f32,
+    adaptive: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 @group(0) @binding(0) var<uniform> prm: Params;
@@ -384,9 +392,12 @@ fn raise(kind: u32, i: u32) -> u32 {
     return slot;
 }
 
-// The simulated time at the end of the step under way (where contact acts): the steps begun
-// times Δt.
+// The simulated time at the end of the step under way (where contact acts): the host's with
+// an adaptive step, else the steps begun times Δt.
 fn end_time() -> f32 {
+    if prm.adaptive != 0u {
+        return prm.time_end;
+    }
     return f32(atomicLoad(&flags[CLOCK])) * prm.dt;
 }
 

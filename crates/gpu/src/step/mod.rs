@@ -81,6 +81,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
 
 /// The compute pipelines of one step.
 pub(crate) struct Kernels {
+    speeds: wgpu::ComputePipeline,
     clear: wgpu::ComputePipeline,
     p2g: wgpu::ComputePipeline,
     /// Per axis: the first fold (mass, momentum, force) and MUSL's (momentum).
@@ -129,6 +130,7 @@ impl Kernels {
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
             .collect();
         Self {
+            speeds: pipeline(&p2g, "speeds"),
             clear: pipeline(&p2g, "clear"),
             p2g: pipeline(&p2g, "p2g"),
             fold: grid
@@ -143,6 +145,13 @@ impl Kernels {
             end_musl: pipeline(&g2p, "end_musl"),
             musl: variant.musl,
         }
+    }
+
+    /// Records the pass that finds the largest particle speed per material (the adaptive
+    /// step's bound) into `pass`.
+    pub fn speeds(&self, pass: &mut wgpu::ComputePass<'_>, particles: usize) {
+        pass.set_pipeline(&self.speeds);
+        pass.dispatch_workgroups(groups(particles), 1, 1);
     }
 
     /// Records one step into `pass`, for `particles` particles on `nodes` nodes (the bind

@@ -13,6 +13,19 @@ fn clear(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     }
 }
 
+// The largest particle speed per material, for the adaptive step: atomicMax on the f32 bits,
+// which order as the values do for non-negative floats; a non-finite speed is left out (the
+// flags report it), as the CPU's maximum passes over a NaN.
+@compute @workgroup_size(WG)
+fn speeds(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    for (var i = gid.x; i < prm.particles; i += stride(groups)) {
+        let s = length(load_vec(v_at(), i));
+        if finite(s) {
+            atomicMax(&flags[SPEEDS + material_of(i)], bitcast<u32>(s));
+        }
+    }
+}
+
 // The scatter of one particle: the same sums, row by row, as loam-core's `P2g` (the
 // `p2g` and `p2g_momentum` row kernels of transfer.rs).
 @compute @workgroup_size(WG)
