@@ -1,8 +1,9 @@
 //! `loam`: run, check, verify and bench MPM scenes.
 //!
-//! Exit codes: 0 success; 1 a run or a verification failed; 2 the input (scene file,
-//! arguments) is invalid, or the scene would not fit in memory or run stably; 130 a run was
-//! interrupted by a signal (its summary says `interrupted`).
+//! Exit codes: 0 success; 1 a run or a verification failed (a run on the GPU also when no
+//! GPU adapter is found); 2 the input (scene file, arguments) is invalid, or the scene would
+//! not fit in memory or run stably, or uses a feature the GPU path lacks (with `--device gpu`);
+//! 130 a run was interrupted by a signal (its summary says `interrupted`).
 
 mod bench;
 mod check;
@@ -56,6 +57,10 @@ enum Command {
         /// recorded there.
         #[arg(long, value_name = "DIR", conflicts_with = "scene")]
         resume: Option<PathBuf>,
+        /// Explicit runs: where the steps run, overriding the scene's `solver.device`; `gpu`
+        /// runs them in f32 on the first GPU adapter (Vulkan, Metal or DX12).
+        #[arg(long, value_enum)]
+        device: Option<Device>,
     },
     /// Validate a scene file and estimate its size, memory and steps (or validate an
     /// inversion file, its scene and observations): exit 0 if it can run, 2 with the
@@ -131,8 +136,19 @@ enum Command {
 enum Device {
     /// The CPU solver (all features, f64 or f32).
     Cpu,
-    /// The GPU solver of `loam-gpu` (f32; fluid scenes with walls).
+    /// The GPU solver of `loam-gpu` (f32; fluid scenes with walls, friction segments and
+    /// obstacles).
     Gpu,
+}
+
+impl Device {
+    /// The scene's name for the same device (`solver.device`).
+    fn scene(self) -> loam_scene::Device {
+        match self {
+            Self::Cpu => loam_scene::Device::Cpu,
+            Self::Gpu => loam_scene::Device::Gpu,
+        }
+    }
 }
 
 /// The outcome of a command: which exit code, after the command printed its own messages.
@@ -189,6 +205,7 @@ fn main() -> ExitCode {
             progress_every,
             checkpoint_every,
             resume,
+            device,
         } => {
             let options = run::Options {
                 out: out.as_deref(),
@@ -197,6 +214,7 @@ fn main() -> ExitCode {
                 memory_limit,
                 checkpoint_every: checkpoint_every
                     .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
+                device: device.map(Device::scene),
             };
             match (resume, scene) {
                 (Some(dir), _) => run::resume(&dir, &options),

@@ -61,6 +61,18 @@ pub enum GpuError {
         /// Up to 16 of their ids.
         ids: Vec<u32>,
     },
+    /// Particles inside a rigid obstacle.
+    #[error("step {step}: {count} particle(s) crossed into obstacles[{obstacle}] (ids {ids:?})")]
+    InsideObstacle {
+        /// The last step of the checked run of steps.
+        step: usize,
+        /// How many particles.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+        /// The obstacle (its index in the scene) the first of them is inside.
+        obstacle: u32,
+    },
     /// A buffer could not be read back.
     #[error("reading back from the GPU failed: {0}")]
     Readback(String),

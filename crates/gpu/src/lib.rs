@@ -3,12 +3,14 @@
 //! [`GpuSolver`] runs the same step as `loam_explicit::Solver` with `T = f32` (the test
 //! oracle): quadratic B-spline stencil, PIC / APIC / TPIC / MLS transfers, USL or MUSL, the
 //! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
-//! and the weakly compressible fluid. Particles and grid live on the device; the host reads
-//! back the stability flags every [`CHECK_EVERY`] steps and the particles when asked.
+//! Coulomb friction segments on the faces, rigid obstacles (boxes and cylinders, fixed or
+//! moving, frictionless or Coulomb), the weakly compressible fluid, fixed and adaptive time
+//! steps. Particles and grid
+//! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
+//! the particles when asked.
 //!
 //! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
-//! solid materials, friction segments, obstacles, FLIP, the adaptive time step, shapes other
-//! than the quadratic B-spline.
+//! solid materials, FLIP, shapes other than the quadratic B-spline, more than 16 obstacles.
 
 mod device;
 mod error;

@@ -4,6 +4,8 @@
 use crate::error::GpuError;
 use bytemuck::{Pod, Zeroable};
 use loam_core::constitutive::Model;
+use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
+use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
 use loam_core::{Scheme, Shape, TimeStep, Transfer, WallKind};
 use loam_explicit::{Config, MASS_EPS};
@@ -28,7 +30,19 @@ pub(crate) struct Params {
     pub depth: f32,
     pub particles: u32,
     pub pad: u32,
+    pub materials: u32,
+    pub segments: u32,
+    pub obstacles: u32,
+    pub reach: f32,
+    pub time_end: f32,
+    pub adaptive: u32,
+    pub pad_a: u32,
+    pub pad_b: u32,
 }
+
+/// The most obstacles a run may have on the GPU: one bit each of a node's state, above the
+/// bits of the walls and the friction segments (contact.wgsl).
+pub(crate) const MAX_OBSTACLES: usize = 16;
 
 /// The transfer scheme as `common.wgsl` numbers it (`TRANSFER_*`).
 pub(crate) fn transfer_code(transfer: Transfer) -> Result<u32, GpuError> {
@@ -59,8 +73,8 @@ fn wall_code(kind: WallKind, separable: bool) -> u32 {
     k | if separable { 16 } else { 0 }
 }
 
-/// Checks that the GPU path runs `config`, and returns its fixed time step.
-pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<f64, GpuError> {
+/// Checks that the GPU path runs `config`.
+pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuError> {
     if config.shape != Shape::QuadraticBspline {
         return Err(unsupported(
             "grid.shape_function",
@@ -68,11 +82,11 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<f64, GpuE
         ));
     }
     transfer_code(config.transfer)?;
-    if !config.contact.segments.is_empty() {
-        return Err(unsupported("friction", "Coulomb friction on walls"));
-    }
-    if !config.contact.obstacles.is_empty() {
-        return Err(unsupported("obstacles", "rigid obstacles"));
+    if config.contact.obstacles.len() > MAX_OBSTACLES {
+        return Err(unsupported(
+            &format!("obstacles[{MAX_OBSTACLES}]"),
+            &format!("more than {MAX_OBSTACLES} obstacles"),
+        ));
     }
     for (k, m) in config.materials.iter().enumerate() {
         if !matches!(m.model, Model::Fluid(_)) {
@@ -82,23 +96,20 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<f64, GpuE
             ));
         }
     }
-    match config.time_step {
-        TimeStep::Fixed { dt } => Ok(dt),
-        TimeStep::Adaptive { .. } => Err(unsupported(
-            "solver.time_step",
-            "an adaptive time step (use type = \"fixed\")",
-        )),
-    }
+    Ok(())
 }
 
 /// The uniform block of a run of `particles` particles with the largest particle mass
-/// `max_mass`.
+/// `max_mass`; with an adaptive step, `dt` and `time_end` are rewritten before every step.
 pub(crate) fn params<const D: usize>(
     config: &Config<f32, D>,
-    dt: f64,
     particles: usize,
     max_mass: f64,
 ) -> Params {
+    let (dt, adaptive) = match config.time_step {
+        TimeStep::Fixed { dt } => (dt, 0),
+        TimeStep::Adaptive { max_dt, .. } => (max_dt, 1),
+    };
     let grid = &config.grid;
     let (origin, hi, nodes) = (grid.origin(), grid.hi(), grid.nodes());
     let mut p = Params::zeroed();
@@ -134,14 +145,20 @@ pub(crate) fn params<const D: usize>(
     p.depth = (PROJECTION_DEPTH * grid.h) as f32;
     p.particles = particles as u32;
     p.pad = grid.pad as u32;
+    p.materials = config.materials.len() as u32;
+    p.segments = config.contact.segments.len() as u32;
+    p.obstacles = config.contact.obstacles.len() as u32;
+    p.reach = (config.contact.support * grid.h) as f32;
+    p.adaptive = adaptive;
     p
 }
 
-/// Per material, as `common.wgsl` reads it: bulk modulus, Tait exponent, viscosity, and the
-/// exponent as a whole number up to 64 (0 otherwise: the power goes through exp and ln, as on
-/// the CPU).
-pub(crate) fn materials<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]> {
-    config
+/// The table of `common.wgsl`: per material its bulk modulus, Tait exponent, viscosity, and
+/// the exponent as a whole number up to 64 (0 otherwise: the power goes through exp and ln,
+/// as on the CPU); then four entries per friction segment and per obstacle
+/// ([`segment_entries`], [`obstacle_entries`]).
+pub(crate) fn table<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]> {
+    let mut table: Vec<[f32; 4]> = config
         .materials
         .iter()
         .map(|m| match &m.model {
@@ -152,9 +169,107 @@ pub(crate) fn materials<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]
             }
             _ => unreachable!("checked by `check`"),
         })
-        .collect()
+        .collect();
+    for s in &config.contact.segments {
+        table.extend(segment_entries(&config.grid, s));
+    }
+    for o in &config.contact.obstacles {
+        table.extend(obstacle_entries(&config.grid, o));
+    }
+    table
 }
 
+/// A friction segment for contact.wgsl: `(axis, side, μ, 0)`, then per axis the first and the
+/// last node index whose coordinate lies in the segment's range, found with loam-core's own
+/// test ([`FrictionSegment::contains`], in f64) so that the GPU picks the same nodes (an
+/// empty range has first > last), and a zero entry.
+fn segment_entries<const D: usize>(grid: &Grid<D>, s: &FrictionSegment<f32, D>) -> [[f32; 4]; 4] {
+    let nodes = grid.nodes();
+    let mut first = [0.0f32; 4];
+    let mut last = [0.0f32; 4];
+    for a in 0..D {
+        if a == s.axis {
+            last[a] = nodes[a] as f32;
+            continue;
+        }
+        // A node on the segment's face whose coordinate along `a` is `i`.
+        let node = |i: usize| {
+            std::array::from_fn(|b| match b {
+                _ if b == a => i,
+                _ if b == s.axis && s.side == 1 => nodes[b] - 1,
+                _ => 0,
+            })
+        };
+        let inside: Vec<usize> = (0..nodes[a])
+            .filter(|&i| s.contains(grid, node(i)))
+            .collect();
+        (first[a], last[a]) = match (inside.first(), inside.last()) {
+            (Some(&f), Some(&l)) => (f as f32, l as f32),
+            _ => (1.0, 0.0),
+        };
+    }
+    [
+        [s.axis as f32, s.side as f32, s.mu, 0.0],
+        first,
+        last,
+        [0.0; 4],
+    ]
+}
+
+/// An obstacle for contact.wgsl: the grid origin minus the shape's centre and the kind (0
+/// box, 1 cylinder); the box's half-extents or the cylinder's radius, half-length and axis
+/// (`D` for a 2D disk), with μ; the velocity and the tolerance of the inside test; the
+/// centre. The node coordinates relative to the centre, `(origin − centre) + i h`, then carry
+/// f32 round-off of the size of the obstacle's neighbourhood, not of the domain's.
+///
+/// The inside test is `φ < −tol`: loam-core's `10⁻⁹ ℓ` (`ℓ` the obstacle's size) absorbs the
+/// round-off of a particle resting on the surface in f64; in f32, φ of a particle at `x` is
+/// off by a few ulps of `|x|` (the subtraction of the centre), so the tolerance is
+/// `10⁻⁹ ℓ + 4 ε₃₂ max|x|` over the domain.
+fn obstacle_entries<const D: usize>(grid: &Grid<D>, o: &Obstacle<f32, D>) -> [[f32; 4]; 4] {
+    let (lo, hi) = o.shape.bounds();
+    // loam-core's own centre: the middle of a box, the given point of a cylinder.
+    let centre: [f64; D] = match &o.shape {
+        ObstacleShape::Box { .. } => std::array::from_fn(|a| 0.5 * (lo[a] + hi[a])),
+        ObstacleShape::Cylinder { centre, .. } => *centre,
+    };
+    let origin = grid.origin();
+    let far = (0..D)
+        .map(|a| grid.lo[a].abs().max(grid.hi()[a].abs()))
+        .fold(0.0, f64::max);
+    let tol = 1e-9 * o.shape.size() + 4.0 * f64::from(f32::EPSILON) * far;
+    let mut rel = [0.0f32; 4];
+    let mut c = [0.0f32; 4];
+    let mut velocity = [0.0f32; 4];
+    for a in 0..D {
+        rel[a] = (origin[a] - centre[a]) as f32;
+        c[a] = centre[a] as f32;
+        velocity[a] = o.velocity[a];
+    }
+    velocity[3] = tol as f32;
+    let shape = match &o.shape {
+        ObstacleShape::Box { .. } => {
+            rel[3] = 0.0;
+            let mut e = [0.0f32; 4];
+            for a in 0..D {
+                e[a] = (0.5 * (hi[a] - lo[a])) as f32;
+            }
+            e[3] = o.mu;
+            e
+        }
+        ObstacleShape::Cylinder {
+            radius,
+            axis,
+            length,
+            ..
+        } => {
+            rel[3] = 1.0;
+            let half = if *axis < D { 0.5 * length } else { 0.0 };
+            [*radius as f32, half as f32, (*axis).min(D) as f32, o.mu]
+        }
+    };
+    [rel, shape, velocity, c]
+}
 /// Whether the step is MUSL (a second transfer of momentum) rather than USL.
 pub(crate) fn is_musl<const D: usize>(config: &Config<f32, D>) -> bool {
     config.scheme == Scheme::Musl

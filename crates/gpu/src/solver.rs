@@ -6,7 +6,7 @@ use crate::error::GpuError;
 use crate::params::{self, Params};
 use crate::step::{Kernels, Variant};
 use loam_core::tensor::{Tensor, Vector};
-use loam_core::{Boundary, Grid, Particles, WallKind};
+use loam_core::{Boundary, Grid, Particles, Scalar, TimeStep, WallKind};
 use loam_explicit::Config;
 use wgpu::util::DeviceExt;
 
@@ -16,11 +16,15 @@ const STEPS_PER_SUBMIT: usize = 32;
 /// Steps between two reads of the stability flags.
 pub const CHECK_EVERY: usize = 128;
 
-/// Flag counters (non-finite, inverted, escaped, left the grid) and 16 ids per kind, as
-/// `common.wgsl` lays them out.
-const FLAG_KINDS: usize = 4;
+/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle), 16 ids
+/// per kind, the obstacle of the first particle inside one, and the clock, as `common.wgsl`
+/// lays them out.
+const FLAG_KINDS: usize = 5;
 const MAX_IDS: usize = 16;
-const FLAG_WORDS: usize = FLAG_KINDS * (1 + MAX_IDS);
+const FLAG_OBSTACLE: usize = FLAG_KINDS * (1 + MAX_IDS);
+const FLAG_WORDS: usize = FLAG_OBSTACLE + 2;
+/// Where the largest speed per material starts in the flags buffer (after the clock).
+const SPEEDS: usize = FLAG_WORDS;
 
 /// The explicit step of a [`Config`] on the GPU, in f32: particles and grid stay on the device
 /// and only the stability flags come back between runs of steps.
@@ -28,6 +32,7 @@ pub struct GpuSolver<const D: usize> {
     gpu: Gpu,
     kernels: Kernels,
     bind_group: wgpu::BindGroup,
+    uniform: wgpu::Buffer,
     kin: wgpu::Buffer,
     aff: wgpu::Buffer,
     def: wgpu::Buffer,
@@ -38,7 +43,15 @@ pub struct GpuSolver<const D: usize> {
     boundary: Boundary<D>,
     particles: usize,
     nodes: usize,
+    /// The step the last step took (the fixed step until one is taken).
     dt: f64,
+    /// The smallest and largest step taken.
+    dt_range: (f64, f64),
+    time_step: TimeStep,
+    /// Per material, the elastic wave speed `c` of the stability bound `h / (c + |v|)`.
+    wave_speed: Vec<f64>,
+    /// Steps since the flags were last read.
+    unchecked: usize,
     steps: usize,
     time: f64,
 }
@@ -89,6 +102,12 @@ fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLay
 }
 
 impl<const D: usize> GpuSolver<D> {
+    /// Whether the GPU path runs `config`, without a device: [`GpuError::Unsupported`] names
+    /// the scene field of the first feature it lacks.
+    pub fn supports(config: &Config<f32, D>) -> Result<(), GpuError> {
+        params::check(config).map(|_| ())
+    }
+
     /// Uploads `particles` and compiles the step of `config` (the lifted f32 config the CPU
     /// solver takes); fails with [`GpuError::Unsupported`] naming the scene field of a
     /// feature the GPU path lacks.
@@ -97,11 +116,11 @@ impl<const D: usize> GpuSolver<D> {
         config: &Config<f32, D>,
         particles: &Particles<f32, D>,
     ) -> Result<Self, GpuError> {
-        let dt = params::check(config)?;
+        params::check(config)?;
         let n = particles.len();
         let nodes = config.grid.num_nodes();
         let max_mass = particles.mass.iter().fold(0.0f64, |m, &x| m.max(x as f64));
-        let prm: Params = params::params(config, dt, n, max_mass);
+        let prm: Params = params::params(config, n, max_mass);
         let variant = Variant {
             dim: D,
             atomics: gpu.atomics(),
@@ -126,7 +145,7 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(&particles.mass);
         mat.extend(&particles.volume0);
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
-        let materials = params::materials(config);
+        let table = params::table(config);
         let buffers = [
             (
                 "particle kinematics",
@@ -155,7 +174,7 @@ impl<const D: usize> GpuSolver<D> {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("params"),
                 contents: bytemuck::bytes_of(&prm),
-                usage: wgpu::BufferUsages::UNIFORM,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let kin = storage(gpu, "kinematics", bytemuck::cast_slice(&kin));
         let aff = storage(
@@ -171,8 +190,8 @@ impl<const D: usize> GpuSolver<D> {
         let mat = storage(gpu, "stress and mass", bytemuck::cast_slice(&mat));
         let acc = zeroed(gpu, "accumulator", (1 + 2 * D) * nodes);
         let nodev = zeroed(gpu, "node velocity", (D + 1) * nodes);
-        let flags = zeroed(gpu, "flags", FLAG_WORDS);
-        let mats = storage(gpu, "materials", bytemuck::cast_slice(&materials));
+        let flags = zeroed(gpu, "flags", SPEEDS + config.materials.len());
+        let table = storage(gpu, "table", bytemuck::cast_slice(&table));
         use wgpu::BufferBindingType::{Storage, Uniform};
         let rw = Storage { read_only: false };
         let mut entries = vec![layout_entry(0, Uniform)];
@@ -185,7 +204,7 @@ impl<const D: usize> GpuSolver<D> {
                 entries: &entries,
             });
         let bound = [
-            &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &mats,
+            &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &table,
         ];
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("loam step"),
@@ -204,6 +223,7 @@ impl<const D: usize> GpuSolver<D> {
             gpu: gpu.clone(),
             kernels,
             bind_group,
+            uniform,
             kin,
             aff,
             def,
@@ -214,7 +234,22 @@ impl<const D: usize> GpuSolver<D> {
             boundary: config.boundary,
             particles: n,
             nodes,
-            dt,
+            dt: f64::from(prm.dt),
+            dt_range: (f64::INFINITY, 0.0),
+            time_step: config.time_step,
+            // A material no particle has sets no bound (as on the CPU, whose bound is a
+            // maximum over the particles).
+            wave_speed: (0..config.materials.len())
+                .map(|k| {
+                    let used = particles.material.iter().any(|&m| m as usize == k);
+                    if used {
+                        config.materials[k].wave_speed()
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+            unchecked: 0,
             steps: 0,
             time: 0.0,
         })
@@ -230,9 +265,19 @@ impl<const D: usize> GpuSolver<D> {
         self.time
     }
 
-    /// The fixed time step.
+    /// The last step taken (before any, the fixed step, or the adaptive step's `max_dt`).
     pub fn dt(&self) -> f64 {
         self.dt
+    }
+
+    /// The smallest and the largest step taken (`(∞, 0)` before any).
+    pub fn dt_range(&self) -> (f64, f64) {
+        self.dt_range
+    }
+
+    /// The adapter the steps run on ([`Gpu::name`]).
+    pub fn device_name(&self) -> String {
+        self.gpu.name()
     }
 
     /// Records `steps` steps into command buffers of [`STEPS_PER_SUBMIT`] steps each and
@@ -260,13 +305,23 @@ impl<const D: usize> GpuSolver<D> {
             self.gpu.queue.submit([encoder.finish()]);
             left -= k;
             self.steps += k;
-            self.time += k as f64 * self.dt;
+            // Summed step by step, as the CPU solver's clock is.
+            for _ in 0..k {
+                self.time += self.dt;
+            }
+            self.dt_range = (self.dt_range.0.min(self.dt), self.dt_range.1.max(self.dt));
         }
     }
 
     /// Takes `steps` steps, reading the stability flags back every [`CHECK_EVERY`] steps and
     /// at the end; the first flag raised stops the run with the ids of the particles.
     pub fn advance(&mut self, steps: usize) -> Result<(), GpuError> {
+        if let TimeStep::Adaptive { .. } = self.time_step {
+            for _ in 0..steps {
+                self.adaptive_step(f64::INFINITY)?;
+            }
+            return self.check();
+        }
         let mut left = steps;
         while left > 0 {
             let k = left.min(CHECK_EVERY);
@@ -277,8 +332,101 @@ impl<const D: usize> GpuSolver<D> {
         Ok(())
     }
 
-    /// Reads `words` f32 words of `buffer` back.
+    /// The cap on the next step that makes a run land on `t_end`, as
+    /// `loam_explicit::Solver::next_step_cap`: `None` once `t_end` is reached; with a fixed
+    /// step, unbounded while more than a round-off allowance remains; with an adaptive step,
+    /// the time left.
+    pub fn next_step_cap(&self, t_end: f64) -> Option<f64> {
+        let left = t_end - self.time;
+        match self.time_step {
+            TimeStep::Fixed { dt } => {
+                let allowance = (1e-9 * t_end.abs()).min(0.5 * dt);
+                (left > allowance).then_some(f64::INFINITY)
+            }
+            TimeStep::Adaptive { .. } => (left > 1e-12 * t_end.abs().max(1e-300)).then_some(left),
+        }
+    }
+
+    /// Takes up to `steps` steps towards `t_end` (see [`GpuSolver::next_step_cap`]), the last
+    /// one shortened to land on it with an adaptive step; returns whether `t_end` is reached.
+    /// The flags are read every [`CHECK_EVERY`] steps and at the end.
+    pub fn advance_toward(&mut self, t_end: f64, steps: usize) -> Result<bool, GpuError> {
+        for _ in 0..steps {
+            let Some(cap) = self.next_step_cap(t_end) else {
+                break;
+            };
+            match self.time_step {
+                TimeStep::Fixed { .. } => self.submit(1),
+                TimeStep::Adaptive { .. } => self.adaptive_step(cap)?,
+            }
+        }
+        self.check()?;
+        Ok(self.next_step_cap(t_end).is_none())
+    }
+
+    /// One adaptive step capped at `cap`: the largest particle speed per material comes back
+    /// from the device, and `Δt = min(cfl h / max(c + |v|), max_dt, cap)` (in f64, as the CPU
+    /// solver chooses it) goes into the uniform block with the end-of-step time.
+    fn adaptive_step(&mut self, cap: f64) -> Result<(), GpuError> {
+        let TimeStep::Adaptive { cfl, max_dt } = self.time_step else {
+            unreachable!("called for adaptive steps only");
+        };
+        let materials = self.wave_speed.len();
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&self.flags, (4 * SPEEDS) as u64, &vec![0u8; 4 * materials]);
+        let mut encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("speeds"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("speeds"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            self.kernels.speeds(&mut pass, self.particles);
+        }
+        queue.submit([encoder.finish()]);
+        let speeds = self.read_at(&self.flags, SPEEDS, materials)?;
+        let rate = speeds
+            .iter()
+            .zip(&self.wave_speed)
+            .map(|(&v, &c)| c + f64::from(v))
+            .fold(0.0, f64::max);
+        let dt = (cfl * self.grid.h / rate).min(max_dt).min(cap);
+        let write = |offset: usize, x: f32| {
+            queue.write_buffer(&self.uniform, offset as u64, bytemuck::bytes_of(&x));
+        };
+        write(std::mem::offset_of!(Params, dt), dt as f32);
+        write(
+            std::mem::offset_of!(Params, time_end),
+            (self.time + dt) as f32,
+        );
+        self.dt = dt;
+        // `submit` adds one step of `self.dt` to the clock and the range.
+        self.submit(1);
+        self.unchecked += 1;
+        if self.unchecked >= CHECK_EVERY {
+            self.unchecked = 0;
+            self.check()?;
+        }
+        Ok(())
+    }
+
+    /// Reads the first `words` f32 words of `buffer` back.
     fn read(&self, buffer: &wgpu::Buffer, words: usize) -> Result<Vec<f32>, GpuError> {
+        self.read_at(buffer, 0, words)
+    }
+
+    /// Reads `words` f32 words of `buffer` from word `first` on back.
+    fn read_at(
+        &self,
+        buffer: &wgpu::Buffer,
+        first: usize,
+        words: usize,
+    ) -> Result<Vec<f32>, GpuError> {
         let size = (4 * words) as u64;
         let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("read-back"),
@@ -292,7 +440,7 @@ impl<const D: usize> GpuSolver<D> {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("read-back"),
             });
-        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+        encoder.copy_buffer_to_buffer(buffer, (4 * first) as u64, &staging, 0, size);
         self.gpu.queue.submit([encoder.finish()]);
         let slice = staging.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -335,7 +483,13 @@ impl<const D: usize> GpuSolver<D> {
                 0 => GpuError::NonFinite { step, count, ids },
                 1 => GpuError::Inverted { step, count, ids },
                 2 => GpuError::Escaped { step, count, ids },
-                _ => GpuError::LeftGrid { step, count, ids },
+                3 => GpuError::LeftGrid { step, count, ids },
+                _ => GpuError::InsideObstacle {
+                    step,
+                    count,
+                    ids,
+                    obstacle: words[FLAG_OBSTACLE],
+                },
             });
         }
         Ok(())
@@ -365,21 +519,35 @@ impl<const D: usize> GpuSolver<D> {
     }
 
     /// Copies the device's particle state (x, v, C, F, stress) into `particles` (the particles
-    /// the solver was built from).
-    pub fn read_particles(&self, particles: &mut Particles<f32, D>) -> Result<(), GpuError> {
+    /// the solver was built from, in f32 or widened to another scalar type such as f64 for
+    /// output); their other fields are left as they are.
+    pub fn read_particles<T: Scalar>(
+        &self,
+        particles: &mut Particles<T, D>,
+    ) -> Result<(), GpuError> {
         let n = self.particles;
         let kin = self.read(&self.kin, 2 * D * n)?;
         let aff = self.read(&self.aff, D * D * n)?;
         let def = self.read(&self.def, D * D * n)?;
         let mat = self.read(&self.mat, 6 * n)?;
+        let t = |x: f32| T::cst(f64::from(x));
         for i in 0..n {
-            particles.x[i] = Vector::from_fn(|a, _| kin[i * D + a]);
-            particles.v[i] = Vector::from_fn(|a, _| kin[D * n + i * D + a]);
-            particles.c[i] = Tensor::from_fn(|r, c| aff[i * D * D + r * D + c]);
-            particles.f[i] = Tensor::from_fn(|r, c| def[i * D * D + r * D + c]);
+            particles.x[i] = Vector::from_fn(|a, _| t(kin[i * D + a]));
+            particles.v[i] = Vector::from_fn(|a, _| t(kin[D * n + i * D + a]));
+            particles.c[i] = Tensor::from_fn(|r, c| t(aff[i * D * D + r * D + c]));
+            particles.f[i] = Tensor::from_fn(|r, c| t(def[i * D * D + r * D + c]));
             let s = &mat[6 * i..6 * i + 6];
-            particles.stress[i] =
-                nalgebra::Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
+            particles.stress[i] = nalgebra::Matrix3::new(
+                t(s[0]),
+                t(s[3]),
+                t(s[4]),
+                t(s[3]),
+                t(s[1]),
+                t(s[5]),
+                t(s[4]),
+                t(s[5]),
+                t(s[2]),
+            );
         }
         Ok(())
     }

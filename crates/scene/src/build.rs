@@ -4,7 +4,7 @@ use crate::error::{Issue, SceneError};
 use crate::initial::BodyContext;
 use crate::output::Field;
 use crate::schema::{
-    DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, LinearKind,
+    DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, Device, LinearKind,
     LinearSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
 };
 use loam_core::{
@@ -72,6 +72,8 @@ pub struct ExplicitPlan {
     /// Simulated time at which the run stops (s); with a fixed step, see
     /// [`ExplicitPlan::fixed_steps`].
     pub end_time: f64,
+    /// Where the steps run.
+    pub device: Device,
 }
 
 impl ExplicitPlan {
@@ -149,6 +151,7 @@ impl SolverSpec {
                 transfer: self.transfer.unwrap_or(Transfer::Apic),
                 time_step: self.time_step?,
                 end_time: self.end_time?,
+                device: self.device.unwrap_or_default(),
             }),
             SolverKind::Implicit => SolverPlan::Implicit(ImplicitPlan {
                 load_steps: self.load_steps?,

@@ -72,7 +72,7 @@ pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, SolverPlan};
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
 pub use schema::{
-    AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Face,
+    AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Device, Face,
     FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec,
     NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, RotationSpec, Scene,
     SolverKind, SolverSpec,

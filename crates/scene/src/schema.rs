@@ -357,6 +357,28 @@ pub enum SolverKind {
     Implicit,
 }
 
+/// Where an explicit run takes its steps, written `device`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Device {
+    /// The CPU solver (`loam-explicit`): every feature, f64.
+    #[default]
+    Cpu,
+    /// The GPU solver (`loam-gpu`, wgpu): f32, the features it supports so far (a scene
+    /// using another is refused when the run starts, naming the field).
+    Gpu,
+}
+
+impl Device {
+    /// The name written in the file (`"cpu"`, `"gpu"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cpu => "cpu",
+            Self::Gpu => "gpu",
+        }
+    }
+}
+
 impl SolverKind {
     /// The name written in the file (`"explicit"`, `"implicit"`).
     pub fn name(self) -> &'static str {
@@ -369,8 +391,8 @@ impl SolverKind {
 
 /// `[solver]`: the solver family and its settings.
 ///
-/// Which keys apply depends on `type`: `scheme`, `transfer`, `time_step` and `end_time` are
-/// for the explicit solver (`time_step` and `end_time` required there); `load_steps`
+/// Which keys apply depends on `type`: `scheme`, `transfer`, `time_step`, `end_time` and
+/// `device` are for the explicit solver (`time_step` and `end_time` required there); `load_steps`
 /// (required), `newton` and `linear` for the implicit one. A key of the other family is an
 /// error. The absent optional settings take their defaults when the scene is built
 /// ([`crate::SolverPlan`]).
@@ -394,6 +416,10 @@ pub struct SolverSpec {
     /// Explicit (required): simulated time at which the run stops (s), positive.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub end_time: Option<f64>,
+    /// Explicit: where the steps run, `"cpu"` or `"gpu"` (default `cpu`); `loam run
+    /// --device` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<Device>,
     /// Implicit (required): number of load steps over which the loads are ramped, `≥ 1`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_steps: Option<usize>,

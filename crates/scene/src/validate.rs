@@ -752,6 +752,7 @@ impl Scene {
                     ("transfer", s.transfer.is_some()),
                     ("time_step", s.time_step.is_some()),
                     ("end_time", s.end_time.is_some()),
+                    ("device", s.device.is_some()),
                 ] {
                     if given {
                         c.issue(

@@ -6,7 +6,7 @@ use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wa
 use loam_implicit::linear::{LinearSolverKind, Preconditioner};
 use loam_implicit::{NewtonSettings, TangentMethod};
 use loam_scene::{
-    ExplicitPlan, ImplicitPlan, NewtonSpec, Scene, SceneError, SolverKind, SolverPlan,
+    Device, ExplicitPlan, ImplicitPlan, NewtonSpec, Scene, SceneError, SolverKind, SolverPlan,
 };
 use std::path::{Path, PathBuf};
 
@@ -183,6 +183,17 @@ const BAD: &[(&str, &[&str])] = &[
     (
         "implicit_without_load_steps.toml",
         &["solver.load_steps: required for the implicit solver (the number of load steps"],
+    ),
+    (
+        "device_in_implicit.toml",
+        &["solver.device: only used by the explicit solver"],
+    ),
+    (
+        "unknown_device.toml",
+        &[
+            "solver.device: unknown variant `tpu`",
+            "expected `cpu` or `gpu`",
+        ],
     ),
     (
         "implicit_with_time_step.toml",
@@ -478,6 +489,7 @@ fn box_fixture_builds_400_particles_with_the_expected_state() {
             transfer: Transfer::Apic,
             time_step: TimeStep::Fixed { dt: 1e-4 },
             end_time: 0.5,
+            device: Device::Cpu,
         })
     );
     assert!(built.constraints.is_empty() && built.point_loads.is_empty());

@@ -6,22 +6,28 @@
 //!
 //! A resumed run starts from the saved particles and clock and goes through the same loop,
 //! from the first frame point after the frames it kept.
+//!
+//! On the GPU ([`super::gpu`]) the same checks run first, on the CPU solver's view of the
+//! initial state, and the same loop writes the frames; the particles come back from the
+//! device at each frame.
 
 use super::checkpoint::Checkpointer;
 use super::progress::Progress;
-use super::{Options, Start, Stop, Target, interrupt};
+use super::{Options, Start, Stop, Target, gpu, interrupt};
 use crate::Outcome;
 use crate::preflight;
 use loam_core::Particles;
 use loam_explicit::Solver;
 use loam_scene::output::RunSummary;
-use loam_scene::{Built, ExplicitPlan};
+use loam_scene::{Built, Device, ExplicitPlan};
 use std::time::Instant;
 
 /// Where a frame is written: after a step (fixed step) or at a time (adaptive step).
 #[derive(Clone, Copy)]
-enum FrameAt {
+pub enum FrameAt {
+    /// After this step.
     Step(usize),
+    /// At this simulated time.
     Time(f64),
 }
 
@@ -71,6 +77,48 @@ fn step_to<const D: usize>(
     }
 }
 
+/// The solver that takes the steps: the CPU solver on the run's particles, or the GPU solver
+/// with the particles on the device.
+enum Engine<const D: usize> {
+    Cpu(Box<Solver<f64, D>>),
+    Gpu(Box<loam_gpu::GpuSolver<D>>),
+}
+
+impl<const D: usize> Engine<D> {
+    fn steps(&self) -> usize {
+        match self {
+            Self::Cpu(s) => s.steps(),
+            Self::Gpu(s) => s.steps(),
+        }
+    }
+
+    fn time(&self) -> f64 {
+        match self {
+            Self::Cpu(s) => s.time(),
+            Self::Gpu(s) => s.time(),
+        }
+    }
+
+    /// Steps to the frame point `at`, leaving the state of the frame in `particles`.
+    fn step_to(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+        at: FrameAt,
+        summary: &mut RunSummary,
+        checkpoints: Option<&mut Checkpointer>,
+        progress: &mut Progress,
+        clock: Clock,
+    ) -> Result<(), Stop> {
+        match (self, at) {
+            (Self::Cpu(s), _) => step_to(s, particles, at, summary, checkpoints, progress, clock),
+            (Self::Gpu(s), _) => gpu::step_to(s, particles, at, summary, |step, time| {
+                let wall = clock.start.elapsed().as_secs_f64();
+                progress.update(step, time, clock.end, wall, clock.from);
+            }),
+        }
+    }
+}
+
 /// Runs an explicit scene, from its initial state or from the checkpoint in `start`, saving
 /// its state as `start` asks. The checks before the run are those of the initial state, so a
 /// resumed run is refused or warned about exactly when the fresh run was.
@@ -96,8 +144,11 @@ pub fn run<const D: usize>(
         },
     };
     let config = built.explicit_config().expect("an explicit plan");
-    let solver = Solver::new(config, restart.as_ref().map_or(&built.particles, |r| &r.0));
-    let mut solver = match solver {
+    let solver = Solver::new(
+        config.clone(),
+        restart.as_ref().map_or(&built.particles, |r| &r.0),
+    );
+    let solver = match solver {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -114,6 +165,25 @@ pub fn run<const D: usize>(
     for w in &warnings {
         eprintln!("warning: {}: {w}", target.scene.display());
     }
+    let device = options.device.unwrap_or(plan.device);
+    let mut engine = match device {
+        Device::Cpu => Engine::Cpu(Box::new(solver)),
+        Device::Gpu => {
+            if start.checkpoints.is_some() || start.resume.is_some() {
+                eprintln!(
+                    "error: {}: --checkpoint-every and --resume are not supported on the GPU yet \
+                     (run with --device cpu)",
+                    target.scene.display()
+                );
+                return Outcome::BadInput;
+            }
+            drop(solver);
+            match gpu::open(&config, &built.particles) {
+                Ok(s) => Engine::Gpu(Box::new(s)),
+                Err(outcome) => return outcome,
+            }
+        }
+    };
     let rec = match &start.resume {
         None => target.recorder(&built),
         Some(r) => target.resumed_recorder(&built, r),
@@ -139,7 +209,9 @@ pub fn run<const D: usize>(
     let (mut particles, from) = match restart {
         None => (built.particles, (0, 0.0)),
         Some((particles, time, steps)) => {
-            solver.set_clock(time, steps);
+            if let Engine::Cpu(solver) = &mut engine {
+                solver.set_clock(time, steps);
+            }
             (particles, (steps, time))
         }
     };
@@ -154,8 +226,7 @@ pub fn run<const D: usize>(
     let first = rec.frames_written();
     for (k, &at) in frames.iter().enumerate().skip(first) {
         if k > 0 {
-            let stepped = step_to(
-                &mut solver,
+            let stepped = engine.step_to(
                 &mut particles,
                 at,
                 &mut rec.summary,
@@ -168,7 +239,7 @@ pub fn run<const D: usize>(
                 break;
             }
         }
-        if let Err(e) = rec.frame(solver.steps(), solver.time(), &particles) {
+        if let Err(e) = rec.frame(engine.steps(), engine.time(), &particles) {
             stop = Some(e);
             break;
         }
@@ -176,17 +247,21 @@ pub fn run<const D: usize>(
     progress.finish();
     rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
     let wall = clock.start.elapsed().as_secs_f64();
-    let steps = solver.steps();
+    let steps = engine.steps();
+    let on = match &engine {
+        Engine::Cpu(_) => String::new(),
+        Engine::Gpu(s) => format!(", on {}", s.device_name()),
+    };
     let resumed = match start.resume {
         Some(_) => format!("resumed at step {} (t = {:.4} s), ", from.0, from.1),
         None => String::new(),
     };
     let done = format!(
         "{resumed}{steps} steps to t = {:.4} s in {wall:.2} s ({:.3e} particle-steps/s, {} \
-         particles)",
-        solver.time(),
+         particles{on})",
+        engine.time(),
         (steps - from.0) as f64 * particles.len() as f64 / wall.max(1e-9),
         particles.len()
     );
-    rec.finish(steps, solver.time(), wall, stop, &done)
+    rec.finish(steps, engine.time(), wall, stop, &done)
 }

@@ -13,6 +13,7 @@
 
 mod checkpoint;
 mod explicit;
+mod gpu;
 mod implicit;
 pub mod interrupt;
 mod progress;
@@ -26,7 +27,7 @@ use loam_core::tensor::Vector;
 use loam_scene::output::{
     EnergySample, FrameWriter, OutputError, RunStatus, RunSummary, write_summary,
 };
-use loam_scene::{Built, Scene, SolverKind, SolverPlan};
+use loam_scene::{Built, Device, Scene, SolverKind, SolverPlan};
 use std::path::{Path, PathBuf};
 
 /// The options of `loam run`.
@@ -41,6 +42,9 @@ pub struct Options<'a> {
     pub memory_limit: Option<MemoryLimit>,
     /// Explicit runs: save the state every this many steps (`--checkpoint-every`).
     pub checkpoint_every: Option<usize>,
+    /// Explicit runs: where the steps run (`--device`), instead of the scene's
+    /// `solver.device`.
+    pub device: Option<Device>,
 }
 
 /// Loads `scene`, runs it and reports; see the module docs of `main` for exit codes.
@@ -97,6 +101,14 @@ fn start_run(scene: &Scene, path: &Path, options: &Options, start: Start) -> Out
         eprintln!(
             "error: {}: checkpoints and --resume are for explicit runs; this scene runs the \
              implicit solver",
+            path.display()
+        );
+        return Outcome::BadInput;
+    }
+    if scene.solver.kind == SolverKind::Implicit && options.device == Some(Device::Gpu) {
+        eprintln!(
+            "error: {}: --device gpu runs explicit scenes; this scene runs the implicit solver, \
+             which is not supported on the GPU",
             path.display()
         );
         return Outcome::BadInput;

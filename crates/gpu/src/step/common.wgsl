@@ -27,8 +27,15 @@ const FLAG_NON_FINITE: u32 = 0u;
 const FLAG_INVERTED: u32 = 1u;
 const FLAG_ESCAPED: u32 = 2u;
 const FLAG_LEFT_GRID: u32 = 3u;
-const FLAG_KINDS: u32 = 4u;
+const FLAG_INSIDE_OBSTACLE: u32 = 4u;
+const FLAG_KINDS: u32 = 5u;
 const MAX_IDS: u32 = 16u;
+// After the ids: the obstacle the first particle raising FLAG_INSIDE_OBSTACLE was inside,
+// the clock (steps begun, counted by `clear`), then per material the largest particle speed
+// (f32 bits, adaptive step).
+const FLAG_OBSTACLE: u32 = FLAG_KINDS * (1u + MAX_IDS);
+const CLOCK: u32 = FLAG_OBSTACLE + 1u;
+const SPEEDS: u32 = CLOCK + 1u;
 
 struct Params {
     origin: vec4<f32>,
@@ -52,6 +59,20 @@ struct Params {
     depth: f32,
     particles: u32,
     pad: u32,
+    // Entries of `table`: materials (one each), then friction segments and obstacles (four
+    // each, contact.wgsl).
+    materials: u32,
+    segments: u32,
+    obstacles: u32,
+    // The obstacles' contact layer φ < reach ‖n‖₁: reach = s h, s the half-width of the
+    // support in cells.
+    reach: f32,
+    // With an adaptive step (adaptive ≠ 0) the host writes dt and the end-of-step time before
+    // each step.
+    time_end: f32,
+    adaptive: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 @group(0) @binding(0) var<uniform> prm: Params;
@@ -68,8 +89,9 @@ struct Params {
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
 @group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
-// Per material: bulk modulus, Tait exponent, viscosity, 0.
-@group(0) @binding(8) var<storage, read> materials: array<vec4<f32>>;
+// Per material: bulk modulus, Tait exponent, viscosity, the exponent as a whole number (0 if
+// it is not one); then the friction segments and the obstacles (contact.wgsl).
+@group(0) @binding(8) var<storage, read> table: array<vec4<f32>>;
 
 // The accumulator entry `e` (0: mass, 1..=D: momentum, D+1..=2D: force) of node `n`.
 fn acc_at(n: u32, e: u32) -> u32 {
@@ -358,13 +380,25 @@ fn walls(idx: vec3<u32>, v: ptr<function, vec3<f32>>, given: u32, decide: bool) 
     return acted;
 }
 
-// ---- flags ----
+// ---- flags and the clock ----
 
-fn raise(kind: u32, i: u32) {
+// Counts particle `i` under the flag `kind` (keeping the first MAX_IDS ids); returns how many
+// were counted before it.
+fn raise(kind: u32, i: u32) -> u32 {
     let slot = atomicAdd(&flags[kind], 1u);
     if slot < MAX_IDS {
         atomicStore(&flags[FLAG_KINDS + kind * MAX_IDS + slot], i);
     }
+    return slot;
+}
+
+// The simulated time at the end of the step under way (where contact acts): the host's with
+// an adaptive step, else the steps begun times Δt.
+fn end_time() -> f32 {
+    if prm.adaptive != 0u {
+        return prm.time_end;
+    }
+    return f32(atomicLoad(&flags[CLOCK])) * prm.dt;
 }
 
 fn finite(x: f32) -> bool {

@@ -1,7 +1,7 @@
 // Grid to particle and the end of the particle's step: the gather (PIC / APIC / TPIC / MLS,
 // row by row as loam-core's `g2p` in transfer.rs), MUSL's second scatter of momentum, and the
 // update of F and the stress with the wall projection and the stability flags (loam-core's
-// `particle_end`). Launched by step/mod.rs with common.wgsl in front.
+// `particle_end`). Launched by step/mod.rs with common.wgsl and contact.wgsl in front.
 
 struct Gathered {
     v: vec3<f32>,
@@ -121,7 +121,7 @@ fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
         delta_f[2][2] = 1.0;
     }
     f = delta_f * f;
-    let stress = fluid_stress(materials[material_of(i)], f, l);
+    let stress = fluid_stress(table[material_of(i)], f, l);
     store_vec(x_at(), i, x);
     store_vec(v_at(), i, v);
     store_f(i, f);
@@ -132,16 +132,21 @@ fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
         sum += stress[a][0] + stress[a][1] + stress[a][2];
     }
     if !finite(sum) {
-        raise(FLAG_NON_FINITE, i);
+        _ = raise(FLAG_NON_FINITE, i);
     } else if det3(f) <= 0.0 {
-        raise(FLAG_INVERTED, i);
+        _ = raise(FLAG_INVERTED, i);
     } else {
         var out = false;
         for (var a = 0u; a < D; a++) {
             out = out || x[a] < prm.lo[a] || x[a] > prm.hi[a];
         }
         if out {
-            raise(FLAG_ESCAPED, i);
+            _ = raise(FLAG_ESCAPED, i);
+        } else {
+            let k = inside_obstacle(x, end_time());
+            if k < prm.obstacles && raise(FLAG_INSIDE_OBSTACLE, i) == 0u {
+                atomicStore(&flags[FLAG_OBSTACLE], k);
+            }
         }
     }
 }

@@ -1,6 +1,6 @@
 // The grid stages: the ghost layers behind bilateral walls folded onto their mirror images,
 // the momentum update with the wall law, the ghost velocities reflected back, and (MUSL) the
-// second velocity. Launched by step/mod.rs with common.wgsl in front; `AXIS` picks the axis
+// second velocity. Launched by step/mod.rs with common.wgsl and contact.wgsl in front; `AXIS` picks the axis
 // of the ghost passes and `FOLD_ALL` whether a fold carries mass and force too (first
 // transfer) or the momentum alone (MUSL's second one).
 
@@ -96,8 +96,9 @@ fn on_any_face(idx: vec3<u32>) -> bool {
     return face;
 }
 
-// v = p/m + (f/m + g) Δt where the mass is above the floor, then the wall law; MUSL's second
-// transfer finds the momentum entries zeroed.
+// v = p/m + (f/m + g) Δt where the mass is above the floor, then contact (friction segments
+// on face nodes, obstacles anywhere) and the wall law (loam-core's `NodeLaw::apply`); MUSL's
+// second transfer finds the momentum entries zeroed.
 @compute @workgroup_size(WG)
 fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var n = gid.x; n < prm.nodes.w; n += stride(groups)) {
@@ -113,8 +114,12 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
             }
             v = p / m + (f / m + prm.gravity.xyz) * prm.dt;
             let idx = node_index(n);
-            if on_any_face(idx) {
-                state = walls(idx, &v, 0u, true);
+            let face = on_any_face(idx);
+            if (face && prm.segments > 0u) || prm.obstacles > 0u {
+                state = contact(idx, &v, end_time(), 0u, true);
+            }
+            if face {
+                state |= walls(idx, &v, 0u, true);
             }
         }
         if MUSL {
@@ -127,8 +132,8 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     }
 }
 
-// MUSL: the second velocity, momentum over the (folded) mass, with the walls that acted in the
-// first pass.
+// MUSL: the second velocity, momentum over the (folded) mass, with the contact constraints and
+// the walls that acted in the first pass (loam-core's `NodeLaw::enforce`).
 @compute @workgroup_size(WG)
 fn second_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var n = gid.x; n < prm.nodes.w; n += stride(groups)) {
@@ -139,8 +144,12 @@ fn second_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
                 v[a] = acc_load(acc_at(n, 1u + a)) / m;
             }
             let idx = node_index(n);
+            let state = node_state(n);
+            if (state >> SEGMENT_BITS) != 0u {
+                _ = contact(idx, &v, end_time(), state, false);
+            }
             if on_any_face(idx) {
-                _ = walls(idx, &v, node_state(n), false);
+                _ = walls(idx, &v, state, false);
             }
         }
         set_node_v(n, v);

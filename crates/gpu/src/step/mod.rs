@@ -1,7 +1,8 @@
 //! The kernels of one explicit step and the order they run in.
 //!
-//! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags) goes in
-//! front of each kernel file, after a header of constants: the dimension, the transfer, the
+//! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags and the
+//! clock) and `contact.wgsl` (friction segments, obstacles) go in front of each kernel file,
+//! after a header of constants: the dimension, the transfer, the
 //! scheme, the axis of the ghost passes, and the accumulator with its atomic add (native f32
 //! atomics, or a compare-exchange loop on the bits).
 //!
@@ -9,7 +10,7 @@
 //!
 //! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force.
 //! 2. `fold` per axis: ghost layers behind bilateral walls onto their mirrors.
-//! 3. `update`: the momentum update and the wall law per node; `reflect` per axis.
+//! 3. `update`: the momentum update, contact and the wall law per node; `reflect` per axis.
 //! 4. USL: `g2p_usl` gathers, moves and ends each particle's step. MUSL: `g2p_musl` gathers
 //!    and scatters the new momentum, `fold` (momentum only), `second_velocity`, `reflect`,
 //!    then `end_musl`.
@@ -24,6 +25,7 @@ pub(crate) const WORKGROUP: u32 = 128;
 const MAX_GROUPS: u32 = 65_535;
 
 const COMMON: &str = include_str!("common.wgsl");
+const CONTACT: &str = include_str!("contact.wgsl");
 const P2G: &str = include_str!("p2g.wgsl");
 const GRID: &str = include_str!("grid.wgsl");
 const G2P: &str = include_str!("g2p.wgsl");
@@ -68,7 +70,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
             "const D: u32 = {d}u;\nconst NK: u32 = {nk}u;\nconst S: u32 = {s}u;\n\
              const WG: u32 = {WORKGROUP}u;\nconst TRANSFER: u32 = {t}u;\nconst MUSL: bool = {m};\n\
              const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
-             {accumulator}{COMMON}\n{body}",
+             {accumulator}{COMMON}\n{CONTACT}\n{body}",
             nk = if d == 3 { 3 } else { 1 },
             s = 1 + 2 * d,
             t = self.transfer,
@@ -79,6 +81,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
 
 /// The compute pipelines of one step.
 pub(crate) struct Kernels {
+    speeds: wgpu::ComputePipeline,
     clear: wgpu::ComputePipeline,
     p2g: wgpu::ComputePipeline,
     /// Per axis: the first fold (mass, momentum, force) and MUSL's (momentum).
@@ -127,6 +130,7 @@ impl Kernels {
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
             .collect();
         Self {
+            speeds: pipeline(&p2g, "speeds"),
             clear: pipeline(&p2g, "clear"),
             p2g: pipeline(&p2g, "p2g"),
             fold: grid
@@ -141,6 +145,13 @@ impl Kernels {
             end_musl: pipeline(&g2p, "end_musl"),
             musl: variant.musl,
         }
+    }
+
+    /// Records the pass that finds the largest particle speed per material (the adaptive
+    /// step's bound) into `pass`.
+    pub fn speeds(&self, pass: &mut wgpu::ComputePass<'_>, particles: usize) {
+        pass.set_pipeline(&self.speeds);
+        pass.dispatch_workgroups(groups(particles), 1, 1);
     }
 
     /// Records one step into `pass`, for `particles` particles on `nodes` nodes (the bind

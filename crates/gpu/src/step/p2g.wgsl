@@ -1,12 +1,28 @@
 // Particle to grid: mass, momentum and (APIC / PIC / TPIC) internal force scattered onto the
 // accumulator with atomic adds. Launched by step/mod.rs with common.wgsl in front.
 
-// Zeroes the accumulator (every entry of every node).
+// Zeroes the accumulator (every entry of every node) and counts the step in the clock.
 @compute @workgroup_size(WG)
 fn clear(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    if gid.x == 0u {
+        atomicAdd(&flags[CLOCK], 1u);
+    }
     let total = prm.nodes.w * S;
     for (var e = gid.x; e < total; e += stride(groups)) {
         acc_store(e, 0.0);
+    }
+}
+
+// The largest particle speed per material, for the adaptive step: atomicMax on the f32 bits,
+// which order as the values do for non-negative floats; a non-finite speed is left out (the
+// flags report it), as the CPU's maximum passes over a NaN.
+@compute @workgroup_size(WG)
+fn speeds(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    for (var i = gid.x; i < prm.particles; i += stride(groups)) {
+        let s = length(load_vec(v_at(), i));
+        if finite(s) {
+            atomicMax(&flags[SPEEDS + material_of(i)], bitcast<u32>(s));
+        }
     }
 }
 
@@ -18,7 +34,7 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
         let x = load_vec(x_at(), i);
         let st = stencil(x);
         if !st.on_grid {
-            raise(FLAG_LEFT_GRID, i);
+            _ = raise(FLAG_LEFT_GRID, i);
             continue;
         }
         let f = load_f(i);
