@@ -43,7 +43,8 @@ use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_csv, write_text
 use loam_core::Scheme;
 use loam_core::tensor::Vector;
 use loam_inverse::{
-    AdjointError, Control, MaterialField, MonitorBox, Observations, Param, Problem, check,
+    AdjointError, Checkpoints, Control, MaterialField, MonitorBox, Observations, Param, Problem,
+    check,
 };
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
@@ -211,7 +212,7 @@ fn check_scene<const D: usize>(
         steps,
         controls,
         objective,
-        segment: None,
+        checkpoints: Checkpoints::Least,
     };
     let truth = problem.values().map_err(adjoint_error)?;
     // 5 % away from the observed run, alternately above and below.

@@ -24,7 +24,9 @@
 use crate::inverse_v0::fixed_steps;
 use crate::inversion::{Stop, lbfgs};
 use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_csv, write_text};
-use loam_inverse::{Control, Observations, Param, Problem, Transform, Variable, choose, softplus};
+use loam_inverse::{
+    Checkpoints, Control, Observations, Param, Problem, Transform, Variable, choose, softplus,
+};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -69,7 +71,7 @@ pub fn run(_size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
             .map(|k| Control::Param(Param::Friction(k)))
             .collect(),
         objective,
-        segment: None,
+        checkpoints: Checkpoints::Least,
     };
     let truth = problem.values().map_err(failed)?;
     let variable = Variable {

@@ -26,7 +26,9 @@ use crate::inverse_v0::fixed_steps;
 use crate::inversion::{Stop, lbfgs};
 use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_csv, write_text};
 use loam_core::Particles;
-use loam_inverse::{Control, Observations, Problem, Transform, Variable, VelocityField, choose};
+use loam_inverse::{
+    Checkpoints, Control, Observations, Problem, Transform, Variable, VelocityField, choose,
+};
 use std::collections::BTreeSet;
 use std::f64::consts::PI;
 use std::fmt::Write as _;
@@ -113,7 +115,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
             steps,
             controls: vec![Control::VelocityField(field.clone())],
             objective,
-            segment: None,
+            checkpoints: Checkpoints::Least,
         };
         let theta0 = problem.values().map_err(failed)?;
         let error_at = |theta: &[f64]| -> Result<f64, VerifyError> {

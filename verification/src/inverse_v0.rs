@@ -25,7 +25,7 @@ use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_csv, write_text
 use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Config;
-use loam_inverse::{Control, MonitorBox, Observations, Problem, Variable, choose};
+use loam_inverse::{Checkpoints, Control, MonitorBox, Observations, Problem, Variable, choose};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -131,7 +131,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
                 direction: vec![1.0, 0.0],
             }],
             objective,
-            segment: None,
+            checkpoints: Checkpoints::Least,
         };
         let r: Recovered = lbfgs(CASE, &problem, &[variable], &[FIRST_GUESS], stop)?;
         let error = (r.theta[0] - TRUTH).abs() / TRUTH;

@@ -380,7 +380,8 @@ fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
     };
     let params: Vec<Param> = (0..4).map(Param::Friction).collect();
     let start = Instant::now();
-    loam_inverse::gradient(&config, &particles, steps, &params, &objective, None)?;
+    let checkpoints = loam_inverse::Checkpoints::Least;
+    loam_inverse::gradient(&config, &particles, steps, &params, &objective, checkpoints)?;
     let wall = start.elapsed().as_secs_f64();
     Ok(Measured {
         name: "gradient",

@@ -78,6 +78,11 @@ enum Command {
         /// difference and a Taylor test.
         #[arg(long)]
         check: bool,
+        /// Memory the adjoint may keep (checkpoints and one traced segment), such as 512MB or
+        /// 2GiB: the longest segments that fit, so the fewest steps are run twice (default:
+        /// the segment length of least memory, or the file's `segment`).
+        #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+        memory: Option<u64>,
     },
     /// Back-analysis: recover the parameters of an inversion file by optimisation, writing
     /// the history (CSV, JSON, plots), the recovered scene and a checkpoint.
@@ -90,6 +95,9 @@ enum Command {
         /// Continue from the checkpoint in the output folder.
         #[arg(long)]
         resume: bool,
+        /// Memory the adjoint may keep per gradient, as for `loam gradient --memory`.
+        #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+        memory: Option<u64>,
     },
     /// Run verification cases against analytical solutions.
     Verify {
@@ -225,8 +233,17 @@ fn main() -> ExitCode {
         }
         Command::Check { scene } if invert::is_inversion(&scene) => invert::check(&scene),
         Command::Check { scene } => check::check(&scene, memory_limit),
-        Command::Gradient { file, check } => invert::gradient(&file, check),
-        Command::Invert { file, out, resume } => invert::invert(&file, out.as_deref(), resume),
+        Command::Gradient {
+            file,
+            check,
+            memory,
+        } => invert::gradient(&file, check, memory),
+        Command::Invert {
+            file,
+            out,
+            resume,
+            memory,
+        } => invert::invert(&file, out.as_deref(), resume, memory),
         Command::Verify {
             cases,
             list,
@@ -255,5 +272,47 @@ fn main() -> ExitCode {
         Outcome::Failed => ExitCode::from(1),
         Outcome::BadInput => ExitCode::from(2),
         Outcome::Interrupted => ExitCode::from(run::interrupt::EXIT_CODE),
+    }
+}
+
+/// Parses a memory size: a positive number and a unit, `B`, `kB`, `MB`, `GB` (powers of 1000)
+/// or `KiB`, `MiB`, `GiB` (powers of 1024), in any case: `512MB`, `1.5GiB`.
+fn parse_size(text: &str) -> Result<u64, String> {
+    let expected = || format!("`{text}`: expected a size such as 512MB or 2GiB");
+    let at = text
+        .find(|c: char| c.is_ascii_alphabetic())
+        .ok_or_else(expected)?;
+    let (number, unit) = text.split_at(at);
+    let value: f64 = number.trim().parse().map_err(|_| expected())?;
+    let scale: f64 = match unit.to_ascii_lowercase().as_str() {
+        "b" => 1.0,
+        "kb" => 1e3,
+        "mb" => 1e6,
+        "gb" => 1e9,
+        "kib" => 1024.0,
+        "mib" => 1024.0 * 1024.0,
+        "gib" => 1024.0 * 1024.0 * 1024.0,
+        _ => return Err(expected()),
+    };
+    let bytes = value * scale;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("`{text}`: expected a positive size"));
+    }
+    Ok(bytes as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes_read_with_decimal_and_binary_units() {
+        assert_eq!(parse_size("512MB"), Ok(512_000_000));
+        assert_eq!(parse_size("1.5GiB"), Ok(1_610_612_736));
+        assert_eq!(parse_size("64 kib"), Ok(65_536));
+        assert_eq!(parse_size("100B"), Ok(100));
+        for bad in ["512", "MB", "-1MB", "0MB", "12XB", "nanGB"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
     }
 }

@@ -412,3 +412,50 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
         }
     }
 }
+
+/// `--memory` chooses the adjoint's segments: a budget the whole run fits in gives the same
+/// gradient, bit for bit, as the default; a budget below the least the run needs, a malformed
+/// size and a budget beside the file's `segment` exit 2 with what is wrong.
+#[test]
+fn memory_budget_keeps_the_gradient_and_refuses_what_cannot_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = tiny(dir.path(), 1, 0.5);
+    let values = |o: &Output| -> Vec<String> {
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .filter(|l| l.trim_start().starts_with("velocity"))
+            .map(str::to_owned)
+            .collect()
+    };
+    let plain = loam(&["gradient", &file]);
+    let roomy = loam(&["gradient", &file, "--memory", "4GB"]);
+    assert!(
+        plain.status.success() && roomy.status.success(),
+        "{}",
+        text(&roomy)
+    );
+    assert!(!values(&plain).is_empty(), "{}", text(&plain));
+    assert_eq!(values(&plain), values(&roomy));
+    let small = loam(&["gradient", &file, "--memory", "1kB"]);
+    let err = String::from_utf8_lossy(&small.stderr);
+    assert_eq!(small.status.code(), Some(2), "{err}");
+    assert!(err.contains("too small") && err.contains(" MB"), "{err}");
+    let bad = loam(&["gradient", &file, "--memory", "lots"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("expected a size"));
+    let with_segment = dir.path().join("segment.toml");
+    let body = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&with_segment, format!("segment = 10\n{body}")).unwrap();
+    let both = loam(&[
+        "gradient",
+        with_segment.to_str().unwrap(),
+        "--memory",
+        "1GB",
+    ]);
+    let err = String::from_utf8_lossy(&both.stderr);
+    assert_eq!(both.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("segment: ") && err.contains("--memory"),
+        "{err}"
+    );
+}

@@ -8,7 +8,7 @@ use nalgebra::Matrix3;
 /// The particle state of an MPM body. All vectors have the same length; index `p` is
 /// particle `p`. Fields are generic over the scalar type so a whole run can be carried with
 /// dual numbers.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Particles<T: Scalar, const D: usize> {
     /// Position `x_p`.
     pub x: Vec<Vector<T, D>>,
@@ -50,6 +50,43 @@ impl<T: Scalar, const D: usize> Default for Particles<T, D> {
             material: Vec::new(),
             state: Vec::new(),
         }
+    }
+}
+
+impl<T: Scalar, const D: usize> Clone for Particles<T, D> {
+    fn clone(&self) -> Self {
+        let mut out = Self::default();
+        out.clone_from(self);
+        out
+    }
+
+    /// Copies `source` field by field into the buffers already held (no allocation when they
+    /// are large enough): what a run that keeps many states reuses.
+    fn clone_from(&mut self, source: &Self) {
+        let Self {
+            x,
+            v,
+            a,
+            f,
+            c,
+            stress,
+            mass,
+            volume0,
+            half_width0,
+            material,
+            state,
+        } = source;
+        self.x.clone_from(x);
+        self.v.clone_from(v);
+        self.a.clone_from(a);
+        self.f.clone_from(f);
+        self.c.clone_from(c);
+        self.stress.clone_from(stress);
+        self.mass.clone_from(mass);
+        self.volume0.clone_from(volume0);
+        self.half_width0.clone_from(half_width0);
+        self.material.clone_from(material);
+        self.state.clone_from(state);
     }
 }
 

@@ -13,8 +13,10 @@ mod blocks;
 mod config;
 mod error;
 mod solver;
+mod trace;
 
 pub use config::Config;
 pub use error::{ConfigError, StepError};
 pub use loam_core::Energy;
 pub use solver::{MASS_EPS, Solver, StepInfo};
+pub use trace::{GridFields, StepTrace};

@@ -3,6 +3,7 @@
 use crate::blocks::{Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
 use crate::config::Config;
 use crate::error::{ConfigError, StepError};
+use crate::trace::StepTrace;
 use loam_core::energy::{Energy, energy};
 use loam_core::stencil::Frame;
 use loam_core::step::{
@@ -42,6 +43,9 @@ pub struct Solver<T: Scalar, const D: usize> {
     /// for MUSL, its new position, velocity and affine matrix until the stress update writes
     /// them back.
     kernels: Vec<Kernel<T, D>>,
+    /// Per node, the folded P2G sums of a traced step ([`Solver::step_traced`]; empty until
+    /// one is taken).
+    sums: Vec<NodeSums<T, D>>,
     wave_speed: Vec<f64>,
     mass_floor: f64,
     steps: usize,
@@ -127,6 +131,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             velocity_old: vec![Vector::zeros(); n],
             active: vec![NodeState::default(); n],
             kernels: Vec::new(),
+            sums: Vec::new(),
             wave_speed,
             mass_floor: 0.0,
             config,
@@ -233,8 +238,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         particles: &mut Particles<T, D>,
         max_dt: f64,
     ) -> Result<StepInfo, StepError> {
-        let mut none = StepRecord::default();
-        rayon::scope(|_| self.step_in_pool::<false>(particles, max_dt, &mut none))
+        let (mut none, mut trace) = (StepRecord::default(), StepTrace::default());
+        rayon::scope(|_| {
+            self.step_in_pool::<false, false>(particles, max_dt, &mut none, &mut trace)
+        })
     }
 
     /// [`Solver::step`], recording into `record` the branches the step took (its `Δt`, the
@@ -248,15 +255,33 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         max_dt: f64,
         record: &mut StepRecord,
     ) -> Result<StepInfo, StepError> {
-        rayon::scope(|_| self.step_in_pool::<true>(particles, max_dt, record))
+        let mut trace = StepTrace::default();
+        rayon::scope(|_| self.step_in_pool::<true, false>(particles, max_dt, record, &mut trace))
     }
 
-    /// [`Solver::step`], on a pool thread; fills `record` when `RECORD`.
-    fn step_in_pool<const RECORD: bool>(
+    /// [`Solver::step`], keeping in `trace` the grid of its first projection (the folded P2G
+    /// sums, `vⁿ` and `v̂` at every node where they are not zero, and the nodes where a
+    /// unilateral constraint acted), for a reverse pass that reads it instead of forming the
+    /// step's grid again. The step itself is the same, bit for bit; `trace`'s buffers are
+    /// reused from call to call.
+    pub fn step_traced(
+        &mut self,
+        particles: &mut Particles<T, D>,
+        max_dt: f64,
+        trace: &mut StepTrace<T, D>,
+    ) -> Result<StepInfo, StepError> {
+        let mut none = StepRecord::default();
+        rayon::scope(|_| self.step_in_pool::<false, true>(particles, max_dt, &mut none, trace))
+    }
+
+    /// [`Solver::step`], on a pool thread; fills `record` when `RECORD` and `trace` when
+    /// `TRACE`.
+    fn step_in_pool<const RECORD: bool, const TRACE: bool>(
         &mut self,
         particles: &mut Particles<T, D>,
         max_dt: f64,
         record: &mut StepRecord,
+        trace: &mut StepTrace<T, D>,
     ) -> Result<StepInfo, StepError> {
         let located = self.locate(particles);
         let limit = self.config.grid.h / located.max_rate;
@@ -266,7 +291,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         }
         self.blocks.sort(&self.keys);
         self.mass_floor = MASS_EPS * located.max_mass;
-        self.transfer_to_grid(particles, dt);
+        self.transfer_to_grid::<TRACE>(particles, dt);
+        if TRACE {
+            self.trace_grid(trace, dt);
+        }
         if RECORD {
             self.record_nodes(record, dt);
         }
@@ -416,21 +444,54 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         record.time = self.time;
         record.dt = dt;
         record.nodes.clear();
+        record.nodes.extend(self.acted_nodes());
+    }
+
+    /// The nodes of this step where a unilateral constraint acted, with what acted, in
+    /// increasing node order.
+    fn acted_nodes(&self) -> impl Iterator<Item = (usize, NodeState)> + '_ {
         let floor = self.mass_floor;
-        record.nodes.extend(
-            self.active
-                .iter()
-                .zip(&self.mass)
-                .enumerate()
-                .filter(|(_, (a, m))| m.re() > floor && !a.is_free())
-                .map(|(i, (&a, _))| (i, a)),
-        );
+        self.active
+            .iter()
+            .zip(&self.mass)
+            .enumerate()
+            .filter(move |(_, (a, m))| m.re() > floor && !a.is_free())
+            .map(|(i, (&a, _))| (i, a))
+    }
+
+    /// The grid of this step's first projection into `trace` (before MUSL's second projection
+    /// overwrites the velocities): the nodes whose sums or velocities are not zero, their
+    /// values, the acted nodes, `Δt` and the node floor.
+    fn trace_grid(&self, trace: &mut StepTrace<T, D>, dt: f64) {
+        let flip = self.config.transfer.needs_old_grid_velocity();
+        let zero = Vector::<T, D>::zeros();
+        trace.dt = dt;
+        trace.mass_floor = self.mass_floor;
+        trace.flip = flip;
+        trace.index.clear();
+        trace.sums.clear();
+        trace.velocity.clear();
+        trace.velocity_old.clear();
+        for (i, s) in self.sums.iter().enumerate() {
+            let (v, v_old) = (self.velocity[i], self.velocity_old[i]);
+            if *s != NodeSums::zero() || v != zero || (flip && v_old != zero) {
+                trace.index.push(i as u32);
+                trace.sums.push(*s);
+                trace.velocity.push(v);
+                if flip {
+                    trace.velocity_old.push(v_old);
+                }
+            }
+        }
+        trace.nodes.clear();
+        trace.nodes.extend(self.acted_nodes());
     }
 
     /// Stage 1, P2G of mass, momentum and internal force ([`P2g`]), then stage 2, the grid
     /// update ([`momentum_update`], [`NodeLaw::apply`]): `v_i = p_i/m_i`,
-    /// `v_i ← v_i + Δt (f_i/m_i + g)`, contact and walls.
-    fn transfer_to_grid(&mut self, p: &Particles<T, D>, dt: f64) {
+    /// `v_i ← v_i + Δt (f_i/m_i + g)`, contact and walls. With `TRACE`, `self.sums` receives
+    /// every node's folded P2G sums (the update's inputs).
+    fn transfer_to_grid<const TRACE: bool>(&mut self, p: &Particles<T, D>, dt: f64) {
         let cfg = &self.config;
         let dtt = T::cst(dt);
         if self.kernels.len() != p.len() {
@@ -456,18 +517,26 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let law = NodeLaw::new(grid, boundary, &cfg.contact, self.time + dt);
         let flip = cfg.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
+        let sums: Vec<&mut [NodeSums<T, D>]> = if TRACE {
+            self.sums.resize(grid.num_nodes(), NodeSums::zero());
+            blocks.split_groups(&mut self.sums)
+        } else {
+            blocks.groups().iter().map(|_| Default::default()).collect()
+        };
         // One pass over the row groups (closed under the wall mirrors): gather the block
         // buffers (momentum into `velocity_old`, force into `velocity` until the velocities
-        // are formed), fold the ghosts, update the velocities, reflect them into the ghosts.
+        // are formed), fold the ghosts, (`TRACE`) keep the sums, update the velocities,
+        // reflect them into the ghosts.
         blocks
             .split_groups(&mut self.mass)
             .into_par_iter()
             .zip(blocks.split_groups(&mut self.velocity_old))
             .zip(blocks.split_groups(&mut self.velocity))
             .zip(blocks.split_groups(&mut self.active))
+            .zip(sums)
             .zip(blocks.groups().par_iter())
             .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|((((m, v_old), v), active), &(r0, r1))| {
+            .for_each(|(((((m, v_old), v), active), sums), &(r0, r1))| {
                 let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
                 for r in r0..r1 {
                     let at = rows(r);
@@ -475,6 +544,15 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 }
                 let nodes = r0 * n..r1 * n;
                 boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
+                if TRACE {
+                    for (k, s) in sums.iter_mut().enumerate() {
+                        *s = NodeSums {
+                            m: m[k],
+                            p: v_old[k],
+                            f: v[k],
+                        };
+                    }
+                }
                 for r in r0..r1 {
                     let at = rows(r);
                     let (m, v_old, v) =

@@ -3,10 +3,10 @@
 //! material, the wall projection).
 
 use loam_core::constitutive::Region;
-use loam_core::step::StepRecord;
+use loam_core::step::{NodeState, NodeSums, StepRecord};
 use loam_core::tensor::Vector;
 use loam_core::*;
-use loam_explicit::{Config, Solver};
+use loam_explicit::{Config, GridFields, Solver, StepTrace};
 
 /// A 2D Neo-Hookean block (0.1 × 0.05 m, h = 0.02, 2×2 particles per cell) resting on a
 /// separable floor with Coulomb friction `mu`, pushed along the floor at 1 m/s, under gravity.
@@ -134,4 +134,45 @@ fn the_record_holds_the_return_region() {
         lowest < 0.02,
         "yielding starts at the base: lowest at {lowest}"
     );
+}
+
+/// A traced step is the same step, bit for bit, in USL and MUSL; its trace holds the acted
+/// nodes of the record and, expanded on every node, the step's nodal masses.
+#[test]
+fn a_traced_step_is_the_same_step_and_keeps_its_grid() {
+    for scheme in [Scheme::Usl, Scheme::Musl] {
+        let (mut config, p) = sliding_block(0.2, rubber());
+        config.scheme = scheme;
+        let n = config.grid.num_nodes();
+        let (mut plain, mut traced) = (p.clone(), p);
+        let mut a = Solver::new(config.clone(), &plain).expect("valid");
+        let mut b = Solver::new(config, &traced).expect("valid");
+        let mut trace = StepTrace::default();
+        let mut sums = vec![NodeSums::zero(); n];
+        let (mut velocity, mut velocity_old) = (vec![Vector::zeros(); n], vec![Vector::zeros(); n]);
+        let mut states = vec![NodeState::default(); n];
+        for _ in 0..20 {
+            let mut record = StepRecord::default();
+            a.step_recorded(&mut plain, f64::INFINITY, &mut record)
+                .expect("stable");
+            let info = b
+                .step_traced(&mut traced, f64::INFINITY, &mut trace)
+                .expect("stable");
+            assert_eq!(plain, traced);
+            assert_eq!(trace.dt, info.dt);
+            assert_eq!(trace.nodes, record.nodes);
+            assert!(trace.index.len() < n, "only the nodes the block reaches");
+            trace.expand(GridFields {
+                sums: &mut sums,
+                velocity: &mut velocity,
+                velocity_old: &mut velocity_old,
+                states: &mut states,
+            });
+            let masses: Vec<f64> = sums.iter().map(|s| s.m).collect();
+            assert_eq!(masses, b.grid_mass());
+            for &(i, state) in &record.nodes {
+                assert_eq!(states[i], state);
+            }
+        }
+    }
 }

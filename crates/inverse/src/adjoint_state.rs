@@ -47,6 +47,15 @@ impl<const D: usize> ParticleAdjoint<D> {
         }
     }
 
+    /// Bytes held by the adjoint of `n` particles.
+    pub fn bytes(n: usize) -> u64 {
+        let per_particle = 2 * size_of::<Vector<f64, D>>()
+            + 2 * size_of::<Tensor<f64, D>>()
+            + 2 * size_of::<Matrix3<f64>>()
+            + 3 * size_of::<f64>();
+        (n * per_particle) as u64
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.x.len()

@@ -51,6 +51,19 @@ pub enum AdjointError {
         /// The linear solver's error.
         source: LinearError,
     },
+    /// A memory budget below what the gradient of the run needs at least.
+    #[error(
+        "a memory budget of {} MB is too small: the gradient of this run keeps at least {} MB \
+         (checkpoints, one traced segment and the adjoint)",
+        budget.div_ceil(1_000_000),
+        least.div_ceil(1_000_000)
+    )]
+    Memory {
+        /// The budget, in bytes.
+        budget: u64,
+        /// The least memory of the run's gradient, in bytes.
+        least: u64,
+    },
     /// The recomputation of a segment in the reverse pass did not reproduce the forward pass.
     #[error(
         "the reverse pass recomputed step {step} differently from the forward pass ({what}); \

@@ -1,23 +1,29 @@
 //! The gradient of a loss over an explicit run, by the discrete adjoint with checkpoints.
 //!
-//! The forward pass runs the solver and keeps the state every `K` steps (the checkpoints)
-//! and every step's `Δt` (an adaptive step is held fixed in the reverse pass: the gradient is
-//! that of the run with the step sizes the forward pass took). The reverse pass goes through
-//! the segments last to first: it runs the segment again from its checkpoint, keeping its `K`
-//! start-of-step states, and maps the adjoint back through them step by step
-//! ([`ReverseStep`]), adding each state's loss term on the way. Memory is
-//! `O(N (T/K + K))` for `N` particles and `T` steps, smallest at `K ≈ √T`; the work is two
-//! forward runs plus the reverse steps. The recomputed segment must end on the bits of the
-//! next checkpoint (the explicit step is deterministic at any thread count): a difference is
+//! The run of `T` steps is cut into segments of `K` steps, aligned on its end (the first
+//! segment holds the remainder). The forward pass runs the solver, keeps the state at the
+//! start of every segment but the last (the checkpoints) and every step's `Δt` (an adaptive
+//! step is held fixed in the reverse pass: the gradient is that of the run with the step sizes
+//! the forward pass took), and traces the last segment: its start-of-step states and each
+//! step's grid ([`StepTrace`]). The reverse pass goes through the segments last
+//! to first: it runs each earlier segment again from its checkpoint, tracing it the same way,
+//! and maps the adjoint back through the traced steps ([`ReverseStep`]), adding each state's
+//! loss term on the way. Memory is `⌈T/K⌉ − 1` checkpoints plus `K` traced steps,
+//! `O(N (T/K + K))` for `N` particles, smallest near `K ≈ √T` ([`Footprint`], which also
+//! chooses `K` from a memory budget); the work is the forward run, the
+//! recomputation of all segments but the last, and the reverse steps (`K ≥ T`: one traced
+//! forward run, nothing recomputed). The recomputed segment must end on the bits of the next
+//! segment's start (the explicit step is deterministic at any thread count): a difference is
 //! reported, not ignored.
 
 use crate::adjoint_state::ParticleAdjoint;
+use crate::checkpoints::{Checkpoints, Footprint};
 use crate::error::AdjointError;
 use crate::objective::Objective;
 use crate::params::{Acts, MaterialField, Param};
 use crate::step::ReverseStep;
 use loam_core::Particles;
-use loam_explicit::{Config, Solver};
+use loam_explicit::{Config, Solver, StepTrace};
 
 /// The gradient of a loss over a run.
 #[derive(Clone, Debug)]
@@ -33,84 +39,98 @@ pub struct Gradient<const D: usize> {
     pub steps: usize,
     /// Steps per segment `K` between checkpoints.
     pub segment: usize,
-}
-
-/// How many steps a segment between checkpoints holds: `⌈√T⌉` unless given.
-pub fn segment_length(steps: usize, given: Option<usize>) -> usize {
-    given
-        .unwrap_or_else(|| (steps as f64).sqrt().ceil() as usize)
-        .max(1)
+    /// The memory model's bytes at that `K` ([`Footprint::bytes`]).
+    pub memory: u64,
 }
 
 /// `L` and `dL/dθ` for a run of `steps` steps of `config` from `initial`, with respect to
-/// `params`, by the discrete adjoint with a checkpoint every `segment` steps (`⌈√T⌉` when
-/// `None`).
+/// `params`, by the discrete adjoint with segments of `K` steps chosen by `checkpoints`.
 ///
 /// # Errors
 /// A parameter the configuration does not have, a configuration the adjoint does not cover,
-/// a forward run that stops, or a recomputation that does not reproduce the forward pass.
+/// a memory budget below the least the run needs, a forward run that stops, or a
+/// recomputation that does not reproduce the forward pass.
 pub fn gradient<const D: usize>(
     config: &Config<f64, D>,
     initial: &Particles<f64, D>,
     steps: usize,
     params: &[Param],
     objective: &impl Objective<D>,
-    segment: Option<usize>,
+    checkpoints: Checkpoints,
 ) -> Result<Gradient<D>, AdjointError> {
-    let k = segment_length(steps, segment);
+    let footprint = Footprint::new(config, initial, steps);
+    let k = footprint.segment(checkpoints)?;
     let mut reverse = ReverseStep::new(config, params)?;
-    // Forward: the checkpoints, the step sizes and the loss.
+    // Segment starts, first to last: 0, then T − jK for j = ⌈T/K⌉ − 1, …, 1.
+    let count = steps.div_ceil(k).max(1);
+    let starts: Vec<usize> = std::iter::once(0)
+        .chain((1..count).map(|j| steps - (count - j) * k))
+        .collect();
+    let last = starts[count - 1];
+    // Forward: the checkpoints, the step sizes, the loss, and the last segment traced.
     let mut solver = Solver::new(config.clone(), initial)?;
     let mut p = initial.clone();
-    let mut checkpoints = Vec::new();
+    let mut checkpoints = Vec::with_capacity(count - 1);
+    let mut states: Vec<Particles<f64, D>> = Vec::with_capacity(steps - last);
+    let mut traces: Vec<StepTrace<f64, D>> = Vec::with_capacity(steps - last);
     let mut times = Vec::with_capacity(steps + 1);
     let mut dts = Vec::with_capacity(steps);
     let mut loss = objective.term(0, &p, None);
     times.push(0.0);
     for s in 0..steps {
-        if s % k == 0 {
-            checkpoints.push((s, p.clone()));
-        }
-        let info = solver.step(&mut p, f64::INFINITY)?;
+        let info = if s < last {
+            if starts[checkpoints.len()] == s {
+                checkpoints.push(p.clone());
+            }
+            solver.step(&mut p, f64::INFINITY)?
+        } else {
+            states.push(p.clone());
+            traces.push(StepTrace::default());
+            let trace = traces.last_mut().expect("just pushed");
+            solver.step_traced(&mut p, f64::INFINITY, trace)?
+        };
         dts.push(info.dt);
         times.push(info.time);
         loss += objective.term(s + 1, &p, None);
     }
-    // Reverse, segment by segment.
+    // Reverse, segment by segment, the last one from the forward pass's trace.
     let mut adjoint = ParticleAdjoint::zeros(p.len());
     let mut grad = vec![0.0; params.len()];
     objective.term(steps, &p, Some(&mut adjoint));
-    let mut next: Option<Particles<f64, D>> = None;
-    for (s0, state0) in checkpoints.into_iter().rev() {
-        let s1 = (s0 + k).min(steps);
-        let mut solver = Solver::new(config.clone(), &state0)?;
-        solver.set_clock(times[s0], s0);
-        let mut states = Vec::with_capacity(s1 - s0);
-        let mut q = state0;
-        for s in s0..s1 {
-            states.push(q.clone());
-            let info = solver.step(&mut q, f64::INFINITY)?;
-            if info.dt.to_bits() != dts[s].to_bits() {
+    let mut next = Particles::default();
+    for (j, &s0) in starts.iter().enumerate().rev() {
+        let s1 = starts.get(j + 1).copied().unwrap_or(steps);
+        if s1 < steps {
+            // `next` holds the state at `s1`, where the segment must end.
+            let mut q = checkpoints.pop().expect("a checkpoint per earlier segment");
+            let mut solver = Solver::new(config.clone(), &q)?;
+            solver.set_clock(times[s0], s0);
+            for s in s0..s1 {
+                states[s - s0].clone_from(&q);
+                let trace = &mut traces[s - s0];
+                let info = solver.step_traced(&mut q, f64::INFINITY, trace)?;
+                if info.dt.to_bits() != dts[s].to_bits() {
+                    return Err(AdjointError::Replay {
+                        step: s + 1,
+                        what: format!("time step {} instead of {}", info.dt, dts[s]),
+                    });
+                }
+            }
+            if next != q {
                 return Err(AdjointError::Replay {
-                    step: s + 1,
-                    what: format!("time step {} instead of {}", info.dt, dts[s]),
+                    step: s1,
+                    what: "the particle state differs from the checkpoint".into(),
                 });
             }
         }
-        if let Some(expected) = &next
-            && *expected != q
-        {
-            return Err(AdjointError::Replay {
-                step: s1,
-                what: "the particle state differs from the checkpoint".into(),
-            });
-        }
         for s in (s0..s1).rev() {
             let start = &states[s - s0];
-            reverse.reverse(start, times[s], dts[s], &mut adjoint, &mut grad);
+            reverse.reverse(start, &traces[s - s0], times[s], &mut adjoint, &mut grad);
             objective.term(s, start, Some(&mut adjoint));
         }
-        next = states.into_iter().next();
+        if s0 < s1 {
+            next.clone_from(&states[0]);
+        }
     }
     // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.
     for (k, param) in params.iter().enumerate() {
@@ -127,5 +147,6 @@ pub fn gradient<const D: usize>(
         initial: adjoint,
         steps,
         segment: k,
+        memory: footprint.bytes(k),
     })
 }

@@ -8,8 +8,9 @@
 //!   stage by stage (P2G, grid-node update, G2P, particle end): the transfers' adjoints are
 //!   written for the stencil, the per-node and per-particle kernels' local Jacobians come
 //!   from forward-mode duals ([`lanes`]).
-//! - [`gradient`] runs the forward pass with checkpoints every `K ≈ √T` steps and the reverse
-//!   pass segment by segment, so memory grows as `√T`, not `T`.
+//! - [`gradient`] runs the forward pass with checkpoints every `K` steps (`K ≈ √T` for the
+//!   least memory, or the largest `K` a memory budget allows: [`Checkpoints`]) and the reverse
+//!   pass segment by segment over traced steps, so memory grows as `√T`, not `T`.
 //! - [`Param`] names a parameter; [`Objective`] is a loss over the run's states
 //!   ([`TrackedPositions`], [`VelocityMonitors`], [`DepositProfile`], their sum
 //!   [`Observations`]).
@@ -30,6 +31,7 @@
 
 mod adjoint_state;
 pub mod check;
+mod checkpoints;
 mod deposit;
 mod error;
 mod field;
@@ -45,10 +47,11 @@ mod step;
 mod variable;
 
 pub use adjoint_state::ParticleAdjoint;
+pub use checkpoints::{Checkpoints, Footprint};
 pub use deposit::{DepositProfile, Station};
 pub use error::AdjointError;
 pub use field::{Mlp, SplitMix64, VelocityField};
-pub use gradient::{Gradient, gradient, segment_length};
+pub use gradient::{Gradient, gradient};
 pub use objective::{Objective, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, Optimiser};

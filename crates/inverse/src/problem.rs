@@ -2,6 +2,7 @@
 //! initial velocity fields), the loss over the run as a function of them, its gradient by the
 //! adjoint and, as the oracle, its derivative by a forward-mode dual run.
 
+use crate::checkpoints::Checkpoints;
 use crate::error::AdjointError;
 use crate::field::VelocityField;
 use crate::gradient::gradient;
@@ -72,8 +73,8 @@ pub struct Problem<const D: usize, O> {
     pub controls: Vec<Control>,
     /// The loss.
     pub objective: O,
-    /// Steps between checkpoints of the adjoint (`⌈√T⌉` when `None`).
-    pub segment: Option<usize>,
+    /// How the adjoint chooses its segment length between checkpoints.
+    pub checkpoints: Checkpoints,
 }
 
 impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
@@ -191,7 +192,7 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
             self.steps,
             &self.params(),
             &self.objective,
-            self.segment,
+            self.checkpoints,
         )?;
         let mut from_params = g.params.iter();
         let mut derivative = Vec::with_capacity(theta.len());

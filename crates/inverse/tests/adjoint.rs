@@ -20,7 +20,8 @@ use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Solver;
 use loam_inverse::{
-    Control, MaterialField, Objective, Param, Problem, TrackedPositions, check, gradient,
+    Checkpoints, Control, MaterialField, Objective, Param, Problem, TrackedPositions, check,
+    gradient,
 };
 use num_dual::Dual64;
 use std::collections::BTreeMap;
@@ -76,7 +77,7 @@ fn check<const D: usize>(
         steps,
         controls,
         objective,
-        segment: None,
+        checkpoints: Checkpoints::Least,
     };
     let theta = problem.values().expect("values");
     let (loss, grad) = problem.gradient(&theta).expect("gradient");
@@ -112,9 +113,17 @@ fn check<const D: usize>(
             );
         }
     }
-    // The segment length does not change the result (checkpointing is exact).
-    problem.segment = Some(1);
-    assert_eq!(problem.gradient(&theta).expect("gradient").1, grad);
+    // The segment length does not change the result (checkpointing is exact): one step, a
+    // length that does not divide the run, the whole run traced in one forward pass (a budget
+    // it fits in).
+    for checkpoints in [
+        Checkpoints::Segment(1),
+        Checkpoints::Segment(3),
+        Checkpoints::Memory(u64::MAX),
+    ] {
+        problem.checkpoints = checkpoints;
+        assert_eq!(problem.gradient(&theta).expect("gradient").1, grad);
+    }
 }
 
 #[test]
@@ -338,7 +347,7 @@ fn kinetic_energy_gradient_matches_the_dual_run() {
         steps,
         &[param],
         &Kinetic { step: steps },
-        None,
+        Checkpoints::Least,
     )
     .expect("gradient");
     let mut solver = Solver::new(param.seeded(&config).unwrap(), &particles.lift()).unwrap();
@@ -424,7 +433,9 @@ fn gradient_bits_do_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| gradient(&config, &particles, 20, &params, &obj, None).unwrap())
+            .install(|| {
+                gradient(&config, &particles, 20, &params, &obj, Checkpoints::Least).unwrap()
+            })
     };
     let (one, two) = (run(1), run(2));
     assert_eq!(one.params, two.params);

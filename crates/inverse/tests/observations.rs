@@ -12,8 +12,8 @@ use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Config;
 use loam_inverse::{
-    Control, DepositProfile, MaterialField, MonitorBox, Observations, Param, Problem, Station,
-    TrackedPositions, VelocityField, VelocityMonitors,
+    Checkpoints, Control, DepositProfile, MaterialField, MonitorBox, Observations, Param, Problem,
+    Station, TrackedPositions, VelocityField, VelocityMonitors,
 };
 use std::collections::BTreeSet;
 
@@ -142,7 +142,7 @@ fn tracked_monitor_and_deposit_losses_have_exact_adjoints() {
         steps: STEPS,
         controls: controls(),
         objective,
-        segment: None,
+        checkpoints: Checkpoints::Least,
     };
     let truth = problem.values().expect("values");
     assert_eq!(truth, vec![0.3, 0.1, 0.05, 1000.0, 0.3, 0.0]);
@@ -175,7 +175,7 @@ fn monitor_loss_alone_matches_the_dual_run_and_differences() {
             },
         ],
         objective,
-        segment: Some(7),
+        checkpoints: Checkpoints::Segment(7),
     };
     check(&problem, &[0.07, 0.45], &[0, 1], true);
 }
@@ -202,7 +202,7 @@ fn deposit_loss_alone_matches_the_dual_run_and_differences() {
             },
         ],
         objective,
-        segment: Some(9),
+        checkpoints: Checkpoints::Segment(9),
     };
     check(&problem, &[0.2, 0.5], &[0, 1], true);
 }
@@ -226,7 +226,7 @@ fn velocity_field_weights_have_exact_adjoints() {
             Control::VelocityField(field),
         ],
         objective,
-        segment: None,
+        checkpoints: Checkpoints::Least,
     };
     let mut theta = problem.values().expect("values");
     assert_eq!(theta.len(), 1982);

@@ -6,8 +6,8 @@ use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
 use loam_inverse::{
-    Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station, Transform, Variable,
-    VelocityField,
+    Checkpoints, Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
+    Transform, Variable, VelocityField,
 };
 use loam_scene::{Built, Issue, Location, Scene, SceneError, SceneFormat, SolverPlan};
 use serde::{Deserialize, Serialize};
@@ -24,7 +24,8 @@ pub struct InversionFile {
     pub steps: Option<usize>,
     /// Simulated time of every run, `round(end_time / Δt)` steps; not with `steps`.
     pub end_time: Option<f64>,
-    /// Steps between the adjoint's checkpoints (default `⌈√steps⌉`).
+    /// Steps between the adjoint's checkpoints (default: the segment length of least
+    /// memory, or the longest that `--memory` allows); not with `--memory`.
     pub segment: Option<usize>,
     /// The scalar unknowns.
     #[serde(default)]
@@ -338,12 +339,15 @@ pub fn scene_of(path: &Path, file: &InversionFile) -> Result<(PathBuf, Scene), I
 
 /// Builds the inversion from the file: the scene's solver inputs, the unknowns and the
 /// observations (read from their CSV files, or made by the truth run of `[synthetic]`).
-/// Every problem found is reported at once with its field path.
+/// Every problem found is reported at once with its field path. `memory` is the adjoint's
+/// memory budget in bytes (`--memory`), which chooses the segment length unless the file
+/// gives one.
 pub fn build<const D: usize>(
     path: &Path,
     file: InversionFile,
     scene_path: PathBuf,
     scene: Scene,
+    memory: Option<u64>,
 ) -> Result<Inversion<D>, Invalid> {
     let built: Built<D> = scene.build()?;
     let mut issues = Vec::new();
@@ -399,6 +403,12 @@ pub fn build<const D: usize>(
     };
     if file.segment == Some(0) {
         issue("segment".into(), "expected at least 1 step".into());
+    }
+    if file.segment.is_some() && memory.is_some() {
+        issue(
+            "segment".into(),
+            "gives the segment length, which --memory would choose; drop one of them".into(),
+        );
     }
     if file.parameters.is_empty() && file.velocity_field.is_empty() {
         issue(
@@ -713,7 +723,11 @@ pub fn build<const D: usize>(
         steps,
         controls,
         objective: Observations::default(),
-        segment: file.segment,
+        checkpoints: match (file.segment, memory) {
+            (Some(k), _) => Checkpoints::Segment(k),
+            (None, Some(bytes)) => Checkpoints::Memory(bytes),
+            (None, None) => Checkpoints::Least,
+        },
     };
     let mut initial: Vec<f64> = file.parameters.iter().map(|p| p.initial).collect();
     let values = problem.values().map_err(|e| Invalid(e.to_string()))?;

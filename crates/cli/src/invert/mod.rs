@@ -23,9 +23,11 @@ use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Reads the inversion file and sets it up for the scene's dimension, then runs `then`.
+/// Reads the inversion file and sets it up for the scene's dimension (with the adjoint's
+/// memory budget `memory` in bytes, `--memory`), then runs `then`.
 fn with_inversion(
     path: &Path,
+    memory: Option<u64>,
     then2: impl FnOnce(Inversion<2>) -> Outcome,
     then3: impl FnOnce(Inversion<3>) -> Outcome,
 ) -> Outcome {
@@ -33,8 +35,8 @@ fn with_inversion(
         let f = file::read(path)?;
         let (scene_path, scene) = file::scene_of(path, &f)?;
         Ok(match scene.dim() {
-            2 => then2(file::build(path, f, scene_path, scene)?),
-            _ => then3(file::build(path, f, scene_path, scene)?),
+            2 => then2(file::build(path, f, scene_path, scene, memory)?),
+            _ => then3(file::build(path, f, scene_path, scene, memory)?),
         })
     };
     setup().unwrap_or_else(|Invalid(msg)| {
@@ -69,19 +71,26 @@ pub fn check(path: &Path) -> Outcome {
         );
         Outcome::Ok
     }
-    with_inversion(path, report::<2>, report::<3>)
+    with_inversion(path, None, report::<2>, report::<3>)
 }
 
-/// `loam gradient FILE [--check]`.
-pub fn gradient(path: &Path, check: bool) -> Outcome {
-    with_inversion(path, |i| gradient_dim(i, check), |i| gradient_dim(i, check))
+/// `loam gradient FILE [--check] [--memory SIZE]`.
+pub fn gradient(path: &Path, check: bool, memory: Option<u64>) -> Outcome {
+    with_inversion(
+        path,
+        memory,
+        |i| gradient_dim(i, check),
+        |i| gradient_dim(i, check),
+    )
 }
 
 /// A failed run, reported.
 fn failed(path: &Path, e: AdjointError) -> Outcome {
     eprintln!("error: {}: {e}", path.display());
     match e {
-        AdjointError::Parameter { .. } | AdjointError::Unsupported { .. } => Outcome::BadInput,
+        AdjointError::Parameter { .. }
+        | AdjointError::Unsupported { .. }
+        | AdjointError::Memory { .. } => Outcome::BadInput,
         _ => Outcome::Failed,
     }
 }
@@ -228,8 +237,8 @@ fn check_one<const D: usize>(
     Ok((dual, fd, [r[0], r[1], r[2], r[3]]))
 }
 
-/// `loam invert FILE [--out DIR] [--resume]`.
-pub fn invert(path: &Path, out: Option<&Path>, resume: bool) -> Outcome {
+/// `loam invert FILE [--out DIR] [--resume] [--memory SIZE]`.
+pub fn invert(path: &Path, out: Option<&Path>, resume: bool, memory: Option<u64>) -> Outcome {
     let dir = out.map_or_else(
         || {
             let stem = path
@@ -241,6 +250,7 @@ pub fn invert(path: &Path, out: Option<&Path>, resume: bool) -> Outcome {
     );
     with_inversion(
         path,
+        memory,
         |i| invert_dim(i, &dir, resume),
         |i| invert_dim(i, &dir, resume),
     )

@@ -18,14 +18,17 @@
 //! enforced, its reflection, and the gather of `L` from that field; the reverse runs their
 //! adjoints in between (`musl.rs`).
 //!
-//! The grid of the step is recomputed from the start-of-step particles (serially, in particle
-//! order). Branches (stick/slip, separable walls, the projection of shallow wall crossings,
-//! yield and return region) are taken on real parts, so every local derivative is that of the
-//! branch the recomputed step takes, which is the forward pass's: the same real arithmetic on
-//! the same inputs, except that the nodal sums add in another order (the forward sums block by
-//! block) and may differ from the forward's in the last bit. A node whose contact state sits
-//! exactly on a switch could then take the other branch; `tests/adjoint.rs` checks the
-//! gradient against forward-mode duals on scenes with stick, slip and yield.
+//! The grid of the step's first projection (the folded P2G sums, `vⁿ`, `v̂`, what the node law
+//! did) is read from the forward step's [`StepTrace`] (`Solver::step_traced`), not formed
+//! again: the local derivatives are taken at the forward pass's own values. Branches
+//! (stick/slip, separable walls, the projection of shallow wall crossings, yield and return
+//! region) are taken on real parts of the same inputs, so every local derivative is that of
+//! the branch the forward pass took. The G2P sums and MUSL's second P2G are formed again here
+//! from the traced grid (MUSL's second P2G serially, in particle order: the forward sums block
+//! by block, so those sums may differ from the forward's in the last bit, and a node whose
+//! second projection sits exactly on a switch could take the other branch);
+//! `tests/adjoint.rs` checks the gradient against forward-mode duals on scenes with stick,
+//! slip and yield.
 //!
 //! Sums over particles into nodes (the scatters) run serially in particle order, and the
 //! parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
@@ -43,11 +46,11 @@ use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
 use crate::params::{Acts, Param};
 use kernels::node_update;
 use loam_core::constitutive::Material;
-use loam_core::stencil::{Layout, particle_half_width};
-use loam_core::step::{NodeLaw, NodeState, NodeSums, P2g, momentum_update, on_a_face};
+use loam_core::stencil::particle_half_width;
+use loam_core::step::{NodeLaw, NodeState, NodeSums, on_a_face};
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
 use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
-use loam_explicit::{Config, MASS_EPS};
+use loam_explicit::{Config, GridFields, StepTrace};
 use nalgebra::Matrix3;
 use num_dual::Dual64;
 use rayon::prelude::*;
@@ -75,7 +78,7 @@ pub struct ReverseStep<const D: usize> {
     stencils: Vec<Stencil<f64, D>>,
 }
 
-/// The grid of one step, recomputed, and the adjoints of its fields.
+/// The grid of one step, from its trace, and the adjoints of its fields.
 struct GridScratch<const D: usize> {
     /// P2G sums, folded: the node update's inputs.
     sums: Vec<NodeSums<f64, D>>,
@@ -206,20 +209,21 @@ impl<const D: usize> ReverseStep<D> {
         })
     }
 
-    /// Maps the adjoint of the state after a step of size `dt` from time `time`, started from
-    /// the particles `start`, to the adjoint of the state before it (in place), and adds the
-    /// parameters' shares of the step to `gradient` (indexed as the `params` of
-    /// [`ReverseStep::new`]).
+    /// Maps the adjoint of the state after a step from time `time`, started from the
+    /// particles `start` and traced into `trace` ([`loam_explicit::Solver::step_traced`]), to
+    /// the adjoint of the state before it (in place), and adds the parameters' shares of the
+    /// step to `gradient` (indexed as the `params` of [`ReverseStep::new`]).
     pub fn reverse(
         &mut self,
         start: &Particles<f64, D>,
+        trace: &StepTrace<f64, D>,
         time: f64,
-        dt: f64,
         adjoint: &mut ParticleAdjoint<D>,
         gradient: &mut [f64],
     ) {
+        let dt = trace.dt;
         self.locate(start);
-        self.recompute_grid(start, time, dt);
+        self.load_grid(trace);
         let (shares, extra_mass) = match self.config.scheme {
             Scheme::Usl => (self.usl_particles(start, time, dt, adjoint, gradient), None),
             Scheme::Musl => {
@@ -312,60 +316,18 @@ impl<const D: usize> ReverseStep<D> {
         }
     }
 
-    /// The node floor of the step: `MASS_EPS` times the largest particle mass.
-    fn mass_floor(p: &Particles<f64, D>) -> f64 {
-        MASS_EPS * p.mass.iter().fold(0.0f64, |a, &m| a.max(m))
-    }
-
-    /// Stages 1 and 2 of the forward step from the start-of-step particles: P2G (serially, in
-    /// particle order), the fold of the ghosts, the node update (per node, in parallel), the
-    /// reflection.
-    fn recompute_grid(&mut self, p: &Particles<f64, D>, time: f64, dt: f64) {
-        let cfg = &self.config;
+    /// Stages 1 and 2 of the forward step, as the step kept them: the folded P2G sums, the
+    /// node states and the velocities on every node, and which nodes took part.
+    fn load_grid(&mut self, trace: &StepTrace<f64, D>) {
         let g = &mut self.grid;
-        g.sums.fill(NodeSums::zero());
-        let layout = Layout::grid(&cfg.grid);
-        let stage = P2g::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
-        let mut stencil = Stencil::new(cfg.shape, &cfg.grid, &p.x[0], &p.half_width0[0]);
-        for i in 0..p.len() {
-            stage.particle(p, i, &mut stencil, &layout, &mut g.sums);
-        }
-        let mut mass: Vec<f64> = g.sums.iter().map(|s| s.m).collect();
-        let mut mom: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.p).collect();
-        let mut force: Vec<Vector<f64, D>> = g.sums.iter().map(|s| s.f).collect();
-        cfg.boundary
-            .fold_ghosts(&cfg.grid, Some(&mut mass), &mut mom, Some(&mut force));
-        let floor = Self::mass_floor(p);
-        let law = NodeLaw::new(&cfg.grid, &cfg.boundary, &cfg.contact, time + dt);
-        let gravity = cfg.gravity;
-        (
-            &mut g.sums,
-            &mut g.live,
-            &mut g.v_old,
-            &mut g.v_hat,
-            &mut g.states,
-        )
-            .into_par_iter()
-            .enumerate()
-            .with_min_len(CHUNK)
-            .for_each(|(n, (sums, live, v_old, v_hat, state))| {
-                *sums = NodeSums {
-                    m: mass[n],
-                    p: mom[n],
-                    f: force[n],
-                };
-                *live = mass[n] > floor;
-                (*v_old, *v_hat, *state) = if *live {
-                    let (v_old, mut v) = momentum_update(mass[n], &mom[n], &force[n], &gravity, dt);
-                    let state = law.apply(cfg.grid.multi(n), &mut v);
-                    (v_old, v, state)
-                } else {
-                    (Vector::zeros(), Vector::zeros(), NodeState::default())
-                };
-            });
-        cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_hat);
-        if cfg.transfer.needs_old_grid_velocity() {
-            cfg.boundary.reflect_ghosts(&cfg.grid, &mut g.v_old);
+        trace.expand(GridFields {
+            sums: &mut g.sums,
+            velocity: &mut g.v_hat,
+            velocity_old: &mut g.v_old,
+            states: &mut g.states,
+        });
+        for (live, s) in g.live.iter_mut().zip(&g.sums) {
+            *live = s.m > trace.mass_floor;
         }
     }
 
