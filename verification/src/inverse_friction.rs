@@ -82,7 +82,7 @@ pub fn run(_size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
     let first = softplus(0.2);
     let r = lbfgs(
         CASE,
-        &problem,
+        |t| problem.gradient(t),
         &[variable; RECOVERED],
         &[first; RECOVERED],
         Stop {

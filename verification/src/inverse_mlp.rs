@@ -126,7 +126,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         let variables = vec![identity; theta0.len()];
         let r = lbfgs(
             CASE,
-            &problem,
+            |t| problem.gradient(t),
             &variables,
             &theta0,
             Stop {

@@ -133,7 +133,13 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
             objective,
             checkpoints: Checkpoints::Least,
         };
-        let r: Recovered = lbfgs(CASE, &problem, &[variable], &[FIRST_GUESS], stop)?;
+        let r: Recovered = lbfgs(
+            CASE,
+            |t| problem.gradient(t),
+            &[variable],
+            &[FIRST_GUESS],
+            stop,
+        )?;
         let error = (r.theta[0] - TRUTH).abs() / TRUTH;
         metrics.push(Metric::at_most(
             CASE,

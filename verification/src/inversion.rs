@@ -1,13 +1,11 @@
 //! An inversion run to its end for the back-analysis cases (`inverse-v0`,
-//! `inverse-friction`): L-BFGS from `loam-inverse` on a [`Problem`] through the
+//! `inverse-friction`, `inverse-cantilever`, `inverse-footing`): L-BFGS from `loam-inverse` on a loss and its gradient through the
 //! reparameterisation of each unknown ([`Variable`]), stopped by an iteration limit, a relative
 //! loss, or a line search that finds no decrease.
 
 use crate::VerifyError;
 use loam_inverse::optimise::norm;
-use loam_inverse::{
-    AdjointError, Evaluation, Lbfgs, Optimiser, Problem, ScalarObjective, Variable,
-};
+use loam_inverse::{AdjointError, Evaluation, Lbfgs, Optimiser, Variable};
 use std::time::Instant;
 
 /// When an inversion stops.
@@ -52,11 +50,12 @@ impl Recovered {
     }
 }
 
-/// Minimises the loss of `problem` from `theta0` by L-BFGS (10 pairs, a first step of 0.1 in
-/// the optimiser's variables), each unknown moved through its [`Variable`].
-pub(crate) fn lbfgs<const D: usize, O: ScalarObjective<D>>(
+/// Minimises a loss from `theta0` by L-BFGS (10 pairs, a first step of 0.1 in the
+/// optimiser's variables), each unknown moved through its [`Variable`]; `gradient` gives
+/// `L(θ)` and `dL/dθ` (a [`loam_inverse::Problem`]'s or an implicit problem's).
+pub(crate) fn lbfgs(
     case: &str,
-    problem: &Problem<D, O>,
+    gradient: impl Fn(&[f64]) -> Result<(f64, Vec<f64>), AdjointError>,
     variables: &[Variable],
     theta0: &[f64],
     stop: Stop,
@@ -72,7 +71,7 @@ pub(crate) fn lbfgs<const D: usize, O: ScalarObjective<D>>(
     // z ↦ (L, ∇_z L), ∇_z L = dL/dθ · dθ/dz.
     let mut evaluate = |z: &[f64]| -> Result<Evaluation, AdjointError> {
         evaluations.set(evaluations.get() + 1);
-        let (loss, g) = problem.gradient(&physical(z))?;
+        let (loss, g) = gradient(&physical(z))?;
         let gradient = (g.iter().zip(z).zip(variables))
             .map(|((g, z), v)| g * v.slope(*z))
             .collect();

@@ -20,6 +20,7 @@ pub mod granular;
 pub mod implicit_adjoint_fd;
 pub mod incline;
 pub mod inverse_friction;
+pub mod inverse_implicit;
 pub mod inverse_mlp;
 pub mod inverse_v0;
 mod inversion;
@@ -320,6 +321,16 @@ pub fn cases() -> Vec<Case> {
             name: "inverse-mlp",
             description: "initial velocity field of a water column given by an MLP (2 → 30 → 30 → 30 → 1) recovered by L-BFGS from 100, 500, 1,000 tracked particles: relative L2 error below 6.4 % (500) and 3.7 % (1,000)",
             run: inverse_mlp::run,
+        },
+        Case {
+            name: "inverse-cantilever",
+            description: "Study 4: Hencky cantilever, E from the tip displacement at 10 load steps (ν known) within 0.1 %; E and ν from all particles at 3 load steps within 1 % each; Gauss–Newton identifiability, tip vs all particles",
+            run: inverse_implicit::run_cantilever,
+        },
+        Case {
+            name: "inverse-footing",
+            description: "Study 5: strip footing on J2 clay under a prescribed settlement, σ_y (√3 c_u) and E from the load–settlement curve (reactions) within 0.5 % each",
+            run: inverse_implicit::run_footing,
         },
     ]
 }

@@ -108,6 +108,16 @@ fn implicit_adjoint_fd() {
 }
 
 #[test]
+fn inverse_cantilever() {
+    check("inverse-cantilever");
+}
+
+#[test]
+fn inverse_footing() {
+    check("inverse-footing");
+}
+
+#[test]
 fn inverse_v0() {
     check("inverse-v0");
 }

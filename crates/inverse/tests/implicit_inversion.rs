@@ -51,21 +51,15 @@ fn synthetic(
 /// `start` until the scaled gradient falls below `1e-10` of its first value or the line
 /// search finds no decrease; returns `θ` and the iterations taken. A trial point whose
 /// forward run stops (a beam too soft to carry its load within the allowed step cuts) has an
-/// infinite loss, so the line search shortens the step.
+/// infinite loss (`trial_gradient`), so the line search shortens the step.
 fn invert(problem: &ImplicitProblem<2>, start: &[f64], scale: &[f64]) -> (Vec<f64>, usize) {
-    let mut evaluate = |z: &[f64]| -> Result<Evaluation, String> {
+    let mut evaluate = |z: &[f64]| -> Result<Evaluation, loam_inverse::AdjointError> {
         let theta: Vec<f64> = z.iter().zip(scale).map(|(z, s)| z * s).collect();
-        Ok(match problem.gradient(&theta) {
-            Ok(g) => Evaluation {
-                x: z.to_vec(),
-                loss: g.loss,
-                gradient: g.gradient.iter().zip(scale).map(|(g, s)| g * s).collect(),
-            },
-            Err(_) => Evaluation {
-                x: z.to_vec(),
-                loss: f64::INFINITY,
-                gradient: vec![0.0; z.len()],
-            },
+        let (loss, g) = problem.trial_gradient(&theta)?;
+        Ok(Evaluation {
+            x: z.to_vec(),
+            loss,
+            gradient: g.iter().zip(scale).map(|(g, s)| g * s).collect(),
         })
     };
     let project = |z: &mut [f64]| z.iter_mut().for_each(|v| *v = v.clamp(0.5, 2.0));

@@ -1,10 +1,12 @@
 //! The inversion file: its schema, reading it with field-path errors, and turning it into an
 //! inverse problem on the scene it names (`docs/inversion-format.md`).
 
+use super::model::Model;
 use super::observed;
 use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
+use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{
     Checkpoints, Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
     Transform, Variable, VelocityField,
@@ -113,6 +115,34 @@ pub struct ObservationsSpec {
     /// The deposit stations.
     #[serde(default)]
     pub stations: Vec<StationSpec>,
+    /// Implicit: CSV of particle displacements after load steps (`step, id, ux, uy[, uz]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub displacement: Option<PathBuf>,
+    /// Implicit: the standard deviation `σ` of every displacement (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub displacement_sigma: Option<f64>,
+    /// Implicit: CSV of reactions after load steps (`step, reaction, force`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reaction: Option<PathBuf>,
+    /// Implicit: the standard deviation `σ` of every reaction (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reaction_sigma: Option<f64>,
+    /// Implicit: the observed reactions.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub reactions: Vec<ReactionSpec>,
+}
+
+/// `[[observations.reactions]]` (implicit scenes): the reaction force of a constraint
+/// (`[[constraints]]` of the scene) along one of its prescribed axes.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReactionSpec {
+    /// Its name in the reaction CSV.
+    pub name: String,
+    /// The index of the constraint in the scene's `[[constraints]]`.
+    pub constraint: usize,
+    /// The axis, a prescribed component of the constraint.
+    pub axis: usize,
 }
 
 /// `[[observations.stations]]`: where on the floor the deposit depth is measured.
@@ -150,6 +180,9 @@ pub struct SyntheticSpec {
     /// Seed of the choice (default 0).
     #[serde(default)]
     pub seed: u64,
+    /// Tracked particles given by id, besides the `particles` chosen at random.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ids: Vec<usize>,
     /// Observe the tracked particles and the monitors every this many steps (needed when
     /// there are any).
     pub every: Option<usize>,
@@ -253,7 +286,7 @@ pub struct Inversion<const D: usize> {
     /// The optimiser's view of each unknown.
     pub variables: Vec<Variable>,
     /// The loss as a function of the unknowns.
-    pub problem: Problem<D, Observations<D>>,
+    pub problem: Model<D>,
     /// The parameters' truth values, when every parameter has one.
     pub truth: Option<Vec<f64>>,
     /// The truth run's initial state, against which the velocity fields are measured
@@ -310,7 +343,7 @@ pub fn read(path: &Path) -> Result<InversionFile, Invalid> {
 }
 
 /// An invalid-file error listing `issues`, each line starting with the file name.
-fn invalid(path: &Path, issues: Vec<Issue>) -> Invalid {
+pub fn invalid(path: &Path, issues: Vec<Issue>) -> Invalid {
     Invalid(
         SceneError::Invalid {
             file: Some(path.to_path_buf()),
@@ -350,6 +383,9 @@ pub fn build<const D: usize>(
     memory: Option<u64>,
 ) -> Result<Inversion<D>, Invalid> {
     let built: Built<D> = scene.build()?;
+    if let SolverPlan::Implicit(_) = built.plan {
+        return super::implicit::build(path, file, scene_path, scene, built, memory);
+    }
     let mut issues = Vec::new();
     let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
     let config = match (&built.plan, built.explicit_config()) {
@@ -442,7 +478,8 @@ pub fn build<const D: usize>(
                     _ => Some(Control::Param(param)),
                 },
                 Err(msg) => {
-                    issue(at("name"), msg);
+                    let other = p.name.parse::<ImplicitParam>().is_ok();
+                    issue(at("name"), for_path(&msg, other, "implicit"));
                     None
                 }
             }
@@ -453,49 +490,7 @@ pub fn build<const D: usize>(
             }
             controls.push(c);
         }
-        let scale = p.scale.unwrap_or(1.0);
-        if !(scale.is_finite() && scale > 0.0) {
-            issue(
-                at("scale"),
-                format!("expected a positive number, got {scale}"),
-            );
-        }
-        let bounds = p.bounds.map(|[lo, hi]| (lo, hi));
-        if let Some((lo, hi)) = bounds
-            && lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less)
-        {
-            issue(
-                at("bounds"),
-                format!("expected [lo, hi] with lo < hi, got [{lo}, {hi}]"),
-            );
-        }
-        for (field, value) in [("initial", Some(p.initial)), ("truth", p.truth)] {
-            let Some(v) = value else { continue };
-            if !v.is_finite() {
-                issue(at(field), format!("expected a finite number, got {v}"));
-            } else if p.transform == Transform::Softplus && field == "initial" && v <= 0.0 {
-                issue(
-                    at(field),
-                    format!("a softplus parameter starts positive; got {v}"),
-                );
-            } else if p.transform == Transform::Softplus && v < 0.0 {
-                // The truth may sit on the softplus's limit (a frictionless segment, μ = 0):
-                // the optimiser approaches it, the truth run uses it as it is.
-                issue(
-                    at(field),
-                    format!("a softplus parameter is not negative; got {v}"),
-                );
-            } else if let Some((lo, hi)) = bounds
-                && !(lo..=hi).contains(&v)
-            {
-                issue(at(field), format!("{v} is outside the bounds [{lo}, {hi}]"));
-            }
-        }
-        variables.push(Variable {
-            transform: p.transform,
-            scale,
-            bounds,
-        });
+        variables.push(variable(p, &mut |f, m| issue(at(f), m)));
         truth = truth.zip(p.truth).map(|(mut t, v)| {
             t.push(v);
             t
@@ -544,6 +539,23 @@ pub fn build<const D: usize>(
         }
     }
     check_optimiser(&file, &mut issue);
+    let o = &file.observations;
+    for (field, given) in [
+        ("displacement", o.displacement.is_some()),
+        ("displacement_sigma", o.displacement_sigma.is_some()),
+        ("reaction", o.reaction.is_some()),
+        ("reaction_sigma", o.reaction_sigma.is_some()),
+        ("reactions", !o.reactions.is_empty()),
+    ] {
+        if given {
+            issue(
+                format!("observations.{field}"),
+                "applies to implicit scenes (`[solver] type = \"implicit\"`); an explicit scene \
+                 observes `tracked` positions, monitor `velocity` or `deposit` depths"
+                    .into(),
+            );
+        }
+    }
     // Monitors.
     let mut monitor_names: Vec<String> = Vec::new();
     let mut boxes = Vec::new();
@@ -663,7 +675,8 @@ pub fn build<const D: usize>(
                     format!("the scene has only {} particles", built.particles.len()),
                 );
             }
-            if s.particles == 0 && boxes.is_empty() && stations.is_empty() {
+            check_ids(s, built.particles.len(), &mut issue);
+            if s.particles == 0 && s.ids.is_empty() && boxes.is_empty() && stations.is_empty() {
                 issue(
                     "synthetic.particles".into(),
                     "nothing to observe: track particles, or define monitors or deposit \
@@ -761,7 +774,7 @@ pub fn build<const D: usize>(
             let every = s.every.unwrap_or(steps + 1);
             let first = s.first.unwrap_or(every);
             let observed: BTreeSet<usize> = (first..=steps).step_by(every).collect();
-            let ids = loam_inverse::choose(particles.len(), s.particles, s.seed);
+            let ids = tracked_ids(particles.len(), s);
             Observations::record(&config, &particles, steps, &observed, &ids, sensors)
                 .map_err(|e| Invalid(format!("{}: the truth run: {e}", path.display())))?
         }
@@ -805,7 +818,7 @@ pub fn build<const D: usize>(
         scene,
         names: Vec::new(),
         variables,
-        problem,
+        problem: Model::Explicit(problem),
         truth,
         truth_initial,
         initial,
@@ -855,7 +868,10 @@ impl<const D: usize> Inversion<D> {
         let Some(truth) = &self.truth_initial else {
             return Vec::new();
         };
-        (self.problem.split(theta))
+        let Model::Explicit(problem) = &self.problem else {
+            return Vec::new();
+        };
+        (problem.split(theta))
             .filter_map(|(c, w)| match c {
                 Control::VelocityField(f) => Some(f.relative_error(w, truth)),
                 _ => None,
@@ -878,6 +894,83 @@ impl<const D: usize> Inversion<D> {
             })
             .collect();
         self
+    }
+}
+
+/// The optimiser's view of parameter `p` (transform, scale, bounds), its `initial` and
+/// `truth` checked against them; each problem is reported by its field name.
+pub fn variable(p: &ParameterSpec, issue: &mut dyn FnMut(&str, String)) -> Variable {
+    let scale = p.scale.unwrap_or(1.0);
+    if !(scale.is_finite() && scale > 0.0) {
+        issue("scale", format!("expected a positive number, got {scale}"));
+    }
+    let bounds = p.bounds.map(|[lo, hi]| (lo, hi));
+    if let Some((lo, hi)) = bounds
+        && lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less)
+    {
+        issue(
+            "bounds",
+            format!("expected [lo, hi] with lo < hi, got [{lo}, {hi}]"),
+        );
+    }
+    for (field, value) in [("initial", Some(p.initial)), ("truth", p.truth)] {
+        let Some(v) = value else { continue };
+        if !v.is_finite() {
+            issue(field, format!("expected a finite number, got {v}"));
+        } else if p.transform == Transform::Softplus && field == "initial" && v <= 0.0 {
+            issue(
+                field,
+                format!("a softplus parameter starts positive; got {v}"),
+            );
+        } else if p.transform == Transform::Softplus && v < 0.0 {
+            // The truth may sit on the softplus's limit (a frictionless segment, μ = 0):
+            // the optimiser approaches it, the truth run uses it as it is.
+            issue(
+                field,
+                format!("a softplus parameter is not negative; got {v}"),
+            );
+        } else if let Some((lo, hi)) = bounds
+            && !(lo..=hi).contains(&v)
+        {
+            issue(field, format!("{v} is outside the bounds [{lo}, {hi}]"));
+        }
+    }
+    Variable {
+        transform: p.transform,
+        scale,
+        bounds,
+    }
+}
+
+/// `msg` about a parameter name or observation kind, noting when `other` (it fits the
+/// `path` solver's scenes instead).
+pub fn for_path(msg: &str, other: bool, path: &str) -> String {
+    if other {
+        format!("{msg} (it applies to {path} scenes, `[solver] type = \"{path}\"`)")
+    } else {
+        msg.to_owned()
+    }
+}
+
+/// The tracked particles of `[synthetic]`: `particles` chosen at random among `n` and
+/// the given `ids`, ascending, each once.
+pub fn tracked_ids(n: usize, s: &SyntheticSpec) -> Vec<usize> {
+    let mut ids = loam_inverse::choose(n, s.particles, s.seed);
+    ids.extend(&s.ids);
+    ids.sort_unstable();
+    ids.dedup();
+    ids
+}
+
+/// Checks `synthetic.ids` against the `n` particles of the scene.
+pub fn check_ids(s: &SyntheticSpec, n: usize, issue: &mut dyn FnMut(String, String)) {
+    for (j, &id) in s.ids.iter().enumerate() {
+        if id >= n {
+            issue(
+                format!("synthetic.ids[{j}]"),
+                format!("particle {id} does not exist: the scene has {n} particles"),
+            );
+        }
     }
 }
 
@@ -962,7 +1055,7 @@ fn check_velocities(controls: &[Control], scalars: usize, issue: &mut dyn FnMut(
     }
 }
 
-fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
+pub fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
     let positive = |v: f64| v.is_finite() && v > 0.0;
     match file.optimizer {
         OptimizerSpec::Adam {

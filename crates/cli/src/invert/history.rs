@@ -2,8 +2,9 @@
 //! checkpoint and the recovered scene.
 
 use super::file::InversionFile;
+use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
-use loam_scene::Scene;
+use loam_scene::{MaterialSpec, Scene};
 use loam_verification::{Series, write_plot};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -189,25 +190,13 @@ impl History {
     }
 }
 
-/// The scene with the named parameters set to `theta` (their values, in the order of
-/// `controls`), as TOML, with a header naming them. Material angles are written in degrees,
-/// as scene files hold them. `velocity_file` is the file of every particle's recovered
-/// initial velocity when velocity fields were recovered: a scene of one body reads it as
-/// that body's `velocity_file`; otherwise the header points to it.
-pub fn recovered_scene(
-    scene: &Scene,
-    controls: &[Control],
-    names: &[String],
-    theta: &[f64],
-    material_names: &[String],
-    source: &Path,
-    velocity_file: Option<&Path>,
-) -> Result<String, String> {
-    let mut s = scene.clone();
+/// Sets the explicit path's unknowns `controls` to `theta` (in their order) in the scene.
+/// Material angles are written in degrees, as scene files hold them.
+pub fn set_controls(s: &mut Scene, controls: &[Control], theta: &[f64], material_names: &[String]) {
     for (control, &v) in controls.iter().zip(theta) {
         match control {
             Control::VelocityField(_) => {}
-            Control::Param(p) => set(&mut s, *p, v),
+            Control::Param(p) => set(s, *p, v),
             Control::InitialVelocity {
                 material,
                 direction,
@@ -227,6 +216,35 @@ pub fn recovered_scene(
             }
         }
     }
+}
+
+/// Sets the implicit path's parameters `params` (as the scene numbers them) to `theta` in
+/// the scene.
+pub fn set_implicit(s: &mut Scene, params: &[ImplicitParam], theta: &[f64]) {
+    let dim = s.dim();
+    for (&p, &v) in params.iter().zip(theta) {
+        match p {
+            ImplicitParam::Material(k, field) => set_material(&mut s.materials[k], field, v),
+            ImplicitParam::Gravity(a) => {
+                s.loads.gravity.get_or_insert_with(|| vec![0.0; dim])[a] = v;
+            }
+            ImplicitParam::PointLoad(k, a) => s.point_loads[k].force[a] = v,
+            ImplicitParam::Displacement(k, a) => s.constraints[k].displacement[a] = Some(v),
+        }
+    }
+}
+
+/// The scene `s` (its parameters set to `theta`) as TOML, with a header naming them.
+/// `velocity_file` is the file of every particle's recovered initial velocity when velocity
+/// fields were recovered: a scene of one body reads it as that body's `velocity_file`;
+/// otherwise the header points to it.
+pub fn recovered_scene(
+    mut s: Scene,
+    names: &[String],
+    theta: &[f64],
+    source: &Path,
+    velocity_file: Option<&Path>,
+) -> Result<String, String> {
     let body = toml::to_string(&s).map_err(|e| format!("cannot write the recovered scene: {e}"))?;
     let mut head = format!("# Recovered by `loam invert` from {}:\n", source.display());
     for (n, v) in names.iter().zip(theta) {
@@ -250,7 +268,6 @@ pub fn recovered_scene(
 
 /// Sets one parameter's field of the scene (validated: it exists).
 fn set(s: &mut Scene, p: Param, v: f64) {
-    use MaterialField as F;
     let dim = s.dim();
     match p {
         Param::Friction(k) => s.friction[k].mu = v,
@@ -261,22 +278,25 @@ fn set(s: &mut Scene, p: Param, v: f64) {
                 .get_or_insert_with(|| vec![0.0; dim])[a] = v
         }
         Param::Gravity(a) => s.loads.gravity.get_or_insert_with(|| vec![0.0; dim])[a] = v,
-        Param::Material(k, field) => {
-            let m = &mut s.materials[k];
-            match field {
-                F::Young => m.youngs_modulus = Some(v),
-                F::Poisson => m.poisson_ratio = Some(v),
-                F::Density => m.density = v,
-                F::BulkModulus => (m.bulk_modulus, m.sound_speed) = (Some(v), None),
-                F::SoundSpeed => (m.sound_speed, m.bulk_modulus) = (Some(v), None),
-                F::Gamma => m.gamma = Some(v),
-                F::Viscosity => m.viscosity = Some(v),
-                F::FrictionAngle => m.friction_angle = Some(v.to_degrees()),
-                F::DilationAngle => m.dilation_angle = Some(v.to_degrees()),
-                F::Cohesion => m.cohesion = Some(v),
-                F::YieldStress => m.yield_stress = Some(v),
-                F::Hardening => m.hardening = Some(v),
-            }
-        }
+        Param::Material(k, field) => set_material(&mut s.materials[k], field, v),
+    }
+}
+
+/// Sets one constant of a scene material.
+fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
+    use MaterialField as F;
+    match field {
+        F::Young => m.youngs_modulus = Some(v),
+        F::Poisson => m.poisson_ratio = Some(v),
+        F::Density => m.density = v,
+        F::BulkModulus => (m.bulk_modulus, m.sound_speed) = (Some(v), None),
+        F::SoundSpeed => (m.sound_speed, m.bulk_modulus) = (Some(v), None),
+        F::Gamma => m.gamma = Some(v),
+        F::Viscosity => m.viscosity = Some(v),
+        F::FrictionAngle => m.friction_angle = Some(v.to_degrees()),
+        F::DilationAngle => m.dilation_angle = Some(v.to_degrees()),
+        F::Cohesion => m.cohesion = Some(v),
+        F::YieldStress => m.yield_stress = Some(v),
+        F::Hardening => m.hardening = Some(v),
     }
 }

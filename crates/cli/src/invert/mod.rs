@@ -10,6 +10,8 @@
 
 mod file;
 mod history;
+mod implicit;
+mod model;
 mod observed;
 
 use crate::Outcome;
@@ -18,7 +20,8 @@ use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
 use loam_core::tensor::Vector;
 use loam_inverse::optimise::norm;
-use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser, check};
+use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser};
+use model::Model;
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -58,16 +61,30 @@ pub fn is_inversion(path: &Path) -> bool {
 /// file).
 pub fn check(path: &Path) -> Outcome {
     fn report<const D: usize>(inv: Inversion<D>) -> Outcome {
-        let o = &inv.problem.objective;
+        let observed = match &inv.problem {
+            Model::Explicit(p) => format!(
+                "{} velocity field(s), {} steps, {} observed step(s)",
+                inv.file.velocity_field.len(),
+                p.steps,
+                p.objective.steps().len()
+            ),
+            Model::Implicit { problem, .. } => {
+                let items = &problem.observations.items;
+                let mut steps: Vec<usize> = items.iter().map(|o| o.step).collect();
+                steps.dedup();
+                format!(
+                    "implicit, {} load steps, {} observation(s) after {} load step(s)",
+                    problem.config.load_steps,
+                    items.len(),
+                    steps.len()
+                )
+            }
+        };
         println!(
-            "{}: valid {D}D inversion of {}: {} parameter(s), {} velocity field(s), {} steps, \
-             {} observed step(s)",
+            "{}: valid {D}D inversion of {}: {} parameter(s), {observed}",
             inv.path.display(),
             inv.scene_path.display(),
             inv.names.len(),
-            inv.file.velocity_field.len(),
-            inv.problem.steps,
-            o.steps().len()
         );
         Outcome::Ok
     }
@@ -104,9 +121,9 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
     };
     let wall = start.elapsed().as_secs_f64();
     println!(
-        "{}: L = {loss:.10e} over {} steps; gradient in {wall:.2} s",
+        "{}: L = {loss:.10e} over {}; gradient in {wall:.2} s",
         inv.path.display(),
-        inv.problem.steps
+        inv.problem.run_length()
     );
     let rows = rows(&inv);
     let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(9);
@@ -123,14 +140,29 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
             norm(&grad[start..start + len])
         );
     }
+    if let Model::Implicit { problem, .. } = &inv.problem {
+        let last = match problem.last_step_gradient(theta) {
+            Ok(g) => g,
+            Err(e) => return failed(&inv.path, e),
+        };
+        println!(
+            "\n  \"last load step only\" (the reverse pass of the last sub-step, the load path before it held fixed):"
+        );
+        for (name, k) in &rows {
+            println!(
+                "  {name:width$}  {:>18.10e}  ({:.4} of the exact dL/dθ)",
+                last[*k],
+                last[*k] / grad[*k]
+            );
+        }
+        if let Err(e) = print_identifiability(&inv, theta) {
+            return failed(&inv.path, e);
+        }
+    }
     if !check {
         return Outcome::Ok;
     }
-    println!(
-        "\n  checks: dual = forward-mode Dual64 run; central difference with δ = 1e-4 max(|θ|, 1e-3);\n  \
-         Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ| for h = 1e-2 max(|θ|, 1e-3) and h/2, h/4, h/8\n  \
-         (r falls 4× per halving where L is smooth; a stick/slip or yield switch within h shows as a smaller ratio)"
-    );
+    println!("\n{}", inv.problem.check_legend());
     println!(
         "  {:width$}  {:>18}  {:>18}  {:>9}  {:>18}  {:>9}  {:>10} {:>10} {:>10} {:>10}  {:>5} {:>5} {:>5}",
         "parameter",
@@ -150,7 +182,7 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
     let mut worst = 0.0f64;
     for (name, k) in &rows {
         let k = *k;
-        let row = check_one(&inv, theta, loss, grad[k], k);
+        let row = inv.problem.check_one(theta, loss, grad[k], k);
         let (dual, fd, r) = match row {
             Ok(row) => row,
             Err(e) => return failed(&inv.path, e),
@@ -197,44 +229,13 @@ fn rows<const D: usize>(inv: &Inversion<D>) -> Vec<(String, usize)> {
 fn field_blocks<const D: usize>(inv: &Inversion<D>) -> Vec<(usize, usize)> {
     let mut start = 0;
     let mut out = Vec::new();
-    for c in &inv.problem.controls {
+    for c in inv.problem.controls() {
         if let Control::VelocityField(f) = c {
             out.push((start, f.mlp.len()));
         }
         start += c.len();
     }
     out
-}
-
-/// The dual derivative, the central difference and the Taylor remainders of parameter `k`.
-fn check_one<const D: usize>(
-    inv: &Inversion<D>,
-    theta: &[f64],
-    loss: f64,
-    adjoint: f64,
-    k: usize,
-) -> Result<(f64, f64, [f64; 4]), AdjointError> {
-    let dual = inv.problem.dual_derivative(theta, k)?;
-    let at = |d: f64| {
-        let mut t = theta.to_vec();
-        t[k] += d;
-        inv.problem.loss(&t)
-    };
-    let size = theta[k].abs().max(1e-3);
-    let delta = 1e-4 * size;
-    let fd = (at(delta)? - at(-delta)?) / (2.0 * delta);
-    let mut direction = vec![0.0; theta.len()];
-    direction[k] = 1.0;
-    let r = check::taylor_remainders(
-        &inv.problem,
-        theta,
-        loss,
-        adjoint,
-        &direction,
-        1e-2 * size,
-        4,
-    )?;
-    Ok((dual, fd, [r[0], r[1], r[2], r[3]]))
 }
 
 /// `loam invert FILE [--out DIR] [--resume] [--memory SIZE]`.
@@ -280,9 +281,17 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
     let runs = Cell::new(0usize);
     let last_physical = RefCell::new(Vec::new());
     // z ↦ (L, ∇_z L) with ∇_z L = dL/dθ · dθ/dz.
+    // After the first point, a trial point whose implicit run stops has an infinite loss.
+    let first_done = Cell::new(resume);
     let mut evaluate = |z: &[f64]| -> Result<Evaluation, AdjointError> {
         runs.set(runs.get() + 1);
-        let (loss, g) = inv.problem.gradient(&physical(z))?;
+        let theta = physical(z);
+        let (loss, g) = if first_done.get() {
+            inv.problem.trial_gradient(&theta)?
+        } else {
+            inv.problem.gradient(&theta)?
+        };
+        first_done.set(true);
         let gz = (g.iter().zip(z).zip(vars))
             .map(|((g, z), v)| g * v.slope(*z))
             .collect();
@@ -492,8 +501,28 @@ fn print_line<const D: usize>(inv: &Inversion<D>, history: &History, e: &Entry) 
 /// Writes the synthetic observations as CSV files in `dir` (the format `[observations]`
 /// reads).
 fn write_synthetic<const D: usize>(inv: &Inversion<D>, dir: &Path) -> Result<(), String> {
-    let o = &inv.problem.objective;
     let err = |f: &Path, e: std::io::Error| format!("cannot write {}: {e}", f.display());
+    let o = match &inv.problem {
+        Model::Explicit(p) => &p.objective,
+        Model::Implicit { problem, .. } => {
+            let (displacements, reactions) =
+                implicit::targets::<D>(&inv.file, &problem.observations);
+            if !displacements.is_empty() {
+                let f = dir.join("displacement.csv");
+                observed::write(&f, &displacements, "id", ["ux", "uy", "uz"], None)
+                    .map_err(|e| err(&f, e))?;
+            }
+            if !reactions.is_empty() {
+                let f = dir.join("reaction.csv");
+                let names: Vec<String> = (inv.file.observations.reactions.iter())
+                    .map(|r| r.name.clone())
+                    .collect();
+                observed::write(&f, &reactions, "reaction", ["force", "", ""], Some(&names))
+                    .map_err(|e| err(&f, e))?;
+            }
+            return Ok(());
+        }
+    };
     if !o.tracked.targets.is_empty() {
         let f = dir.join("tracked.csv");
         observed::write(&f, &o.tracked.targets, "id", ["x", "y", "z"], None)
@@ -554,15 +583,20 @@ fn finish<const D: usize>(
         if velocity_file.is_some() {
             write_velocities(inv, &theta, &dir.join(VELOCITY_FILE))?;
         }
-        let text = history::recovered_scene(
-            &inv.scene,
-            &inv.problem.controls,
-            &inv.names,
-            &theta,
-            &material_names,
-            &inv.scene_path,
-            velocity_file,
-        )?;
+        let mut scene = inv.scene.clone();
+        match &inv.problem {
+            Model::Explicit(p) => {
+                history::set_controls(&mut scene, &p.controls, &theta, &material_names);
+            }
+            Model::Implicit { scene_params, .. } => {
+                history::set_implicit(&mut scene, scene_params, &theta);
+                if let Some(steps) = inv.file.steps {
+                    scene.solver.load_steps = Some(steps);
+                }
+            }
+        }
+        let text =
+            history::recovered_scene(scene, &inv.names, &theta, &inv.scene_path, velocity_file)?;
         write_atomic(&recovered, &text)
     });
     if let Err(e) = written {
@@ -587,6 +621,11 @@ fn finish<const D: usize>(
             ),
             None => println!("  {name}: {:.6} (first guess {})", theta[k], inv.initial[k]),
         }
+    }
+    if let Model::Implicit { .. } = &inv.problem
+        && let Err(e) = print_identifiability(inv, &theta)
+    {
+        return failed(&inv.path, e);
     }
     let errors = inv.field_errors(&theta);
     for (f, (start, len)) in field_blocks(inv).into_iter().enumerate() {
@@ -623,6 +662,52 @@ fn finish<const D: usize>(
     Outcome::Ok
 }
 
+/// Prints the Gauss–Newton analysis of an implicit inversion's observations at `theta`
+/// ([`loam_inverse::implicit::Identifiability`]): the eigenvalues and condition number of
+/// `JᵀJ` in relative parameter changes, each parameter's relative standard deviation under
+/// unit noise (`σ` of the observations) and the correlations of the estimates.
+fn print_identifiability<const D: usize>(
+    inv: &Inversion<D>,
+    theta: &[f64],
+) -> Result<(), AdjointError> {
+    let Model::Implicit { problem, .. } = &inv.problem else {
+        return Ok(());
+    };
+    let g = problem.identifiability(theta)?;
+    let eigen: Vec<String> = g.eigenvalues.iter().map(|e| format!("{e:.4e}")).collect();
+    println!(
+        "\n  identifiability (Gauss–Newton JᵀJ of the {} residuals (m − d)/σ, θ scaled by its value):\n  \
+         eigenvalues {}; condition number {:.4e}",
+        problem.observations.items.len(),
+        eigen.join(", "),
+        g.condition
+    );
+    let width = inv.names.iter().map(String::len).max().unwrap_or(0).max(9);
+    print!("  {:width$}  {:>14}", "parameter", "rel. std");
+    for n in &inv.names {
+        print!("  {:>12}", format!("corr. {}", short(n)));
+    }
+    println!();
+    for (i, n) in inv.names.iter().enumerate() {
+        match (&g.relative_std, &g.correlation) {
+            (Some(std), Some(c)) => {
+                print!("  {n:width$}  {:>14.4e}", std[i]);
+                for j in 0..inv.names.len() {
+                    print!("  {:>12.6}", c[(i, j)]);
+                }
+                println!();
+            }
+            _ => println!("  {n:width$}  {:>14}", "∞ (JᵀJ singular)"),
+        }
+    }
+    Ok(())
+}
+
+/// The last field of a parameter name (`materials[0].young` → `young`).
+fn short(name: &str) -> &str {
+    name.rsplit('.').next().unwrap_or(name)
+}
+
 /// The file of every particle's recovered initial velocity (with velocity fields).
 const VELOCITY_FILE: &str = "recovered_velocity.csv";
 
@@ -633,7 +718,10 @@ fn write_velocities<const D: usize>(
     theta: &[f64],
     file: &Path,
 ) -> Result<(), String> {
-    let (_, particles) = inv.problem.setup(theta).map_err(|e| e.to_string())?;
+    let Model::Explicit(problem) = &inv.problem else {
+        return Err("velocity fields are unknowns of explicit scenes only".into());
+    };
+    let (_, particles) = problem.setup(theta).map_err(|e| e.to_string())?;
     let axes = ["x", "y", "z"];
     let mut text = format!(
         "# the initial velocities recovered by `loam invert` from {}\n{}, {}\n",

@@ -7,6 +7,10 @@
 //! `[[observations.monitors]]`. Deposit depths: `step,station,depth` or `time,...`, one row
 //! per station and observed step, `station` a name of `[[observations.stations]]`. A time
 //! must fall on a step (`t = n Δt` within 10⁻³ Δt).
+//!
+//! Implicit runs: particle displacements `step,id,ux,uy` (`uz`) and reactions
+//! `step,reaction,force`, `reaction` a name of `[[observations.reactions]]`, `step` a load
+//! step (a `time` column is the load factor `step / load_steps`).
 //! Blank lines and lines starting with `#` are skipped.
 
 use loam_core::tensor::Vector;
@@ -134,6 +138,38 @@ pub fn read_tracked<const D: usize>(file: &Path, grid: &Grid) -> Result<Targets<
     )
 }
 
+/// Reads a particle-displacements file of an implicit run (`step` a load step).
+pub fn read_displacement<const D: usize>(file: &Path, grid: &Grid) -> Result<Targets<D>, String> {
+    let n = grid.particles;
+    read(
+        file,
+        grid,
+        ("id", ["ux", "uy", "uz"]),
+        &|s| match s.parse::<usize>() {
+            Ok(id) if id < n => Ok(id),
+            _ => Err(format!(
+                "`{s}` is not a particle id (0 to {})",
+                n.saturating_sub(1)
+            )),
+        },
+    )
+}
+
+/// Reads a reactions file of an implicit run: per load step, `(reaction, force)`.
+pub fn read_reaction(
+    file: &Path,
+    grid: &Grid,
+    reactions: &[String],
+) -> Result<BTreeMap<usize, Vec<(usize, f64)>>, String> {
+    let rows = read::<1>(file, grid, ("reaction", ["force", "", ""]), &|s| {
+        reactions
+            .iter()
+            .position(|m| m == s)
+            .ok_or_else(|| format!("unknown reaction `{s}`; defined: {}", reactions.join(", ")))
+    })?;
+    Ok(depths(&rows))
+}
+
 /// Reads a monitor-velocities file.
 pub fn read_velocity<const D: usize>(
     file: &Path,
@@ -163,7 +199,7 @@ pub fn read_deposit(
     Ok(depths(&rows))
 }
 
-/// Depth targets from one-component vectors (the rows [`read`] gives).
+/// Scalar targets (depths, reactions) from one-component vectors (the rows [`read`] gives).
 fn depths(rows: &Targets<1>) -> BTreeMap<usize, Vec<(usize, f64)>> {
     (rows.iter())
         .map(|(&s, r)| (s, r.iter().map(|&(i, v)| (i, v[0])).collect()))

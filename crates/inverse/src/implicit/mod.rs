@@ -11,10 +11,12 @@
 //!   sub-step's tangent, then the state's adjoint and the parameters' shares per particle.
 //! - [`tangent`]: the forward-mode dual derivative (the oracle); [`check`]: central
 //!   differences and the Taylor test on the reference run's sub-steps.
-//! - [`ImplicitParam`], [`ImplicitObservations`]: what is differentiated and observed.
+//! - [`ImplicitParam`], [`ImplicitObservations`]: what is differentiated and observed;
+//!   [`Identifiability`]: how well they identify the parameters (Gauss–Newton).
 
 pub mod adjoint;
 pub mod check;
+mod identify;
 pub mod kernel;
 mod observe;
 mod params;
@@ -22,6 +24,7 @@ pub mod record;
 mod seeds;
 pub mod tangent;
 
+pub use identify::Identifiability;
 pub use observe::{ImplicitObservations, Observation, Quantity};
 pub use params::ImplicitParam;
 pub use record::{Schedule, Trajectory, run_recorded};
@@ -135,16 +138,92 @@ impl<const D: usize> ImplicitProblem<D> {
         })
     }
 
+    /// `(L, dL/dθ)` at an optimiser's trial point: as [`ImplicitProblem::gradient`], but a
+    /// forward run that stops (Newton fails on every cut of a load step: a material too soft
+    /// to carry its load) gives `L = ∞` and a zero gradient, so that a line search shortens
+    /// its step instead of ending the inversion.
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::gradient`], but for a run that stops.
+    pub fn trial_gradient(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), AdjointError> {
+        match self.gradient(theta) {
+            Ok(g) => Ok((g.loss, g.gradient)),
+            Err(AdjointError::Implicit(_)) => Ok((f64::INFINITY, vec![0.0; theta.len()])),
+            Err(e) => Err(e),
+        }
+    }
+
     /// `dL/dθ` by forward-mode duals, one parameter at a time (the oracle).
     ///
     /// # Errors
     /// As [`ImplicitProblem::gradient`].
     pub fn dual_gradient(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.with_run(theta, |config, particles, run| {
+            (self.params.iter())
+                .map(|&p| tangent::dual_derivative(config, particles, run, &self.observations, p))
+                .collect()
+        })
+    }
+
+    /// `dL/dθ_k` by forward-mode duals.
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::gradient`].
+    pub fn dual_derivative(&self, theta: &[f64], k: usize) -> Result<f64, AdjointError> {
+        self.with_run(theta, |config, particles, run| {
+            tangent::dual_derivative(config, particles, run, &self.observations, self.params[k])
+        })
+    }
+
+    /// `dm_k/dθ_j` of every observed quantity (index `[j][k]`) by forward-mode duals.
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::gradient`].
+    pub fn sensitivities(&self, theta: &[f64]) -> Result<Vec<Vec<f64>>, AdjointError> {
+        self.with_run(theta, |config, particles, run| {
+            (self.params.iter())
+                .map(|&p| tangent::model_tangents(config, particles, run, &self.observations, p))
+                .collect()
+        })
+    }
+
+    /// The Gauss–Newton analysis of the observations at `theta` ([`Identifiability`]).
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::gradient`].
+    pub fn identifiability(&self, theta: &[f64]) -> Result<Identifiability, AdjointError> {
+        let sigma: Vec<f64> = self.observations.items.iter().map(|o| o.sigma).collect();
+        Ok(Identifiability::new(
+            &self.sensitivities(theta)?,
+            theta,
+            &sigma,
+        ))
+    }
+
+    /// The "last step only" gradient ([`adjoint::reverse_last_substep`]): the reverse pass
+    /// of the last accepted sub-step alone, the load path before it held fixed.
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::gradient`].
+    pub fn last_step_gradient(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.with_run(theta, |config, particles, run| {
+            adjoint::reverse_last_substep(config, particles, run, &self.observations, &self.params)
+        })
+    }
+
+    /// `f` of the configuration, the initial particles and the recorded run at `theta`.
+    fn with_run<T>(
+        &self,
+        theta: &[f64],
+        f: impl FnOnce(
+            &ImplicitConfig<D>,
+            &Particles<f64, D>,
+            &Trajectory<D>,
+        ) -> Result<T, AdjointError>,
+    ) -> Result<T, AdjointError> {
         self.validate()?;
         let (config, particles) = self.setup(theta)?;
         let run = run_recorded(&config, &particles, None)?;
-        (self.params.iter())
-            .map(|&p| tangent::dual_derivative(&config, &particles, &run, &self.observations, p))
-            .collect()
+        f(&config, &particles, &run)
     }
 }

@@ -46,29 +46,36 @@ impl<const D: usize> StepSeeds<D> {
                 }
             }
         }
-        let reaction_weights = any_reaction.then(|| {
-            let grid = &config.grid;
-            (0..grid.num_nodes())
-                .map(|n| {
-                    let x: Vector<f64, D> = grid.node_position(grid.multi(n));
-                    let x: [f64; D] = std::array::from_fn(|a| x[a]);
-                    let mut w = Vector::<f64, D>::zeros();
-                    for (c, r) in config.constraints.iter().zip(&reactions) {
-                        if c.contains(&x, grid.h) {
-                            for a in 0..D {
-                                if c.displacement[a].is_some() {
-                                    w[a] += r[a];
-                                }
-                            }
-                        }
-                    }
-                    w
-                })
-                .collect()
-        });
+        let reaction_weights = any_reaction.then(|| Self::node_weights(config, &reactions));
         Self {
             displacements,
             reaction_weights,
         }
+    }
+
+    /// Per grid node (flat index), `r̄_a` summed over the constraints whose box holds the
+    /// node and prescribes its component `a`, given `r̄` per constraint (`reactions[c]`).
+    pub fn node_weights(
+        config: &ImplicitConfig<D>,
+        reactions: &[Vector<f64, D>],
+    ) -> Vec<Vector<f64, D>> {
+        let grid = &config.grid;
+        (0..grid.num_nodes())
+            .map(|n| {
+                let x: Vector<f64, D> = grid.node_position(grid.multi(n));
+                let x: [f64; D] = std::array::from_fn(|a| x[a]);
+                let mut w = Vector::<f64, D>::zeros();
+                for (c, r) in config.constraints.iter().zip(reactions) {
+                    if c.contains(&x, grid.h) {
+                        for a in 0..D {
+                            if c.displacement[a].is_some() {
+                                w[a] += r[a];
+                            }
+                        }
+                    }
+                }
+                w
+            })
+            .collect()
     }
 }

@@ -11,7 +11,7 @@
 //! `ṡ' = Φ̇`. It shares the kernel with the reverse pass but none of its transposition.
 
 use super::kernel::{ParticleStep, particle_step, state_len};
-use super::observe::ImplicitObservations;
+use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
 use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
@@ -24,8 +24,8 @@ use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
 use num_dual::Dual64;
 use rayon::prelude::*;
 
-/// `dL/dθ` of the loss of `observations` over `run` (a forward run of `config` from
-/// `initial`) by forward-mode duals.
+/// `dL/dθ = Σ_k (∂L/∂m_k) dm_k/dθ` of the loss of `observations` over `run` (a forward run
+/// of `config` from `initial`) by forward-mode duals ([`model_tangents`]).
 ///
 /// # Errors
 /// As [`super::adjoint::reverse`].
@@ -36,9 +36,26 @@ pub fn dual_derivative<const D: usize>(
     observations: &ImplicitObservations,
     param: ImplicitParam,
 ) -> Result<f64, AdjointError> {
+    let tangents = model_tangents(config, initial, run, observations, param)?;
+    let weights = observations.residual_weights(run);
+    Ok(weights.iter().zip(&tangents).map(|(w, t)| w * t).sum())
+}
+
+/// `dm_k/dθ` of every observed model quantity `m_k` of `observations` over `run` (a forward
+/// run of `config` from `initial`) by forward-mode duals: the columns of the Jacobian a
+/// Gauss–Newton analysis needs.
+///
+/// # Errors
+/// As [`super::adjoint::reverse`].
+pub fn model_tangents<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    param: ImplicitParam,
+) -> Result<Vec<f64>, AdjointError> {
     let solver = ImplicitSolver::new(config.clone(), initial)?;
     let n = initial.len();
-    let weights = observations.residual_weights(run);
     let materials: Vec<Material<Dual64>> = (config.materials.iter().enumerate())
         .map(|(k, m)| param.seeded_material(k, m).unwrap_or_else(|| m.lift()))
         .collect();
@@ -50,7 +67,7 @@ pub fn dual_derivative<const D: usize>(
         }
     }
     let mut linear = LinearSolver::new(config.newton.linear);
-    let mut derivative = 0.0;
+    let mut tangents = vec![0.0; observations.items.len()];
     for (i, sub) in run.substeps.iter().enumerate() {
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
@@ -128,16 +145,27 @@ pub fn dual_derivative<const D: usize>(
             sdot[p] = s.end.tangent();
         }
         if SubStep::ends_step(&run.substeps, i) {
-            let seeds = StepSeeds::new(config, observations, &weights, sub.step);
-            for &(p, a, w) in &seeds.displacements {
-                derivative += w * sdot[p][a];
-            }
-            if let Some(rw) = &seeds.reaction_weights {
-                derivative += reaction_derivative(&moved, rw);
+            let observed =
+                (observations.items.iter().zip(&mut tangents)).filter(|(o, _)| o.step == sub.step);
+            for (o, t) in observed {
+                *t = match o.quantity {
+                    Quantity::Displacement {
+                        particle,
+                        component,
+                    } => sdot[particle][component],
+                    Quantity::Reaction {
+                        constraint,
+                        component,
+                    } => {
+                        let mut unit = vec![Vector::<f64, D>::zeros(); config.constraints.len()];
+                        unit[constraint][component] = 1.0;
+                        reaction_derivative(&moved, &StepSeeds::node_weights(config, &unit))
+                    }
+                };
             }
         }
     }
-    Ok(derivative)
+    Ok(tangents)
 }
 
 /// `Σ_i r̄_i · ḟ_int,i`: the derivative of the observed reactions' share of the loss.

@@ -1,0 +1,471 @@
+//! An inversion file on an implicit scene (`[solver] type = "implicit"`): quasi-static
+//! load steps, parameters of the implicit path ([`ImplicitParam`]), observations of particle
+//! displacements and constraint reactions after chosen load steps
+//! (`docs/inversion-format.md`).
+
+use super::file::{
+    Invalid, Inversion, InversionFile, ParameterSpec, check_ids, check_optimiser, for_path,
+    invalid, tracked_ids, variable,
+};
+use super::model::Model;
+use super::observed;
+use loam_core::tensor::Vector;
+use loam_implicit::ImplicitConfig;
+use loam_inverse::Param;
+use loam_inverse::implicit::{
+    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, run_recorded,
+};
+use loam_scene::{Built, Issue, Scene};
+use std::path::{Path, PathBuf};
+
+/// What an explicit-only field is told on an implicit scene.
+const EXPLICIT_ONLY: &str = "applies to explicit scenes; this scene is implicit (`[solver] type = \
+                             \"implicit\"`), whose inversions observe particle `displacement`s \
+                             and constraint `reaction`s";
+
+/// Builds the inversion of an implicit scene from the file, as [`super::file::build`] does
+/// for an explicit one. Every problem found is reported at once with its field path.
+pub fn build<const D: usize>(
+    path: &Path,
+    file: InversionFile,
+    scene_path: PathBuf,
+    scene: Scene,
+    built: Built<D>,
+    memory: Option<u64>,
+) -> Result<Inversion<D>, Invalid> {
+    let mut issues = Vec::new();
+    let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
+    let mut config = built.implicit_config().expect("an implicit scene");
+    let n = built.particles.len();
+    let o = &file.observations;
+    for (field, given) in [
+        ("end_time", file.end_time.is_some()),
+        ("segment", file.segment.is_some()),
+        ("velocity_field", !file.velocity_field.is_empty()),
+        ("observations.tracked", o.tracked.is_some()),
+        ("observations.tracked_weight", o.tracked_weight.is_some()),
+        ("observations.velocity", o.velocity.is_some()),
+        ("observations.velocity_weight", o.velocity_weight.is_some()),
+        ("observations.monitors", !o.monitors.is_empty()),
+        ("observations.deposit", o.deposit.is_some()),
+        ("observations.deposit_weight", o.deposit_weight.is_some()),
+        ("observations.stations", !o.stations.is_empty()),
+        (
+            "synthetic.scene",
+            file.synthetic.as_ref().is_some_and(|s| s.scene.is_some()),
+        ),
+    ] {
+        if given {
+            issue(field.into(), EXPLICIT_ONLY.into());
+        }
+    }
+    if memory.is_some() {
+        issue(
+            "--memory".into(),
+            "budgets the explicit adjoint's checkpoints; an implicit run keeps every load step"
+                .into(),
+        );
+    }
+    match file.steps {
+        Some(0) => issue("steps".into(), "expected at least 1 load step".into()),
+        Some(steps) => config.load_steps = steps,
+        None => {}
+    }
+    if file.parameters.is_empty() {
+        issue(
+            "parameters".into(),
+            "expected at least one parameter".into(),
+        );
+    }
+    // The unknowns.
+    let mut params = Vec::new();
+    let mut scene_params = Vec::new();
+    let mut variables = Vec::new();
+    let mut truth = Some(Vec::new());
+    for (i, p) in file.parameters.iter().enumerate() {
+        let at = |field: &str| format!("parameters[{i}].{field}");
+        for (field, given) in [
+            ("direction", p.direction.is_some()),
+            ("material", p.material.is_some()),
+        ] {
+            if given {
+                issue(
+                    at(field),
+                    format!("only for `name = \"velocity\"`, which {EXPLICIT_ONLY}"),
+                );
+            }
+        }
+        match solver_param(p, &scene, &config) {
+            Ok((named, solver)) => {
+                if params.contains(&solver) {
+                    issue(at("name"), format!("`{}` is given twice", p.name));
+                }
+                params.push(solver);
+                scene_params.push(named);
+            }
+            Err(msg) => issue(at("name"), msg),
+        }
+        variables.push(variable(p, &mut |f, m| issue(at(f), m)));
+        truth = truth.zip(p.truth).map(|(mut t, v)| {
+            t.push(v);
+            t
+        });
+    }
+    check_optimiser(&file, &mut issue);
+    for (field, sigma) in [
+        ("displacement_sigma", o.displacement_sigma),
+        ("reaction_sigma", o.reaction_sigma),
+    ] {
+        if let Some(v) = sigma
+            && !(v.is_finite() && v > 0.0)
+        {
+            issue(
+                format!("observations.{field}"),
+                format!("expected a standard deviation > 0, got {v}"),
+            );
+        }
+    }
+    let mut reaction_names: Vec<String> = Vec::new();
+    for (i, r) in o.reactions.iter().enumerate() {
+        let at = |f: &str| format!("observations.reactions[{i}].{f}");
+        if reaction_names.contains(&r.name) {
+            issue(
+                at("name"),
+                format!("reaction `{}` is defined twice", r.name),
+            );
+        }
+        reaction_names.push(r.name.clone());
+        match config.constraints.get(r.constraint) {
+            None => issue(
+                at("constraint"),
+                format!(
+                    "constraint {} does not exist: the scene has {} [[constraints]]",
+                    r.constraint,
+                    config.constraints.len()
+                ),
+            ),
+            Some(_) if r.axis >= D => {
+                issue(at("axis"), format!("expected an axis 0 to {}", D - 1));
+            }
+            Some(c) if c.displacement[r.axis].is_none() => issue(
+                at("axis"),
+                format!(
+                    "component {} of constraint {} is free and has no reaction; expected a \
+                     prescribed axis",
+                    r.axis, r.constraint
+                ),
+            ),
+            Some(_) => {}
+        }
+    }
+    match &file.synthetic {
+        Some(s) => {
+            for (field, given) in [
+                ("displacement", o.displacement.is_some()),
+                ("reaction", o.reaction.is_some()),
+            ] {
+                if given {
+                    issue(
+                        format!("observations.{field}"),
+                        "not with [synthetic]: synthetic observations come from the truth run \
+                         (and are written to the output folder)"
+                            .into(),
+                    );
+                }
+            }
+            if s.every == Some(0) {
+                issue(
+                    "synthetic.every".into(),
+                    "expected at least 1 load step".into(),
+                );
+            }
+            if s.first == Some(0) {
+                issue(
+                    "synthetic.first".into(),
+                    "expected a load step ≥ 1 (step 0 is the initial state)".into(),
+                );
+            }
+            if s.particles > n {
+                issue(
+                    "synthetic.particles".into(),
+                    format!("the scene has only {n} particles"),
+                );
+            }
+            check_ids(s, n, &mut issue);
+            if s.particles == 0 && s.ids.is_empty() && o.reactions.is_empty() {
+                issue(
+                    "synthetic.particles".into(),
+                    "nothing to observe: choose particles (`particles`, `ids`) or define \
+                     [[observations.reactions]]"
+                        .into(),
+                );
+            }
+            if truth.is_none() {
+                for (i, p) in file.parameters.iter().enumerate() {
+                    if p.truth.is_none() {
+                        issue(
+                            format!("parameters[{i}].truth"),
+                            "[synthetic] needs the truth value of every parameter".into(),
+                        );
+                    }
+                }
+            }
+        }
+        None => {
+            if o.displacement.is_none() && o.reaction.is_none() {
+                issue(
+                    "observations".into(),
+                    "expected `displacement` or `reaction` (a CSV file), or a [synthetic] section"
+                        .into(),
+                );
+            }
+            if o.reaction.is_some() && o.reactions.is_empty() {
+                issue(
+                    "observations.reactions".into(),
+                    "the reaction file needs [[observations.reactions]]".into(),
+                );
+            }
+        }
+    }
+    if !issues.is_empty() {
+        return Err(invalid(path, issues));
+    }
+    let mut problem = ImplicitProblem {
+        config,
+        initial: built.particles,
+        params,
+        observations: ImplicitObservations::default(),
+    };
+    let steps = problem.config.load_steps;
+    let sigmas = (
+        o.displacement_sigma.unwrap_or(1.0),
+        o.reaction_sigma.unwrap_or(1.0),
+    );
+    let reactions: Vec<(usize, usize)> =
+        o.reactions.iter().map(|r| (r.constraint, r.axis)).collect();
+    problem.observations.items = match &file.synthetic {
+        Some(s) => {
+            let truth = truth.as_deref().expect("checked above");
+            let (config, particles) = problem.setup(truth).map_err(|e| Invalid(e.to_string()))?;
+            let run = run_recorded(&config, &particles, None)
+                .map_err(|e| Invalid(format!("{}: the truth run: {e}", path.display())))?;
+            let every = s.every.unwrap_or(1);
+            let first = s.first.unwrap_or(every);
+            let ids = tracked_ids(n, s);
+            let mut items = Vec::new();
+            for step in (first..=steps).step_by(every) {
+                for &particle in &ids {
+                    for component in 0..D {
+                        let quantity = Quantity::Displacement {
+                            particle,
+                            component,
+                        };
+                        items.push((step, quantity, sigmas.0));
+                    }
+                }
+                for &(constraint, component) in &reactions {
+                    let quantity = Quantity::Reaction {
+                        constraint,
+                        component,
+                    };
+                    items.push((step, quantity, sigmas.1));
+                }
+            }
+            if items.is_empty() {
+                return Err(invalid(
+                    path,
+                    vec![Issue::new(
+                        "synthetic.first",
+                        format!("no load step observed: expected first ≤ {steps}"),
+                    )],
+                ));
+            }
+            (items.into_iter())
+                .map(|(step, quantity, sigma)| {
+                    let mut o = Observation {
+                        step,
+                        quantity,
+                        value: 0.0,
+                        sigma,
+                    };
+                    o.value = ImplicitObservations::model(&o, &run);
+                    o
+                })
+                .collect()
+        }
+        None => read_observations::<D>(path, &file, steps, n, sigmas, &reactions)?,
+    };
+    let initial = file.parameters.iter().map(|p| p.initial).collect();
+    let names = file.parameters.iter().map(|p| p.name.clone()).collect();
+    Ok(Inversion {
+        path: path.to_path_buf(),
+        file,
+        scene_path,
+        scene,
+        names,
+        variables,
+        problem: Model::Implicit {
+            problem,
+            scene_params,
+        },
+        truth,
+        truth_initial: None,
+        initial,
+        monitor_names: Vec::new(),
+        station_names: Vec::new(),
+    })
+}
+
+/// The parameter `p` names, as the scene numbers it and as the solver does (a point load
+/// `k` of the scene is the load on its particle, `Σ_{j<k} count_j`); an error message
+/// naming what is expected otherwise.
+fn solver_param<const D: usize>(
+    p: &ParameterSpec,
+    scene: &Scene,
+    config: &ImplicitConfig<D>,
+) -> Result<(ImplicitParam, ImplicitParam), String> {
+    let named = p.name.parse::<ImplicitParam>().map_err(|msg| {
+        let explicit = p.name == "velocity" || p.name.parse::<Param>().is_ok();
+        for_path(&msg, explicit, "explicit")
+    })?;
+    let solver = match named {
+        ImplicitParam::PointLoad(k, a) => {
+            let Some(load) = scene.point_loads.get(k) else {
+                return Err(format!(
+                    "no such point load: the scene has {} [[point_loads]]",
+                    scene.point_loads.len()
+                ));
+            };
+            if load.count != 1 {
+                return Err(format!(
+                    "point load {k} is shared by `count` = {} particles; a parameter needs a \
+                     point load on one particle (`count = 1`)",
+                    load.count
+                ));
+            }
+            let particle: usize = scene.point_loads[..k].iter().map(|l| l.count).sum();
+            ImplicitParam::PointLoad(particle, a)
+        }
+        other => other,
+    };
+    solver.value(config).map_err(|e| e.to_string())?;
+    Ok((named, solver))
+}
+
+/// The observations of `[observations]`'s CSV files: per load step, every component of each
+/// listed particle's displacement (`σ = sigmas.0`) and each named reaction (`σ = sigmas.1`,
+/// `reactions[i]` = (constraint, axis) of reaction `i`).
+fn read_observations<const D: usize>(
+    path: &Path,
+    file: &InversionFile,
+    steps: usize,
+    particles: usize,
+    sigmas: (f64, f64),
+    reactions: &[(usize, usize)],
+) -> Result<Vec<Observation>, Invalid> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let o = &file.observations;
+    // A `time` column reads as the load factor `step / load_steps`.
+    let grid = observed::Grid {
+        dt: 1.0 / steps as f64,
+        steps,
+        particles,
+    };
+    let initial_state = |field: &str| {
+        Issue::new(
+            format!("observations.{field}"),
+            format!("a row at step 0, the initial state; expected load steps 1 to {steps}"),
+        )
+    };
+    let mut items = Vec::new();
+    let mut errors = Vec::new();
+    if let Some(f) = &o.displacement {
+        match observed::read_displacement::<D>(&dir.join(f), &grid) {
+            Ok(t) if t.contains_key(&0) => errors.push(initial_state("displacement")),
+            Ok(t) => {
+                for (step, rows) in t {
+                    for (particle, u) in rows {
+                        for component in 0..D {
+                            items.push(Observation {
+                                step,
+                                quantity: Quantity::Displacement {
+                                    particle,
+                                    component,
+                                },
+                                value: u[component],
+                                sigma: sigmas.0,
+                            });
+                        }
+                    }
+                }
+            }
+            Err(msg) => errors.push(Issue::new("observations.displacement", msg)),
+        }
+    }
+    if let Some(f) = &o.reaction {
+        let names: Vec<String> = o.reactions.iter().map(|r| r.name.clone()).collect();
+        match observed::read_reaction(&dir.join(f), &grid, &names) {
+            Ok(t) if t.contains_key(&0) => errors.push(initial_state("reaction")),
+            Ok(t) => {
+                for (step, rows) in t {
+                    for (r, force) in rows {
+                        let (constraint, component) = reactions[r];
+                        items.push(Observation {
+                            step,
+                            quantity: Quantity::Reaction {
+                                constraint,
+                                component,
+                            },
+                            value: force,
+                            sigma: sigmas.1,
+                        });
+                    }
+                }
+            }
+            Err(msg) => errors.push(Issue::new("observations.reaction", msg)),
+        }
+    }
+    if errors.is_empty() {
+        Ok(items)
+    } else {
+        Err(invalid(path, errors))
+    }
+}
+
+/// The observations of an implicit inversion as the CSV files hold them: per load step, the
+/// displacement of every observed particle (all components) and the named reactions
+/// (indices into `[[observations.reactions]]`).
+pub fn targets<const D: usize>(
+    file: &InversionFile,
+    observations: &ImplicitObservations,
+) -> (observed::Targets<D>, observed::Targets<1>) {
+    let mut displacements = observed::Targets::<D>::new();
+    let mut reactions = observed::Targets::<1>::new();
+    for o in &observations.items {
+        match o.quantity {
+            Quantity::Displacement {
+                particle,
+                component,
+            } => {
+                let rows = displacements.entry(o.step).or_default();
+                if rows.last().is_none_or(|r| r.0 != particle) {
+                    rows.push((particle, Vector::zeros()));
+                }
+                if let Some(row) = rows.last_mut() {
+                    row.1[component] = o.value;
+                }
+            }
+            Quantity::Reaction {
+                constraint,
+                component,
+            } => {
+                let named = (file.observations.reactions.iter())
+                    .position(|r| r.constraint == constraint && r.axis == component);
+                if let Some(r) = named {
+                    (reactions.entry(o.step).or_default()).push((r, Vector::from([o.value])));
+                }
+            }
+        }
+    }
+    (displacements, reactions)
+}
