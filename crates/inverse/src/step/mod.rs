@@ -424,10 +424,8 @@ impl<const D: usize> ReverseStep<D> {
                     if let Some(extra) = extra_mass {
                         am[k] = extra[n];
                     }
-                    let mut y_bar = Packed::<f64>::default();
-                    y_bar.vector(&adj_v_old[n]);
-                    y_bar.vector(&adj_v_hat[n]);
-                    if y_bar.as_slice().iter().all(|&y| y == 0.0) {
+                    let (yo, yh) = (adj_v_old[n], adj_v_hat[n]);
+                    if yo.iter().chain(yh.iter()).all(|&y| y == 0.0) {
                         continue;
                     }
                     let node = grid.multi(n);
@@ -437,7 +435,6 @@ impl<const D: usize> ReverseStep<D> {
                         // whose transpose is m̄ = −(P·(v̄ⁿ + v̂̄) + Δt f·v̂̄)/m², P̄ = (v̄ⁿ + v̂̄)/m,
                         // f̄ = Δt v̂̄/m, ḡ = Δt v̂̄.
                         let (m, p, f) = (sums[n].m, sums[n].p, sums[n].f);
-                        let (yo, yh) = (adj_v_old[n], adj_v_hat[n]);
                         am[k] -= (p.dot(&(yo + yh)) + dt * f.dot(&yh)) / (m * m);
                         (ap[k], af[k]) = ((yo + yh) / m, yh * (dt / m));
                         for (index, axis, ..) in &seeded {
@@ -447,6 +444,9 @@ impl<const D: usize> ReverseStep<D> {
                         }
                         continue;
                     }
+                    let mut y_bar = Packed::<f64>::default();
+                    y_bar.vector(&yo);
+                    y_bar.vector(&yh);
                     let mut input = Packed::<f64>::default();
                     input.push(sums[n].m);
                     input.vector(&sums[n].p);
