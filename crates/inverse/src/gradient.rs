@@ -125,7 +125,14 @@ pub fn gradient<const D: usize>(
         }
         for s in (s0..s1).rev() {
             let start = &states[s - s0];
-            reverse.reverse(start, &traces[s - s0], times[s], &mut adjoint, &mut grad);
+            // The state after the step: the next traced start, or the segment's end.
+            let after = match states.get(s + 1 - s0) {
+                Some(q) if s + 1 < s1 => q,
+                _ if s1 == steps => &p,
+                _ => &next,
+            };
+            let trace = &traces[s - s0];
+            reverse.reverse(start, after, trace, times[s], &mut adjoint, &mut grad);
             objective.term(s, start, Some(&mut adjoint));
         }
         if s0 < s1 {

@@ -23,7 +23,8 @@
 //! again: the local derivatives are taken at the forward pass's own values. Branches
 //! (stick/slip, separable walls, the projection of shallow wall crossings, yield and return
 //! region) are taken on real parts of the same inputs, so every local derivative is that of
-//! the branch the forward pass took. The G2P sums and MUSL's second P2G are formed again here
+//! the branch the forward pass took. The G2P sums (except those of USL with MLS-MPM and the
+//! fluid, read from the state after the step) and MUSL's second P2G are formed again here
 //! from the traced grid (MUSL's second P2G serially, in particle order: the forward sums block
 //! by block, so those sums may differ from the forward's in the last bit, and a node whose
 //! second projection sits exactly on a switch could take the other branch);
@@ -210,12 +211,14 @@ impl<const D: usize> ReverseStep<D> {
     }
 
     /// Maps the adjoint of the state after a step from time `time`, started from the
-    /// particles `start` and traced into `trace` ([`loam_explicit::Solver::step_traced`]), to
-    /// the adjoint of the state before it (in place), and adds the parameters' shares of the
-    /// step to `gradient` (indexed as the `params` of [`ReverseStep::new`]).
+    /// particles `start`, ended on the particles `after` and traced into `trace`
+    /// ([`loam_explicit::Solver::step_traced`]), to the adjoint of the state before it (in
+    /// place), and adds the parameters' shares of the step to `gradient` (indexed as the
+    /// `params` of [`ReverseStep::new`]).
     pub fn reverse(
         &mut self,
         start: &Particles<f64, D>,
+        after: &Particles<f64, D>,
         trace: &StepTrace<f64, D>,
         time: f64,
         adjoint: &mut ParticleAdjoint<D>,
@@ -225,7 +228,10 @@ impl<const D: usize> ReverseStep<D> {
         self.locate(start);
         self.load_grid(trace);
         let (shares, extra_mass) = match self.config.scheme {
-            Scheme::Usl => (self.usl_particles(start, time, dt, adjoint, gradient), None),
+            Scheme::Usl => {
+                let shares = self.usl_particles(start, after, time, dt, adjoint, gradient);
+                (shares, None)
+            }
             Scheme::Musl => {
                 let (shares, m) = self.musl_particles(start, time, dt, adjoint, gradient);
                 (shares, Some(m))
@@ -418,10 +424,8 @@ impl<const D: usize> ReverseStep<D> {
                     if let Some(extra) = extra_mass {
                         am[k] = extra[n];
                     }
-                    let mut y_bar = Packed::<f64>::default();
-                    y_bar.vector(&adj_v_old[n]);
-                    y_bar.vector(&adj_v_hat[n]);
-                    if y_bar.as_slice().iter().all(|&y| y == 0.0) {
+                    let (yo, yh) = (adj_v_old[n], adj_v_hat[n]);
+                    if yo.iter().chain(yh.iter()).all(|&y| y == 0.0) {
                         continue;
                     }
                     let node = grid.multi(n);
@@ -431,7 +435,6 @@ impl<const D: usize> ReverseStep<D> {
                         // whose transpose is m̄ = −(P·(v̄ⁿ + v̂̄) + Δt f·v̂̄)/m², P̄ = (v̄ⁿ + v̂̄)/m,
                         // f̄ = Δt v̂̄/m, ḡ = Δt v̂̄.
                         let (m, p, f) = (sums[n].m, sums[n].p, sums[n].f);
-                        let (yo, yh) = (adj_v_old[n], adj_v_hat[n]);
                         am[k] -= (p.dot(&(yo + yh)) + dt * f.dot(&yh)) / (m * m);
                         (ap[k], af[k]) = ((yo + yh) / m, yh * (dt / m));
                         for (index, axis, ..) in &seeded {
@@ -441,6 +444,9 @@ impl<const D: usize> ReverseStep<D> {
                         }
                         continue;
                     }
+                    let mut y_bar = Packed::<f64>::default();
+                    y_bar.vector(&yo);
+                    y_bar.vector(&yh);
                     let mut input = Packed::<f64>::default();
                     input.push(sums[n].m);
                     input.vector(&sums[n].p);

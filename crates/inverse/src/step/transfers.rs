@@ -4,9 +4,11 @@
 //! sums hold no weight gradient (MLS-MPM, MUSL's motion and second P2G), which needs only the
 //! weights' first derivatives `∇w`; otherwise (the force `−V σ ∇w` and the velocity gradient
 //! `Σ v ∇wᵀ`, whose derivatives need the second derivatives of the weights) by `D`
-//! evaluations of the same sums with a dual position.
+//! evaluations of the same sums with a dual position. The G2P scatter's closed form runs row
+//! by row over the stencil ([`Site::rows`]): a node forms only its axis-0 terms, and the row's
+//! factors multiply the row's sums once.
 
-use loam_core::stencil::{Layout, Stencil};
+use loam_core::stencil::{Layout, Stencil, StencilRow};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::Gathered;
 use loam_core::{Grid, Shape};
@@ -53,6 +55,20 @@ impl<'a, const D: usize> Site<'a, D> {
         let mut f = f;
         self.stencil
             .for_each_in(&Layout::grid(self.grid), |n, _, w, g, o| f(n, w, g, o));
+    }
+
+    /// Calls `f(row, [N, N', o], nodes)` for every row of the stencil
+    /// ([`Stencil::for_each_row`]): the row's factors of the axes above 0, the axis-0 factors
+    /// of its nodes and the flat grid indices of its nodes.
+    #[inline]
+    pub fn rows(&self, f: impl FnMut(&StencilRow<f64, D>, [&[f64]; 3], std::ops::Range<usize>)) {
+        let mut f = f;
+        let b = self.stencil.width();
+        let [w0, dw0, o0] = self.stencil.axis0();
+        let axis0 = [&w0[..b], &dw0[..b], &o0[..b]];
+        self.stencil.for_each_row(&Layout::grid(self.grid), |row| {
+            f(&row, axis0, row.index..row.index + b)
+        });
     }
 
     /// `∂J/∂x_p` of `J = Σ_i term(node i)` with everything but the position held, by `D`
@@ -103,44 +119,22 @@ pub(super) fn gather_adjoint<const D: usize>(
         g_bar.grad_v
     };
     let aff_bar = form.scale.map(|k| g_bar.affine * k);
-    // Without a ∇w term the position derivative is in closed form and comes out of the
-    // scatter's own loop: J = Σ_i w_i a_i with a_i = v_i·(Ḡ.v + Ḡ.dv) − vⁿ_i·Ḡ.dv + v_iᵀ Ā o_i,
-    // ∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i (∂o_i/∂x_p = −I): the weights' first
-    // derivatives only.
-    let closed = grad_bar == Tensor::<f64, D>::zeros();
     let gvd = g_bar.v + g_bar.dv;
     let flip = !old.is_empty();
-    let (mut x_bar, mut wv) = (Vector::zeros(), Vector::zeros());
+    if grad_bar == Tensor::<f64, D>::zeros() {
+        return closed_gather_adjoint(site, g_bar, gvd, aff_bar, velocity, old, out);
+    }
     let mut k = 0;
     site.each(|n, w, gradient, offset| {
-        // t = Ḡ.v + Ḡ.dv + Ā o_i: the node's share is w t (plus the ∇w term), and its
-        // weight derivative's factor v_i·t.
+        // t = Ḡ.v + Ḡ.dv + Ā o_i: the node's share is w t plus the ∇w term.
         let t = match &aff_bar {
             Some(aff) => gvd + aff * offset,
             None => gvd,
         };
-        let mut a = t * w;
-        if !closed {
-            a += grad_bar * gradient;
-        }
+        let a = t * w + grad_bar * gradient;
         out[k] = (n, a, if flip { -g_bar.dv * w } else { Vector::zeros() });
         k += 1;
-        if closed {
-            let vi = velocity[n];
-            let mut s = vi.dot(&t);
-            if flip {
-                s -= old[n].dot(&g_bar.dv);
-            }
-            x_bar += gradient * s;
-            wv += vi * w;
-        }
     });
-    if closed {
-        if let Some(aff) = &aff_bar {
-            x_bar -= aff.transpose() * wv;
-        }
-        return x_bar;
-    }
     let (gv, gdv) = (g_bar.v.map(Dual64::from_re), g_bar.dv.map(Dual64::from_re));
     let grad_d = grad_bar.map(Dual64::from_re);
     let aff_d = aff_bar.map(|a| a.map(Dual64::from_re));
@@ -155,6 +149,63 @@ pub(super) fn gather_adjoint<const D: usize>(
         }
         s
     })
+}
+
+/// [`gather_adjoint`] without a `∇w` term, row by row ([`Site::rows`]). The position
+/// derivative is in closed form: `J = Σ_i w_i a_i` with `a_i = v_i·t_i − vⁿ_i·Ḡ.dv`,
+/// `t_i = Ḡ.v + Ḡ.dv + Ā o_i`, so `∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i`
+/// (`∂o_i/∂x_p = −I`): the weights' first derivatives only. Along a row `t_i = t_row + Ā e₀ o_i`
+/// with `t_row = Ḡ.v + Ḡ.dv + Σ_{a≥1} Ā e_a o_a` (the row's offsets), and `w_i`, `∇w_i` are the
+/// row's factors times the node's axis-0 factors, so a node forms only its axis-0 terms.
+fn closed_gather_adjoint<const D: usize>(
+    site: &Site<'_, D>,
+    g_bar: &Gathered<f64, D>,
+    gvd: Vector<f64, D>,
+    aff_bar: Option<Tensor<f64, D>>,
+    velocity: &[Vector<f64, D>],
+    old: &[Vector<f64, D>],
+    out: &mut [(usize, Vector<f64, D>, Vector<f64, D>)],
+) -> Vector<f64, D> {
+    let flip = !old.is_empty();
+    let (mut x_bar, mut wv) = (Vector::<f64, D>::zeros(), Vector::<f64, D>::zeros());
+    let mut k = 0;
+    site.rows(|row, [w0, dw0, o0], nodes| {
+        let (mut t_row, mut a0) = (gvd, Vector::<f64, D>::zeros());
+        if let Some(aff) = &aff_bar {
+            for c in 1..D {
+                t_row += aff.column(c) * row.offset[c];
+            }
+            a0 = aff.column(0).into_owned();
+        }
+        let v_row = &velocity[nodes.clone()];
+        let old_row = if flip { &old[nodes.clone()] } else { &[] };
+        // Σ N' a, Σ N a and Σ N v over the row.
+        let (mut sd, mut sw, mut sv) = (0.0, 0.0, Vector::<f64, D>::zeros());
+        for (i, n) in nodes.enumerate() {
+            let t = t_row + a0 * o0[i];
+            let w = w0[i] * row.weight;
+            let shares = if flip { -g_bar.dv * w } else { Vector::zeros() };
+            out[k] = (n, t * w, shares);
+            k += 1;
+            let vi = v_row[i];
+            let mut a = vi.dot(&t);
+            if flip {
+                a -= old_row[i].dot(&g_bar.dv);
+            }
+            sd += dw0[i] * a;
+            sw += w0[i] * a;
+            sv += vi * w0[i];
+        }
+        x_bar[0] += sd * row.weight;
+        for c in 1..D {
+            x_bar[c] += sw * row.gradient[c];
+        }
+        wv += sv * row.weight;
+    });
+    if let Some(aff) = &aff_bar {
+        x_bar -= aff.transpose() * wv;
+    }
+    x_bar
 }
 
 /// The node adjoints a particle's P2G contributions meet, summed over its stencil:

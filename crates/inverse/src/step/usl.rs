@@ -1,6 +1,7 @@
 //! USL in reverse: per particle, the local VJP of G2P and the particle end together
-//! ([`kernels::usl_particle`]; in closed form for MLS-MPM with the fluid, [`fluid_mls`]) and
-//! the scatter of the gathered sums' adjoints to the nodes.
+//! ([`kernels::usl_particle`]; in closed form for MLS-MPM with the fluid, [`fluid_mls`], whose
+//! gathered sums are read from the state after the step) and the scatter of the gathered
+//! sums' adjoints to the nodes.
 
 use super::fluid_mls;
 use super::kernels::{self, End, Motion};
@@ -11,7 +12,7 @@ use crate::lanes::{Packed, Unpack};
 use loam_core::constitutive::Model;
 use loam_core::stencil::Layout;
 use loam_core::step::EndOfStep;
-use loam_core::tensor::Vector;
+use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::{Gathered, g2p};
 use loam_core::{Particles, ShapeFunction};
 use num_dual::Dual64;
@@ -24,6 +25,7 @@ impl<const D: usize> ReverseStep<D> {
     pub(super) fn usl_particles(
         &mut self,
         p: &Particles<f64, D>,
+        after: &Particles<f64, D>,
         time: f64,
         dt: f64,
         adjoint: &ParticleAdjoint<D>,
@@ -49,6 +51,13 @@ impl<const D: usize> ReverseStep<D> {
                 l
             })
             .collect();
+        // MLS-MPM with the fluid: the particle end sets `v = G.v`, `C = G.affine` and
+        // `x = x + Δt G.v`, and the projection of a shallow wall crossing puts the coordinate
+        // exactly on a face of the grid box (`EndOfStep::project`); a particle that ended
+        // elsewhere carries its gathered sums in the state after the step, so they are read
+        // from it instead of gathered again (a particle on a face is gathered again).
+        let (lo, hi) = (grid.lo, grid.hi());
+        let on_the_box = |x: &Vector<f64, D>| (0..D).any(|a| x[a] == lo[a] || x[a] == hi[a]);
         let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut scatter: Scatter<D> =
             vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
@@ -63,18 +72,30 @@ impl<const D: usize> ReverseStep<D> {
                     let i = chunk * CHUNK + k;
                     let mat = p.material[i] as usize;
                     let site = self.site(p, i);
-                    let g = g2p(
-                        site.stencil(),
-                        &layout,
-                        grid,
-                        shape,
-                        transfer,
-                        !transfer.is_mls(),
-                        v_hat,
-                        old,
-                    );
+                    let gather = || {
+                        g2p(
+                            site.stencil(),
+                            &layout,
+                            grid,
+                            shape,
+                            transfer,
+                            !transfer.is_mls(),
+                            v_hat,
+                            old,
+                        )
+                    };
                     let model = &cfg.materials[mat].model;
                     let g_bar = if let (true, Model::Fluid(fluid)) = (transfer.is_mls(), model) {
+                        let g = if on_the_box(&after.x[i]) {
+                            gather()
+                        } else {
+                            Gathered {
+                                v: after.v[i],
+                                affine: after.c[i],
+                                dv: Vector::zeros(),
+                                grad_v: Tensor::zeros(),
+                            }
+                        };
                         let y = (
                             &adjoint.x[i],
                             &adjoint.v[i],
@@ -94,6 +115,7 @@ impl<const D: usize> ReverseStep<D> {
                         }
                         r.g_bar
                     } else {
+                        let g = gather();
                         let mut input = Packed::<f64>::default();
                         input.vector(&g.v);
                         input.vector(&g.dv);
