@@ -59,9 +59,9 @@ struct Params {
     depth: f32,
     particles: u32,
     pad: u32,
-    // Entries of `table`: materials (one each), then friction segments and obstacles (four
-    // each, contact.wgsl).
-    materials: u32,
+    // Entries of `table` the materials take (MATERIAL_ENTRIES each), then friction segments
+    // and obstacles (four each, contact.wgsl).
+    material_entries: u32,
     segments: u32,
     obstacles: u32,
     // The obstacles' contact layer φ < reach ‖n‖₁: reach = s h, s the half-width of the
@@ -84,13 +84,13 @@ struct Params {
 // Deformation gradient F, D² per particle (row-major).
 @group(0) @binding(3) var<storage, read_write> def: array<f32>;
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
-// bits).
+// bits), equivalent plastic strain (n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
 @group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
-// Per material: bulk modulus, Tait exponent, viscosity, the exponent as a whole number (0 if
-// it is not one); then the friction segments and the obstacles (contact.wgsl).
+// Per material MATERIAL_ENTRIES entries (constitutive.wgsl); then the friction segments and
+// the obstacles (contact.wgsl).
 @group(0) @binding(8) var<storage, read> table: array<vec4<f32>>;
 
 // The accumulator entry `e` (0: mass, 1..=D: momentum, D+1..=2D: force) of node `n`.
@@ -201,6 +201,14 @@ fn volume0_of(i: u32) -> f32 {
 
 fn material_of(i: u32) -> u32 {
     return bitcast<u32>(mat[8u * prm.particles + i]);
+}
+
+fn plastic_strain_of(i: u32) -> f32 {
+    return mat[9u * prm.particles + i];
+}
+
+fn set_plastic_strain(i: u32, x: f32) {
+    mat[9u * prm.particles + i] = x;
 }
 
 // The in-plane determinant (the D × D one: F_zz = 1 in 2D adds nothing).
