@@ -3,7 +3,7 @@
 
 use crate::error::GpuError;
 use bytemuck::{Pod, Zeroable};
-use loam_core::constitutive::{Lame, Model};
+use loam_core::constitutive::{Lame, Material, Model};
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
 use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
@@ -159,29 +159,31 @@ const MATERIAL_ENTRIES: usize = 3;
 /// The entries of one material for constitutive.wgsl: `(model, μ, λ, K)` (`K` for
 /// Drucker–Prager only; the fluid's moduli are in its second entry), then per model
 /// the fluid's `(K, γ, η, γ as a whole number up to 64, else 0: the power then goes through
-/// exp and ln, as on the CPU)` or Drucker–Prager's `(α, k, σ_t, q_c)` and `(α_ψ, 0, 0, 0)`.
+/// exp and ln, as on the CPU)` or Drucker–Prager's `(α, k, σ_t, q_c)`; then `(α_ψ, c, 0, 0)`
+/// with Drucker–Prager's `α_ψ` (0 for the other models) and the wave speed `c`.
 /// The Drucker–Prager constants come from loam-core's own methods evaluated in f32, the
 /// values the CPU's f32 return mapping uses.
-fn material_entries(model: &Model<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
+fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
     let elastic = |code: f32, lame: &Lame<f32>| [code, lame.mu, lame.lambda, 0.0];
-    match model {
+    let c = material.wave_speed() as f32;
+    match &material.model {
         Model::Fluid(f) => {
             let n = f.gamma as u32;
             let whole = if n as f32 == f.gamma && n <= 64 { n } else { 0 };
             [
                 [0.0; 4],
                 [f.bulk_modulus, f.gamma, f.viscosity, whole as f32],
-                [0.0; 4],
+                [0.0, c, 0.0, 0.0],
             ]
         }
-        Model::NeoHookean(m) => [elastic(1.0, &m.lame), [0.0; 4], [0.0; 4]],
-        Model::Hencky(m) => [elastic(2.0, &m.lame), [0.0; 4], [0.0; 4]],
+        Model::NeoHookean(m) => [elastic(1.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::Hencky(m) => [elastic(2.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
         Model::DruckerPrager(m) => {
             let (sigma_t, q_c) = m.corner();
             [
                 [3.0, m.lame.mu, m.lame.lambda, m.bulk_modulus()],
                 [m.alpha(), m.k(), sigma_t, q_c],
-                [m.alpha_psi(), 0.0, 0.0, 0.0],
+                [m.alpha_psi(), c, 0.0, 0.0],
             ]
         }
         Model::LinearElastic(_) | Model::J2(_) => unreachable!("refused by `check`"),
@@ -191,11 +193,7 @@ fn material_entries(model: &Model<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
 /// The table of `common.wgsl`: the materials ([`material_entries`]), then four entries per
 /// friction segment and per obstacle ([`segment_entries`], [`obstacle_entries`]).
 pub(crate) fn table<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]> {
-    let mut table: Vec<[f32; 4]> = config
-        .materials
-        .iter()
-        .flat_map(|m| material_entries(&m.model))
-        .collect();
+    let mut table: Vec<[f32; 4]> = config.materials.iter().flat_map(material_entries).collect();
     for s in &config.contact.segments {
         table.extend(segment_entries(&config.grid, s));
     }

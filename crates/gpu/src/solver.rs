@@ -18,13 +18,16 @@ const STEPS_PER_SUBMIT: usize = 32;
 /// Steps between two reads of the stability flags.
 pub const CHECK_EVERY: usize = 128;
 
-/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle), 16 ids
-/// per kind, the obstacle of the first particle inside one, and the clock, as `common.wgsl`
-/// lays them out.
-const FLAG_KINDS: usize = 5;
+/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle, a fixed
+/// step above the stability bound), 16 ids per kind, the obstacle of the first particle
+/// inside one, the step of the first stability flag, and the clock, as `common.wgsl` lays
+/// them out.
+const FLAG_KINDS: usize = 6;
 const MAX_IDS: usize = 16;
+const FLAG_TIME_STEP: usize = 5;
 const FLAG_OBSTACLE: usize = FLAG_KINDS * (1 + MAX_IDS);
-const FLAG_WORDS: usize = FLAG_OBSTACLE + 2;
+const FLAG_STEP: usize = FLAG_OBSTACLE + 1;
+const FLAG_WORDS: usize = FLAG_OBSTACLE + 3;
 /// Where the largest speed per material starts in the flags buffer (after the clock).
 const SPEEDS: usize = FLAG_WORDS;
 
@@ -487,7 +490,8 @@ impl<const D: usize> GpuSolver<D> {
         Ok(out)
     }
 
-    /// Reads the stability flags; an error names the first kind raised and its particles.
+    /// Reads the stability flags; an error names the first kind raised and its particles (a
+    /// fixed step above the stability bound first, with the step it was found in).
     pub fn check(&self) -> Result<(), GpuError> {
         let words: Vec<u32> = self
             .read(&self.flags, FLAG_WORDS)?
@@ -495,7 +499,8 @@ impl<const D: usize> GpuSolver<D> {
             .map(|x| x.to_bits())
             .collect();
         let step = self.steps;
-        for kind in 0..FLAG_KINDS {
+        // The step's stability check comes first: it flags the cause of what follows.
+        for kind in [FLAG_TIME_STEP, 0, 1, 2, 3, 4] {
             let count = words[kind];
             if count == 0 {
                 continue;
@@ -504,6 +509,12 @@ impl<const D: usize> GpuSolver<D> {
             let mut ids = words[start..start + (count as usize).min(MAX_IDS)].to_vec();
             ids.sort_unstable();
             return Err(match kind {
+                FLAG_TIME_STEP => GpuError::TimeStepTooLarge {
+                    step: words[FLAG_STEP] as usize,
+                    dt: self.dt,
+                    count,
+                    ids,
+                },
                 0 => GpuError::NonFinite { step, count, ids },
                 1 => GpuError::Inverted { step, count, ids },
                 2 => GpuError::Escaped { step, count, ids },

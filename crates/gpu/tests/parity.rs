@@ -581,3 +581,46 @@ fn unsupported_models_name_their_field() {
     let config = built.explicit_config().unwrap().lift::<f32>();
     assert!(GpuSolver::supports(&config).is_ok());
 }
+
+/// The fixed step's stability check, step by step on the device: the 2D dam-break with a
+/// fixed step of 5.5e-4 s passes at rest (h / c = 5.7e-4 s) and fails once the surge is
+/// faster than h / Δt − c = 1.36 m/s. The CPU solver in f32 stops at the start of some step
+/// with its limiting particle; the GPU reports the same step (the largest speed grows by
+/// about g Δt = 5e-3 m/s a step, far above the f32 round-off of the speeds that could move
+/// the crossing) and the same particle among the ids it keeps.
+#[test]
+fn a_fixed_step_above_the_stability_bound_is_reported_at_its_step() {
+    let Some(gpu) = gpu(false) else {
+        return;
+    };
+    let text = DAM_BREAK_2D.replace("dt = 1e-4", "dt = 5.5e-4");
+    let (config, particles) = scene::<2>(&text, "musl", "apic");
+    let mut p = particles.lift::<f32>();
+    let mut solver = Solver::new(config.lift::<f32>(), &p).expect("valid config");
+    let (cpu_step, cpu_particle) = loop {
+        match solver.step(&mut p, f64::INFINITY) {
+            Ok(_) => assert!(solver.steps() < 2000, "the CPU run stays under its bound"),
+            Err(loam_explicit::StepError::TimeStepTooLarge { step, particle, .. }) => {
+                break (step, particle);
+            }
+            Err(e) => panic!("expected the step to be too large, got {e}"),
+        }
+    };
+    assert!(cpu_step > 10, "the initial state is within the bound");
+    let p32 = particles.lift::<f32>();
+    let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
+    match solver.advance(cpu_step + 5) {
+        Err(GpuError::TimeStepTooLarge {
+            step, count, ids, ..
+        }) => {
+            assert_eq!(step, cpu_step);
+            if count as usize <= ids.len() {
+                assert!(
+                    ids.contains(&(cpu_particle as u32)),
+                    "{cpu_particle} in {ids:?}"
+                );
+            }
+        }
+        other => panic!("expected the step to be too large at step {cpu_step}, got {other:?}"),
+    }
+}

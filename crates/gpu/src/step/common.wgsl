@@ -28,13 +28,16 @@ const FLAG_INVERTED: u32 = 1u;
 const FLAG_ESCAPED: u32 = 2u;
 const FLAG_LEFT_GRID: u32 = 3u;
 const FLAG_INSIDE_OBSTACLE: u32 = 4u;
-const FLAG_KINDS: u32 = 5u;
+// A fixed step above the stability bound h / (c + |v|) of a particle at the start of a step.
+const FLAG_TIME_STEP: u32 = 5u;
+const FLAG_KINDS: u32 = 6u;
 const MAX_IDS: u32 = 16u;
 // After the ids: the obstacle the first particle raising FLAG_INSIDE_OBSTACLE was inside,
-// the clock (steps begun, counted by `clear`), then per material the largest particle speed
-// (f32 bits, adaptive step).
+// the step in which FLAG_TIME_STEP was first raised, the clock (steps begun, counted by
+// `clear`), then per material the largest particle speed (f32 bits, adaptive step).
 const FLAG_OBSTACLE: u32 = FLAG_KINDS * (1u + MAX_IDS);
-const CLOCK: u32 = FLAG_OBSTACLE + 1u;
+const FLAG_STEP: u32 = FLAG_OBSTACLE + 1u;
+const CLOCK: u32 = FLAG_STEP + 1u;
 const SPEEDS: u32 = CLOCK + 1u;
 
 struct Params {

@@ -7,7 +7,8 @@
 // A material is MATERIAL_ENTRIES entries of `table` (params.rs writes them):
 //   0: (model, μ, λ, K = λ + ⅔μ)
 //   1: fluid: (K, γ, η, γ as a whole number ≤ 64 or 0); Drucker–Prager: (α, k, σ_t, q_c)
-//   2: Drucker–Prager: (α_ψ, 0, 0, 0)
+//   2: (α_ψ (Drucker–Prager, else 0), c, 0, 0), c the elastic wave speed of the material
+//      (`Material::wave_speed`, the fixed step's stability bound h / (c + |v|) in p2g.wgsl)
 // The Drucker–Prager constants are the CPU's own f32 values (`DruckerPrager::alpha`, `k`,
 // `corner`, `alpha_psi`, `bulk_modulus` evaluated in f32 on the host), so both sides start
 // every return from the same bits.

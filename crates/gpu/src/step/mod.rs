@@ -2,7 +2,8 @@
 //!
 //! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags and the
 //! clock) and `contact.wgsl` (friction segments, obstacles) go in front of each kernel file,
-//! and `constitutive.wgsl` (the stress updates) in front of `g2p.wgsl`,
+//! and `constitutive.wgsl` (the stress updates, the materials' table) in front of `p2g.wgsl`
+//! and `g2p.wgsl`,
 //! after a header of constants: the dimension, the transfer, the
 //! scheme, the axis of the ghost passes, and the accumulator with its atomic add (native f32
 //! atomics, or a compare-exchange loop on the bits).
@@ -126,7 +127,7 @@ impl Kernels {
                 cache: None,
             })
         };
-        let p2g = module(P2G, 0, true);
+        let p2g = module(&format!("{CONSTITUTIVE}\n{P2G}"), 0, true);
         let g2p = module(&format!("{CONSTITUTIVE}\n{G2P}"), 0, true);
         let grid: Vec<[wgpu::ShaderModule; 2]> = (0..variant.dim)
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
