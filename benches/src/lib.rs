@@ -17,6 +17,13 @@
 //!   Coulomb floor segments, MLS-MPM with USL), where the fixed costs of a step dominate at
 //!   the smallest size, at 1×, 4× and 13× the resolution.
 //! - `column_3d_93k`: a Drucker–Prager granular column collapse in 3D (93,312 particles).
+//! - `dambreak_3d_125k`, `dambreak_3d_1m`, `dambreak_3d_1920k`: a 3D water dam-break (MLS-MPM,
+//!   USL, fixed step), on the CPU or the GPU.
+//! - `dambreak_obstacles_3d_123k`, `_1m`, `_1920k`: the 3D dam-break against two rigid
+//!   columns (122,880, 983,040 and 1,920,000 particles), on the CPU or the GPU.
+//! - `cylinder_collapse_3d_100k`, `_1m`, `_2710k`: a full cylinder of Drucker–Prager sand
+//!   collapsing on a Coulomb floor (101,592, 993,208 and 2,712,288 particles; APIC, MUSL,
+//!   fixed step), on the CPU or the GPU.
 //!
 //! The implicit bench scenes are scene files too ([`IMPLICIT_SCENES`]): the reference
 //! cantilever `examples/cantilever.toml` (cpGIMP), its quadratic-B-spline twin
@@ -52,7 +59,7 @@ macro_rules! bench_scene {
 }
 
 /// The explicit bench scenes.
-pub const EXPLICIT_SCENES: [BenchScene; 10] = [
+pub const EXPLICIT_SCENES: [BenchScene; 16] = [
     bench_scene!("block_2d_10k", "benches/scenes/block_2d_10k.toml"),
     bench_scene!("block_2d_100k", "benches/scenes/block_2d_100k.toml"),
     bench_scene!("block_3d_100k", "benches/scenes/block_3d_100k.toml"),
@@ -69,6 +76,30 @@ pub const EXPLICIT_SCENES: [BenchScene; 10] = [
     bench_scene!("dambreak_3d_125k", "benches/scenes/dambreak_3d_125k.toml"),
     bench_scene!("dambreak_3d_1m", "benches/scenes/dambreak_3d_1m.toml"),
     bench_scene!("dambreak_3d_1920k", "benches/scenes/dambreak_3d_1920k.toml"),
+    bench_scene!(
+        "dambreak_obstacles_3d_123k",
+        "benches/scenes/dambreak_obstacles_3d_123k.toml"
+    ),
+    bench_scene!(
+        "dambreak_obstacles_3d_1m",
+        "benches/scenes/dambreak_obstacles_3d_1m.toml"
+    ),
+    bench_scene!(
+        "dambreak_obstacles_3d_1920k",
+        "benches/scenes/dambreak_obstacles_3d_1920k.toml"
+    ),
+    bench_scene!(
+        "cylinder_collapse_3d_100k",
+        "benches/scenes/cylinder_collapse_3d_100k.toml"
+    ),
+    bench_scene!(
+        "cylinder_collapse_3d_1m",
+        "benches/scenes/cylinder_collapse_3d_1m.toml"
+    ),
+    bench_scene!(
+        "cylinder_collapse_3d_2710k",
+        "benches/scenes/cylinder_collapse_3d_2710k.toml"
+    ),
 ];
 
 /// The solver inputs of the explicit bench scene `name` (a stem of [`EXPLICIT_SCENES`]) in
@@ -336,6 +367,39 @@ mod tests {
                 1000.0,
             );
         }
+    }
+
+    /// The smallest sizes of the GPU bench families: the dam-break's water is the lattice of
+    /// 2 × 2 × 2 particles per cell over 0.6 m × 0.5 m × 0.8 m, clear of its two columns; the
+    /// cylinder of sand holds the particles of its volume `π R² H / dp³` up to those of one
+    /// layer at its surface, `A / dp²` (`A = 2π R H + 2π R²`), all inside it.
+    #[test]
+    fn gpu_bench_families_are_their_geometry() {
+        let (config, particles) = load::<3>("dambreak_obstacles_3d_123k");
+        let h = 0.025;
+        assert_grid(&config, [64, 32, 32], h);
+        assert_lattice(&particles, [0.0; 3], [48, 40, 64], 0.5 * h, 1000.0);
+        assert_eq!(config.contact.obstacles.len(), 2);
+        for x in &particles.x {
+            assert_eq!(config.contact.penetrated(&[x[0], x[1], x[2]], 0.0), None);
+        }
+        let (config, particles) = load::<3>("cylinder_collapse_3d_100k");
+        let (h, r, height) = (0.0075, 0.0942, 0.19);
+        assert_eq!(config.grid.cells, [74, 28, 74]);
+        assert_eq!(config.grid.lo, [-0.2775, 0.0, -0.2775]);
+        assert!((config.grid.h / h - 1.0).abs() < 1e-15);
+        let dp = 0.5 * h;
+        let volume = std::f64::consts::PI * r * r * height;
+        let surface = 2.0 * std::f64::consts::PI * r * (height + r);
+        let n = particles.len() as f64;
+        assert!(
+            (n - volume / dp.powi(3)).abs() <= surface / (dp * dp),
+            "{n} particles"
+        );
+        for x in &particles.x {
+            assert!(x[0] * x[0] + x[2] * x[2] <= r * r && x[1] > 0.0 && x[1] < height);
+        }
+        assert_eq!(config.contact.segments.len(), 1);
     }
 
     #[test]

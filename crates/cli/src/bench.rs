@@ -32,7 +32,7 @@ struct Bench {
 
 /// The benches, in the order `loam bench` runs them. The default step counts keep each one
 /// to a few seconds on two cores, except `dambreak`, which runs the whole 0.4 s scene.
-const BENCHES: [Bench; 11] = [
+const BENCHES: [Bench; 17] = [
     Bench {
         name: "dambreak",
         description: "friction dam-break, 6,000 particles, the whole 0.4 s (13,333 steps of 3e-5 s)",
@@ -99,6 +99,42 @@ const BENCHES: [Bench; 11] = [
         steps: 10,
         gpu_steps: 200,
     },
+    Bench {
+        name: "dambreak-obstacles-3d-123k",
+        description: "3D water dam-break against two columns, 122,880 particles (CPU or GPU)",
+        steps: 50,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "dambreak-obstacles-3d-1m",
+        description: "3D water dam-break against two columns, 983,040 particles (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "dambreak-obstacles-3d-1920k",
+        description: "3D water dam-break against two columns, 1,920,000 particles (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "cylinder-collapse-3d-100k",
+        description: "3D Drucker–Prager cylinder collapse, 101,592 particles (CPU or GPU)",
+        steps: 50,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "cylinder-collapse-3d-1m",
+        description: "3D Drucker–Prager cylinder collapse, 993,208 particles (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
+    },
+    Bench {
+        name: "cylinder-collapse-3d-2710k",
+        description: "3D Drucker–Prager cylinder collapse, 2,712,288 particles (CPU or GPU)",
+        steps: 10,
+        gpu_steps: 200,
+    },
 ];
 
 /// What one bench measured.
@@ -113,6 +149,8 @@ struct Measured {
     iterations: Option<usize>,
     /// Gradient time over forward time, and the forward time (the gradient bench only).
     ratio: Option<(f64, f64)>,
+    /// The bytes of the buffers the GPU solver allocated (GPU benches only).
+    device_bytes: Option<u64>,
 }
 
 impl Measured {
@@ -222,7 +260,8 @@ pub fn bench(
 }
 
 /// Times `steps` explicit steps of the bench `name` in precision `T`.
-/// The GPU benches (`--device gpu`): the 3D dam-breaks in f32 on the first adapter.
+/// The GPU benches (`--device gpu`): the 3D dam-breaks and cylinder collapses in f32 on the
+/// first adapter.
 fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -> Outcome {
     if let Some(b) = selected.iter().find(|b| b.gpu_steps == 0) {
         let gpu: Vec<&str> = BENCHES
@@ -246,17 +285,14 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
     };
     println!("{} (atomics: {:?})", device.name(), device.atomics());
     println!(
-        "{:<18} {:>9} {:>10} {:>7} {:>10} {:>14}",
-        "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s"
+        "{:<27} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
+        "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s", "device MiB"
     );
     let mut results = Vec::new();
     for b in selected {
-        let scene = match b.name {
-            "dambreak-3d-125k" => "dambreak_3d_125k",
-            "dambreak-3d-1m" => "dambreak_3d_1m",
-            _ => "dambreak_3d_1920k",
-        };
-        let m = match time_gpu_steps(&device, b.name, scene, steps.unwrap_or(b.gpu_steps)) {
+        // The GPU benches' scene files are their names with underscores.
+        let scene = b.name.replace('-', "_");
+        let m = match time_gpu_steps(&device, b.name, &scene, steps.unwrap_or(b.gpu_steps)) {
             Ok(m) => m,
             Err(e) => {
                 eprintln!("error: {}: {e}", b.name);
@@ -264,13 +300,14 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
             }
         };
         println!(
-            "{:<18} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}",
+            "{:<27} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e} {:>11.1}",
             m.name,
             m.precision,
             m.particles,
             m.steps,
             m.wall,
-            m.rate()
+            m.rate(),
+            m.device_bytes.unwrap_or(0) as f64 / (1u64 << 20) as f64
         );
         results.push(m);
     }
@@ -285,7 +322,7 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
 
 /// [`time_steps`] on the GPU: the steps are recorded and submitted in batches, with the
 /// stability flags read back every `loam_gpu::CHECK_EVERY` steps and at the end (so the wall
-/// time covers the finished work).
+/// time covers the finished work); also the device memory the solver's buffers take.
 fn time_gpu_steps(
     device: &loam_gpu::Gpu,
     name: &'static str,
@@ -305,6 +342,7 @@ fn time_gpu_steps(
         wall: start.elapsed().as_secs_f64(),
         iterations: None,
         ratio: None,
+        device_bytes: Some(solver.device_bytes()),
     })
 }
 
@@ -319,6 +357,18 @@ fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {
         "dambreak-3d-125k" => time_steps::<T, 3>(name, "dambreak_3d_125k", steps),
         "dambreak-3d-1m" => time_steps::<T, 3>(name, "dambreak_3d_1m", steps),
         "dambreak-3d-1920k" => time_steps::<T, 3>(name, "dambreak_3d_1920k", steps),
+        "dambreak-obstacles-3d-123k" => {
+            time_steps::<T, 3>(name, "dambreak_obstacles_3d_123k", steps)
+        }
+        "dambreak-obstacles-3d-1m" => time_steps::<T, 3>(name, "dambreak_obstacles_3d_1m", steps),
+        "dambreak-obstacles-3d-1920k" => {
+            time_steps::<T, 3>(name, "dambreak_obstacles_3d_1920k", steps)
+        }
+        "cylinder-collapse-3d-100k" => time_steps::<T, 3>(name, "cylinder_collapse_3d_100k", steps),
+        "cylinder-collapse-3d-1m" => time_steps::<T, 3>(name, "cylinder_collapse_3d_1m", steps),
+        "cylinder-collapse-3d-2710k" => {
+            time_steps::<T, 3>(name, "cylinder_collapse_3d_2710k", steps)
+        }
         _ => unreachable!("`{name}` is in BENCHES"),
     }
 }
@@ -350,6 +400,7 @@ fn time_steps<T: Scalar, const D: usize>(
         wall: start.elapsed().as_secs_f64(),
         iterations: None,
         ratio: None,
+        device_bytes: None,
     }
 }
 
@@ -391,6 +442,7 @@ fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
         wall,
         iterations: None,
         ratio: Some((wall / forward, forward)),
+        device_bytes: None,
     })
 }
 
@@ -425,6 +477,7 @@ fn cantilever() -> Result<Measured, loam_implicit::ImplicitError> {
         wall: start.elapsed().as_secs_f64(),
         iterations: Some(iterations),
         ratio: None,
+        device_bytes: None,
     })
 }
 
@@ -455,6 +508,7 @@ fn write_json(path: &Path, results: &[Measured]) -> std::io::Result<()> {
                 "particle_steps_per_s": m.rate(),
                 "newton_iterations": m.iterations,
                 "gradient_over_forward": m.ratio.map(|r| r.0),
+                "device_bytes": m.device_bytes,
                 "threads": rayon::current_num_threads(),
                 "cpu": cpu_model(),
             })

@@ -129,8 +129,8 @@ enum Command {
         /// Run the explicit benches in single precision.
         #[arg(long)]
         f32: bool,
-        /// Where the explicit benches run: `gpu` runs the 3D dam-breaks (default: all three)
-        /// in f32 on the first GPU adapter (Vulkan, Metal or DX12).
+        /// Where the explicit benches run: `gpu` runs the 3D dam-breaks and cylinder collapses
+        /// (default: all nine) in f32 on the first GPU adapter (Vulkan, Metal or DX12).
         #[arg(long, value_enum, default_value_t = Device::Cpu)]
         device: Device,
         /// Write the results as JSON to this file.
@@ -144,8 +144,8 @@ enum Command {
 enum Device {
     /// The CPU solver (all features, f64 or f32).
     Cpu,
-    /// The GPU solver of `loam-gpu` (f32; fluid scenes with walls, friction segments and
-    /// obstacles).
+    /// The GPU solver of `loam-gpu` (f32; fluid, Neo-Hookean, Hencky and Drucker–Prager
+    /// scenes with walls, friction segments and obstacles).
     Gpu,
 }
 

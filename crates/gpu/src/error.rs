@@ -73,6 +73,22 @@ pub enum GpuError {
         /// The obstacle (its index in the scene) the first of them is inside.
         obstacle: u32,
     },
+    /// A fixed time step above the stability bound `h / (c_p + |v_p|)` of some particles at
+    /// the start of a step (the CPU solver's per-step check of a fixed `Δt`).
+    #[error(
+        "step {step}: the fixed time step {dt:e} s is above the stability bound h / (c + |v|) \
+         of {count} particle(s) (ids {ids:?}); lower solver.time_step.dt or use an adaptive step"
+    )]
+    TimeStepTooLarge {
+        /// The first step (counted from 1) whose start failed the check.
+        step: usize,
+        /// The fixed step.
+        dt: f64,
+        /// How many particles failed it in that step and the steps after, up to the check.
+        count: u32,
+        /// Up to 16 of their ids.
+        ids: Vec<u32>,
+    },
     /// A buffer could not be read back.
     #[error("reading back from the GPU failed: {0}")]
     Readback(String),

@@ -3,7 +3,7 @@
 
 use crate::error::GpuError;
 use bytemuck::{Pod, Zeroable};
-use loam_core::constitutive::Model;
+use loam_core::constitutive::{Lame, Material, Model};
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
 use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
@@ -30,7 +30,7 @@ pub(crate) struct Params {
     pub depth: f32,
     pub particles: u32,
     pub pad: u32,
-    pub materials: u32,
+    pub material_entries: u32,
     pub segments: u32,
     pub obstacles: u32,
     pub reach: f32,
@@ -89,10 +89,10 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuEr
         ));
     }
     for (k, m) in config.materials.iter().enumerate() {
-        if !matches!(m.model, Model::Fluid(_)) {
+        if let Model::LinearElastic(_) | Model::J2(_) = m.model {
             return Err(unsupported(
                 &format!("materials[{k}].model"),
-                "a material other than `fluid`",
+                "a model other than `fluid`, `neo_hookean`, `hencky` or `drucker_prager`",
             ));
         }
     }
@@ -145,7 +145,7 @@ pub(crate) fn params<const D: usize>(
     p.depth = (PROJECTION_DEPTH * grid.h) as f32;
     p.particles = particles as u32;
     p.pad = grid.pad as u32;
-    p.materials = config.materials.len() as u32;
+    p.material_entries = (MATERIAL_ENTRIES * config.materials.len()) as u32;
     p.segments = config.contact.segments.len() as u32;
     p.obstacles = config.contact.obstacles.len() as u32;
     p.reach = (config.contact.support * grid.h) as f32;
@@ -153,23 +153,47 @@ pub(crate) fn params<const D: usize>(
     p
 }
 
-/// The table of `common.wgsl`: per material its bulk modulus, Tait exponent, viscosity, and
-/// the exponent as a whole number up to 64 (0 otherwise: the power goes through exp and ln,
-/// as on the CPU); then four entries per friction segment and per obstacle
-/// ([`segment_entries`], [`obstacle_entries`]).
+/// Entries of the table per material (`MATERIAL_ENTRIES` of constitutive.wgsl).
+const MATERIAL_ENTRIES: usize = 3;
+
+/// The entries of one material for constitutive.wgsl: `(model, μ, λ, K)` (`K` for
+/// Drucker–Prager only; the fluid's moduli are in its second entry), then per model
+/// the fluid's `(K, γ, η, γ as a whole number up to 64, else 0: the power then goes through
+/// exp and ln, as on the CPU)` or Drucker–Prager's `(α, k, σ_t, q_c)`; then `(α_ψ, c, 0, 0)`
+/// with Drucker–Prager's `α_ψ` (0 for the other models) and the wave speed `c`.
+/// The Drucker–Prager constants come from loam-core's own methods evaluated in f32, the
+/// values the CPU's f32 return mapping uses.
+fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
+    let elastic = |code: f32, lame: &Lame<f32>| [code, lame.mu, lame.lambda, 0.0];
+    let c = material.wave_speed() as f32;
+    match &material.model {
+        Model::Fluid(f) => {
+            let n = f.gamma as u32;
+            let whole = if n as f32 == f.gamma && n <= 64 { n } else { 0 };
+            [
+                [0.0; 4],
+                [f.bulk_modulus, f.gamma, f.viscosity, whole as f32],
+                [0.0, c, 0.0, 0.0],
+            ]
+        }
+        Model::NeoHookean(m) => [elastic(1.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::Hencky(m) => [elastic(2.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::DruckerPrager(m) => {
+            let (sigma_t, q_c) = m.corner();
+            [
+                [3.0, m.lame.mu, m.lame.lambda, m.bulk_modulus()],
+                [m.alpha(), m.k(), sigma_t, q_c],
+                [m.alpha_psi(), c, 0.0, 0.0],
+            ]
+        }
+        Model::LinearElastic(_) | Model::J2(_) => unreachable!("refused by `check`"),
+    }
+}
+
+/// The table of `common.wgsl`: the materials ([`material_entries`]), then four entries per
+/// friction segment and per obstacle ([`segment_entries`], [`obstacle_entries`]).
 pub(crate) fn table<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]> {
-    let mut table: Vec<[f32; 4]> = config
-        .materials
-        .iter()
-        .map(|m| match &m.model {
-            Model::Fluid(f) => {
-                let n = f.gamma as u32;
-                let whole = if n as f32 == f.gamma && n <= 64 { n } else { 0 };
-                [f.bulk_modulus, f.gamma, f.viscosity, whole as f32]
-            }
-            _ => unreachable!("checked by `check`"),
-        })
-        .collect();
+    let mut table: Vec<[f32; 4]> = config.materials.iter().flat_map(material_entries).collect();
     for s in &config.contact.segments {
         table.extend(segment_entries(&config.grid, s));
     }
@@ -183,30 +207,36 @@ pub(crate) fn table<const D: usize>(config: &Config<f32, D>) -> Vec<[f32; 4]> {
 /// last node index whose coordinate lies in the segment's range, found with loam-core's own
 /// test ([`FrictionSegment::contains`], in f64) so that the GPU picks the same nodes (an
 /// empty range has first > last), and a zero entry.
+///
+/// The range is a product over the tangential axes, so each axis's is found by moving one
+/// index of a face node inside the segment with the others held (in 3D, holding the other
+/// tangential index at a node outside its range would empty every range).
 fn segment_entries<const D: usize>(grid: &Grid<D>, s: &FrictionSegment<f32, D>) -> [[f32; 4]; 4] {
     let nodes = grid.nodes();
-    let mut first = [0.0f32; 4];
+    let mut first = [1.0f32; 4];
     let mut last = [0.0f32; 4];
-    for a in 0..D {
-        if a == s.axis {
-            last[a] = nodes[a] as f32;
-            continue;
+    let face = if s.side == 1 { nodes[s.axis] - 1 } else { 0 };
+    let inner = (0..grid.num_nodes())
+        .map(|n| grid.multi(n))
+        .find(|&idx| idx[s.axis] == face && s.contains(grid, idx));
+    if let Some(inner) = inner {
+        for a in 0..D {
+            if a == s.axis {
+                (first[a], last[a]) = (0.0, nodes[a] as f32);
+                continue;
+            }
+            let node = |i: usize| {
+                let mut idx = inner;
+                idx[a] = i;
+                idx
+            };
+            let inside: Vec<usize> = (0..nodes[a])
+                .filter(|&i| s.contains(grid, node(i)))
+                .collect();
+            // Not empty: `inner` itself is inside.
+            first[a] = inside[0] as f32;
+            last[a] = inside[inside.len() - 1] as f32;
         }
-        // A node on the segment's face whose coordinate along `a` is `i`.
-        let node = |i: usize| {
-            std::array::from_fn(|b| match b {
-                _ if b == a => i,
-                _ if b == s.axis && s.side == 1 => nodes[b] - 1,
-                _ => 0,
-            })
-        };
-        let inside: Vec<usize> = (0..nodes[a])
-            .filter(|&i| s.contains(grid, node(i)))
-            .collect();
-        (first[a], last[a]) = match (inside.first(), inside.last()) {
-            (Some(&f), Some(&l)) => (f as f32, l as f32),
-            _ => (1.0, 0.0),
-        };
     }
     [
         [s.axis as f32, s.side as f32, s.mu, 0.0],

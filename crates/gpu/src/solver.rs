@@ -5,9 +5,11 @@ use crate::device::Gpu;
 use crate::error::GpuError;
 use crate::params::{self, Params};
 use crate::step::{Kernels, Variant};
+use loam_core::constitutive::{DruckerPrager, Model};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{Boundary, Grid, Particles, Scalar, TimeStep, WallKind};
 use loam_explicit::Config;
+use nalgebra::Matrix3;
 use wgpu::util::DeviceExt;
 
 /// Steps recorded into one command buffer.
@@ -16,13 +18,16 @@ const STEPS_PER_SUBMIT: usize = 32;
 /// Steps between two reads of the stability flags.
 pub const CHECK_EVERY: usize = 128;
 
-/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle), 16 ids
-/// per kind, the obstacle of the first particle inside one, and the clock, as `common.wgsl`
-/// lays them out.
-const FLAG_KINDS: usize = 5;
+/// Flag counters (non-finite, inverted, escaped, left the grid, inside an obstacle, a fixed
+/// step above the stability bound), 16 ids per kind, the obstacle of the first particle
+/// inside one, the step of the first stability flag, and the clock, as `common.wgsl` lays
+/// them out.
+const FLAG_KINDS: usize = 6;
 const MAX_IDS: usize = 16;
+const FLAG_TIME_STEP: usize = 5;
 const FLAG_OBSTACLE: usize = FLAG_KINDS * (1 + MAX_IDS);
-const FLAG_WORDS: usize = FLAG_OBSTACLE + 2;
+const FLAG_STEP: usize = FLAG_OBSTACLE + 1;
+const FLAG_WORDS: usize = FLAG_OBSTACLE + 3;
 /// Where the largest speed per material starts in the flags buffer (after the clock).
 const SPEEDS: usize = FLAG_WORDS;
 
@@ -39,6 +44,11 @@ pub struct GpuSolver<const D: usize> {
     mat: wgpu::Buffer,
     flags: wgpu::Buffer,
     acc: wgpu::Buffer,
+    /// The bytes of every buffer the solver allocated on the device.
+    device_bytes: u64,
+    /// Per material, the Drucker–Prager model (whose state tensor, `I + 2 C⁻¹:σ`, the
+    /// read-back rebuilds from the stress).
+    drucker_prager: Vec<Option<DruckerPrager<f32>>>,
     grid: Grid<D>,
     boundary: Boundary<D>,
     particles: usize,
@@ -145,6 +155,7 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(&particles.mass);
         mat.extend(&particles.volume0);
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
+        mat.extend(particles.state.iter().map(|s| s.plastic_strain));
         let table = params::table(config);
         let buffers = [
             (
@@ -219,6 +230,7 @@ impl<const D: usize> GpuSolver<D> {
                 .collect::<Vec<_>>(),
         });
         let kernels = Kernels::new(&gpu.device, &layout, variant);
+        let device_bytes = bound.iter().map(|b| b.size()).sum();
         Ok(Self {
             gpu: gpu.clone(),
             kernels,
@@ -230,6 +242,15 @@ impl<const D: usize> GpuSolver<D> {
             mat,
             flags,
             acc,
+            device_bytes,
+            drucker_prager: config
+                .materials
+                .iter()
+                .map(|m| match &m.model {
+                    Model::DruckerPrager(dp) => Some(*dp),
+                    _ => None,
+                })
+                .collect(),
             grid: config.grid.clone(),
             boundary: config.boundary,
             particles: n,
@@ -273,6 +294,12 @@ impl<const D: usize> GpuSolver<D> {
     /// The smallest and the largest step taken (`(∞, 0)` before any).
     pub fn dt_range(&self) -> (f64, f64) {
         self.dt_range
+    }
+
+    /// The device memory the solver holds: the sum of the sizes of the buffers it allocated
+    /// (particles, grid, flags, table, uniform block), in bytes.
+    pub fn device_bytes(&self) -> u64 {
+        self.device_bytes
     }
 
     /// The adapter the steps run on ([`Gpu::name`]).
@@ -463,7 +490,8 @@ impl<const D: usize> GpuSolver<D> {
         Ok(out)
     }
 
-    /// Reads the stability flags; an error names the first kind raised and its particles.
+    /// Reads the stability flags; an error names the first kind raised and its particles (a
+    /// fixed step above the stability bound first, with the step it was found in).
     pub fn check(&self) -> Result<(), GpuError> {
         let words: Vec<u32> = self
             .read(&self.flags, FLAG_WORDS)?
@@ -471,7 +499,8 @@ impl<const D: usize> GpuSolver<D> {
             .map(|x| x.to_bits())
             .collect();
         let step = self.steps;
-        for kind in 0..FLAG_KINDS {
+        // The step's stability check comes first: it flags the cause of what follows.
+        for kind in [FLAG_TIME_STEP, 0, 1, 2, 3, 4] {
             let count = words[kind];
             if count == 0 {
                 continue;
@@ -480,6 +509,12 @@ impl<const D: usize> GpuSolver<D> {
             let mut ids = words[start..start + (count as usize).min(MAX_IDS)].to_vec();
             ids.sort_unstable();
             return Err(match kind {
+                FLAG_TIME_STEP => GpuError::TimeStepTooLarge {
+                    step: words[FLAG_STEP] as usize,
+                    dt: self.dt,
+                    count,
+                    ids,
+                },
                 0 => GpuError::NonFinite { step, count, ids },
                 1 => GpuError::Inverted { step, count, ids },
                 2 => GpuError::Escaped { step, count, ids },
@@ -518,9 +553,12 @@ impl<const D: usize> GpuSolver<D> {
         Ok(total)
     }
 
-    /// Copies the device's particle state (x, v, C, F, stress) into `particles` (the particles
-    /// the solver was built from, in f32 or widened to another scalar type such as f64 for
-    /// output); their other fields are left as they are.
+    /// Copies the device's particle state (x, v, C, F, stress, the equivalent plastic strain)
+    /// into `particles` (the particles the solver was built from, in f32 or widened to another
+    /// scalar type such as f64 for output); once a step is taken, a Drucker–Prager particle's
+    /// state tensor is `I + 2 C⁻¹:σ` of its stress, as the CPU's return mapping leaves it
+    /// (computed in f32 by `DruckerPrager::compliance`). Their other fields are left as they
+    /// are.
     pub fn read_particles<T: Scalar>(
         &self,
         particles: &mut Particles<T, D>,
@@ -529,7 +567,7 @@ impl<const D: usize> GpuSolver<D> {
         let kin = self.read(&self.kin, 2 * D * n)?;
         let aff = self.read(&self.aff, D * D * n)?;
         let def = self.read(&self.def, D * D * n)?;
-        let mat = self.read(&self.mat, 6 * n)?;
+        let mat = self.read(&self.mat, 10 * n)?;
         let t = |x: f32| T::cst(f64::from(x));
         for i in 0..n {
             particles.x[i] = Vector::from_fn(|a, _| t(kin[i * D + a]));
@@ -537,17 +575,15 @@ impl<const D: usize> GpuSolver<D> {
             particles.c[i] = Tensor::from_fn(|r, c| t(aff[i * D * D + r * D + c]));
             particles.f[i] = Tensor::from_fn(|r, c| t(def[i * D * D + r * D + c]));
             let s = &mat[6 * i..6 * i + 6];
-            particles.stress[i] = nalgebra::Matrix3::new(
-                t(s[0]),
-                t(s[3]),
-                t(s[4]),
-                t(s[3]),
-                t(s[1]),
-                t(s[5]),
-                t(s[4]),
-                t(s[5]),
-                t(s[2]),
-            );
+            let stress = Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
+            particles.stress[i] = stress.map(t);
+            particles.state[i].plastic_strain = t(mat[9 * n + i]);
+            if let Some(dp) = &self.drucker_prager[particles.material[i] as usize]
+                && self.steps > 0
+            {
+                let tensor = Matrix3::identity() + dp.compliance(&stress) * 2.0;
+                particles.state[i].tensor = tensor.map(t);
+            }
         }
         Ok(())
     }

@@ -28,13 +28,16 @@ const FLAG_INVERTED: u32 = 1u;
 const FLAG_ESCAPED: u32 = 2u;
 const FLAG_LEFT_GRID: u32 = 3u;
 const FLAG_INSIDE_OBSTACLE: u32 = 4u;
-const FLAG_KINDS: u32 = 5u;
+// A fixed step above the stability bound h / (c + |v|) of a particle at the start of a step.
+const FLAG_TIME_STEP: u32 = 5u;
+const FLAG_KINDS: u32 = 6u;
 const MAX_IDS: u32 = 16u;
 // After the ids: the obstacle the first particle raising FLAG_INSIDE_OBSTACLE was inside,
-// the clock (steps begun, counted by `clear`), then per material the largest particle speed
-// (f32 bits, adaptive step).
+// the step in which FLAG_TIME_STEP was first raised, the clock (steps begun, counted by
+// `clear`), then per material the largest particle speed (f32 bits, adaptive step).
 const FLAG_OBSTACLE: u32 = FLAG_KINDS * (1u + MAX_IDS);
-const CLOCK: u32 = FLAG_OBSTACLE + 1u;
+const FLAG_STEP: u32 = FLAG_OBSTACLE + 1u;
+const CLOCK: u32 = FLAG_STEP + 1u;
 const SPEEDS: u32 = CLOCK + 1u;
 
 struct Params {
@@ -59,9 +62,9 @@ struct Params {
     depth: f32,
     particles: u32,
     pad: u32,
-    // Entries of `table`: materials (one each), then friction segments and obstacles (four
-    // each, contact.wgsl).
-    materials: u32,
+    // Entries of `table` the materials take (MATERIAL_ENTRIES each), then friction segments
+    // and obstacles (four each, contact.wgsl).
+    material_entries: u32,
     segments: u32,
     obstacles: u32,
     // The obstacles' contact layer φ < reach ‖n‖₁: reach = s h, s the half-width of the
@@ -84,13 +87,13 @@ struct Params {
 // Deformation gradient F, D² per particle (row-major).
 @group(0) @binding(3) var<storage, read_write> def: array<f32>;
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
-// bits).
+// bits), equivalent plastic strain (n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
 @group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
-// Per material: bulk modulus, Tait exponent, viscosity, the exponent as a whole number (0 if
-// it is not one); then the friction segments and the obstacles (contact.wgsl).
+// Per material MATERIAL_ENTRIES entries (constitutive.wgsl); then the friction segments and
+// the obstacles (contact.wgsl).
 @group(0) @binding(8) var<storage, read> table: array<vec4<f32>>;
 
 // The accumulator entry `e` (0: mass, 1..=D: momentum, D+1..=2D: force) of node `n`.
@@ -201,6 +204,14 @@ fn volume0_of(i: u32) -> f32 {
 
 fn material_of(i: u32) -> u32 {
     return bitcast<u32>(mat[8u * prm.particles + i]);
+}
+
+fn plastic_strain_of(i: u32) -> f32 {
+    return mat[9u * prm.particles + i];
+}
+
+fn set_plastic_strain(i: u32, x: f32) {
+    mat[9u * prm.particles + i] = x;
 }
 
 // The in-plane determinant (the D × D one: F_zz = 1 in 2D adds nothing).

@@ -154,7 +154,7 @@ fn cylinder_distance(x: vec3<f32>, radius: f32, half: f32, axis: u32) -> Distanc
 }
 
 fn obstacle_at(k: u32) -> u32 {
-    return prm.materials + 4u * (prm.segments + k);
+    return prm.material_entries + 4u * (prm.segments + k);
 }
 
 fn obstacle_velocity(k: u32) -> vec3<f32> {
@@ -208,7 +208,7 @@ fn contact(idx: vec3<u32>, v: ptr<function, vec3<f32>>, t: f32, given: u32, deci
     var acted = 0u;
     var faces_done = 0u;
     for (var s = 0u; s < prm.segments; s++) {
-        let at = prm.materials + 4u * s;
+        let at = prm.material_entries + 4u * s;
         let seg = table[at];
         let axis = u32(seg.x);
         let side = u32(seg.y);

@@ -1,7 +1,8 @@
 // Grid to particle and the end of the particle's step: the gather (PIC / APIC / TPIC / MLS,
 // row by row as loam-core's `g2p` in transfer.rs), MUSL's second scatter of momentum, and the
-// update of F and the stress with the wall projection and the stability flags (loam-core's
-// `particle_end`). Launched by step/mod.rs with common.wgsl and contact.wgsl in front.
+// update of F and the stress (constitutive.wgsl) with the wall projection and the stability
+// flags (loam-core's `particle_end`). Launched by step/mod.rs with common.wgsl, contact.wgsl
+// and constitutive.wgsl in front.
 
 struct Gathered {
     v: vec3<f32>,
@@ -63,42 +64,6 @@ fn velocity_gradient(g: Gathered) -> mat3x3<f32> {
     return g.grad_v;
 }
 
-// Tait pressure p(J) = (K/γ)(J^−γ − 1); a whole γ up to 64 by repeated squaring.
-fn pressure(m: vec4<f32>, j: f32) -> f32 {
-    var power: f32;
-    var n = u32(m.w);
-    if n > 0u {
-        var acc = 1.0;
-        var base = j;
-        loop {
-            if (n & 1u) == 1u {
-                acc *= base;
-            }
-            n = n >> 1u;
-            if n == 0u {
-                break;
-            }
-            base *= base;
-        }
-        power = 1.0 / acc;
-    } else {
-        power = exp(-m.y * log(j));
-    }
-    return (m.x / m.y) * (power - 1.0);
-}
-
-fn fluid_stress(m: vec4<f32>, f: mat3x3<f32>, l: mat3x3<f32>) -> mat3x3<f32> {
-    let p = pressure(m, det3(f));
-    let iso = mat3x3<f32>(vec3<f32>(-p, 0.0, 0.0), vec3<f32>(0.0, -p, 0.0), vec3<f32>(0.0, 0.0, -p));
-    if m.z == 0.0 {
-        return iso;
-    }
-    let d = (l + transpose(l)) * 0.5;
-    let tr = (d[0][0] + d[1][1] + d[2][2]) / 3.0;
-    let dev = d - mat3x3<f32>(vec3<f32>(tr, 0.0, 0.0), vec3<f32>(0.0, tr, 0.0), vec3<f32>(0.0, 0.0, tr));
-    return dev * (m.z * 2.0) + iso;
-}
-
 // Project a particle just past a separable wall back onto it (removing its velocity into the
 // wall), update F and the stress, store x, v, F, σ and raise the stability flags.
 fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
@@ -121,11 +86,15 @@ fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
         delta_f[2][2] = 1.0;
     }
     f = delta_f * f;
-    let stress = fluid_stress(table[material_of(i)], f, l);
+    let updated = update_stress(material_of(i), f, l, load_stress(i));
+    let stress = updated.sigma;
     store_vec(x_at(), i, x);
     store_vec(v_at(), i, v);
     store_f(i, f);
     store_stress(i, stress);
+    if updated.plastic != 0.0 {
+        set_plastic_strain(i, plastic_strain_of(i) + updated.plastic);
+    }
     var sum = 0.0;
     for (var a = 0u; a < 3u; a++) {
         sum += x[a] + v[a] + f[a][0] + f[a][1] + f[a][2];

@@ -2,6 +2,8 @@
 //!
 //! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags and the
 //! clock) and `contact.wgsl` (friction segments, obstacles) go in front of each kernel file,
+//! and `constitutive.wgsl` (the stress updates, the materials' table) in front of `p2g.wgsl`
+//! and `g2p.wgsl`,
 //! after a header of constants: the dimension, the transfer, the
 //! scheme, the axis of the ghost passes, and the accumulator with its atomic add (native f32
 //! atomics, or a compare-exchange loop on the bits).
@@ -29,6 +31,7 @@ const CONTACT: &str = include_str!("contact.wgsl");
 const P2G: &str = include_str!("p2g.wgsl");
 const GRID: &str = include_str!("grid.wgsl");
 const G2P: &str = include_str!("g2p.wgsl");
+const CONSTITUTIVE: &str = include_str!("constitutive.wgsl");
 
 /// What a step's kernels are compiled for.
 #[derive(Clone, Copy, Debug)]
@@ -124,8 +127,8 @@ impl Kernels {
                 cache: None,
             })
         };
-        let p2g = module(P2G, 0, true);
-        let g2p = module(G2P, 0, true);
+        let p2g = module(&format!("{CONSTITUTIVE}\n{P2G}"), 0, true);
+        let g2p = module(&format!("{CONSTITUTIVE}\n{G2P}"), 0, true);
         let grid: Vec<[wgpu::ShaderModule; 2]> = (0..variant.dim)
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
             .collect();

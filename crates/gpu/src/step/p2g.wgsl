@@ -1,5 +1,7 @@
 // Particle to grid: mass, momentum and (APIC / PIC / TPIC) internal force scattered onto the
-// accumulator with atomic adds. Launched by step/mod.rs with common.wgsl in front.
+// accumulator with atomic adds, with the fixed step's stability check. Launched by
+// step/mod.rs with common.wgsl, contact.wgsl and constitutive.wgsl in front (the last for
+// the materials' table layout).
 
 // Zeroes the accumulator (every entry of every node) and counts the step in the clock.
 @compute @workgroup_size(WG)
@@ -37,6 +39,15 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
             _ = raise(FLAG_LEFT_GRID, i);
             continue;
         }
+        let v = load_vec(v_at(), i);
+        // The fixed step's check at the start of the step, as the CPU solver's `choose_dt`:
+        // Δt > h / (c + |v|), c the material's elastic wave speed (constitutive.wgsl's table).
+        if prm.adaptive == 0u {
+            let c = table[material_of(i) * MATERIAL_ENTRIES + 2u].y;
+            if prm.dt > prm.h / (c + length(v)) && raise(FLAG_TIME_STEP, i) == 0u {
+                atomicStore(&flags[FLAG_STEP], atomicLoad(&flags[CLOCK]));
+            }
+        }
         let f = load_f(i);
         let volume = volume0_of(i) * det3(f);
         var sv = load_stress(i) * volume;
@@ -46,7 +57,6 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
             sv[1][2] = 0.0;
         }
         let m = mass_of(i);
-        let v = load_vec(v_at(), i);
         let mls = TRANSFER == TRANSFER_MLS;
         var mc = mat3x3<f32>();
         if TRANSFER != TRANSFER_PIC {
