@@ -79,6 +79,7 @@ pub(crate) fn lbfgs(
             x: z.to_vec(),
             loss,
             gradient,
+            curvature: None,
         })
     };
     let project = |z: &mut [f64]| {

@@ -322,6 +322,20 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
             "positive",
         ),
         (
+            format!(
+                "{head}{synth}{param}[optimizer]\nmethod = \"levenberg_marquardt\"\ndamping = 0.0\n"
+            ),
+            "optimizer.damping",
+            "positive",
+        ),
+        (
+            format!(
+                "{head}{synth}[[velocity_field]]\ndirection = [1.0, 0.0]\n[optimizer]\nmethod = \"levenberg_marquardt\"\n"
+            ),
+            "optimizer.method",
+            "at most 16",
+        ),
+        (
             format!("{head}{synth}{param}[stop]\nmax_iteration = 3\n"),
             "stop.max_iteration",
             "unknown field",

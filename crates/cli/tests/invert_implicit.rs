@@ -185,6 +185,14 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
             "applies to explicit scenes",
         ),
         (
+            format!(
+                "{}{young}{synth}[optimizer]\nmethod = \"levenberg_marquardt\"\n",
+                on(&beam)
+            ),
+            "optimizer.method",
+            "applies to explicit scenes",
+        ),
+        (
             format!("{}end_time = 1.0\n{young}{synth}", on(&beam)),
             "end_time",
             "applies to explicit scenes",

@@ -161,6 +161,14 @@ impl<const D: usize> ScalarObjective<D> for DepositProfile<D> {
         }
         loss
     }
+
+    /// `√w (h_s − h*)` per observed station.
+    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        let root = T::cst(self.weight.sqrt());
+        for &(s, target) in self.targets.get(&step).into_iter().flatten() {
+            out.push((self.stations[s].depth(particles, self.up) - T::cst(target)) * root);
+        }
+    }
 }
 
 #[cfg(test)]

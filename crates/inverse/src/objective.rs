@@ -24,6 +24,11 @@ pub trait ScalarObjective<const D: usize>: Objective<D> {
     /// `ℓ_n` of the state after `step` steps, in the scalar type of the run; its real part
     /// equals [`Objective::term`].
     fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T;
+
+    /// The residuals `rᵢ` of the least-squares form `ℓ_n = Σᵢ rᵢ²` of the state after `step`
+    /// steps, appended to `out`: what a Gauss–Newton step linearises
+    /// (`∂ℓ_n/∂θ = 2 Σᵢ rᵢ ∂rᵢ/∂θ`, `∂²ℓ_n/∂θ² ≈ 2 Σᵢ (∂rᵢ/∂θ)(∂rᵢ/∂θ)ᵀ`).
+    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>);
 }
 
 /// Squared mismatch of tracked particle positions:
@@ -74,5 +79,14 @@ impl<const D: usize> ScalarObjective<D> for TrackedPositions<D> {
             loss += d.norm_squared() * T::cst(self.weight);
         }
         loss
+    }
+
+    /// `√w (x_p − x*)`, component by component.
+    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        let root = T::cst(self.weight.sqrt());
+        for (p, target) in self.targets.get(&step).into_iter().flatten() {
+            let d = particles.x[*p] - target.map(T::cst);
+            out.extend(d.iter().map(|&d| d * root));
+        }
     }
 }

@@ -115,6 +115,16 @@ impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
         }
         loss
     }
+
+    /// `√w (v̄ − v*)`, component by component.
+    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        let root = T::cst(self.weight.sqrt());
+        for (b, target) in self.targets.get(&step).into_iter().flatten() {
+            let (_, mean) = self.boxes[*b].mean_velocity(particles);
+            let d = mean - target.map(T::cst);
+            out.extend(d.iter().map(|&d| d * root));
+        }
+    }
 }
 
 /// Every observation of an inversion: `L = L_tracked + L_monitors + L_deposit`.
@@ -222,6 +232,13 @@ impl<const D: usize> ScalarObjective<D> for Observations<D> {
         self.tracked.value(step, particles)
             + self.monitors.value(step, particles)
             + self.deposit.value(step, particles)
+    }
+
+    /// The tracked positions', the monitors' and the deposit's residuals, in that order.
+    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        self.tracked.residuals(step, particles, out);
+        self.monitors.residuals(step, particles, out);
+        self.deposit.residuals(step, particles, out);
     }
 }
 

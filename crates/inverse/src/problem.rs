@@ -60,6 +60,18 @@ impl Control {
     }
 }
 
+/// A Gauss–Newton model of a least-squares loss `L = Σᵢ rᵢ(θ)²` at a point
+/// ([`Problem::gauss_newton`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GaussNewtonModel {
+    /// `L`.
+    pub loss: f64,
+    /// `∇L = 2 Jᵀr`.
+    pub gradient: Vec<f64>,
+    /// `H = 2 JᵀJ`, row-major, `n × n`.
+    pub matrix: Vec<f64>,
+}
+
 /// A loss over an explicit run as a function of its unknowns `θ`.
 #[derive(Clone, Debug)]
 pub struct Problem<const D: usize, O> {
@@ -230,15 +242,64 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
             .collect()
     }
 
-    /// `dL/dθ_k` at `theta` by a forward-mode dual run: the configuration lifted to `Dual64`
-    /// with the parameter seeded ([`Param::seeded`]; a density also seeds the masses,
+    /// `dL/dθ_k` at `theta` by a forward-mode dual run ([`Problem::seeded`]).
+    ///
+    /// # Errors
+    /// As [`Problem::loss`].
+    pub fn dual_derivative(&self, theta: &[f64], k: usize) -> Result<f64, AdjointError> {
+        let (config, particles) = self.seeded(theta, k)?;
+        Ok(run_value(config, particles, self.steps, &self.objective)?.eps)
+    }
+
+    /// The Gauss–Newton model of the loss at `theta` from the residuals `r` of
+    /// `L = Σᵢ rᵢ²` ([`ScalarObjective::residuals`]) and their Jacobian `J = ∂r/∂θ`, one
+    /// column per forward-mode dual run ([`Problem::seeded`]): `L`, `∇L = 2 Jᵀr` (exact, as
+    /// the adjoint's) and `H = 2 JᵀJ`, the Hessian without the terms in `∂²r/∂θ²` (which
+    /// vanish at a zero-residual minimum). It costs one dual run per unknown, so it suits an
+    /// inversion of a few parameters.
+    ///
+    /// # Errors
+    /// As [`Problem::loss`].
+    pub fn gauss_newton(&self, theta: &[f64]) -> Result<GaussNewtonModel, AdjointError> {
+        let n = theta.len();
+        let mut residuals = Vec::new();
+        let mut columns = Vec::with_capacity(n);
+        for k in 0..n {
+            let (config, particles) = self.seeded(theta, k)?;
+            let r = run_residuals(config, particles, self.steps, &self.objective)?;
+            if k == 0 {
+                residuals = r.iter().map(|r| r.re).collect();
+            }
+            columns.push(r.iter().map(|r| r.eps).collect::<Vec<f64>>());
+        }
+        let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
+        let mut matrix = vec![0.0; n * n];
+        for k in 0..n {
+            for l in 0..=k {
+                matrix[k * n + l] = 2.0 * dot(&columns[k], &columns[l]);
+                matrix[l * n + k] = matrix[k * n + l];
+            }
+        }
+        Ok(GaussNewtonModel {
+            loss: dot(&residuals, &residuals),
+            gradient: columns.iter().map(|c| 2.0 * dot(c, &residuals)).collect(),
+            matrix,
+        })
+    }
+
+    /// The configuration and particles at `theta` lifted to `Dual64` with unknown `k` seeded:
+    /// the parameter seeded ([`Param::seeded`]; a density also seeds the masses,
     /// `dm_p/dρ₀ = V⁰_p`), or the initial velocities seeded with `dv_p/dθ = d`, or, for a
     /// weight `w` of a velocity field, `dv_p/dw = d ∂f(x̂_p)/∂w` from the network evaluated
     /// with that weight seeded.
     ///
     /// # Errors
     /// As [`Problem::loss`].
-    pub fn dual_derivative(&self, theta: &[f64], k: usize) -> Result<f64, AdjointError> {
+    pub fn seeded(
+        &self,
+        theta: &[f64],
+        k: usize,
+    ) -> Result<(Config<Dual64, D>, Particles<Dual64, D>), AdjointError> {
         let (config, particles) = self.setup(theta)?;
         let mut lifted: Particles<Dual64, D> = particles.lift();
         let mut start = 0;
@@ -283,7 +344,7 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                 config.lift()
             }
         };
-        Ok(run_value(seeded, lifted, self.steps, &self.objective)?.eps)
+        Ok((seeded, lifted))
     }
 }
 
@@ -294,15 +355,47 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
 /// A run that is refused or stops.
 pub fn run_value<T: Scalar, const D: usize, O: ScalarObjective<D>>(
     config: Config<T, D>,
-    mut particles: Particles<T, D>,
+    particles: Particles<T, D>,
     steps: usize,
     objective: &O,
 ) -> Result<T, AdjointError> {
+    let mut loss = T::zero();
+    run_each(config, particles, steps, |s, p| {
+        loss += objective.value(s, p)
+    })?;
+    Ok(loss)
+}
+
+/// The residuals of every `ℓ_n` over a forward run of `steps` steps, in the order of the
+/// steps ([`ScalarObjective::residuals`]).
+///
+/// # Errors
+/// A run that is refused or stops.
+pub fn run_residuals<T: Scalar, const D: usize, O: ScalarObjective<D>>(
+    config: Config<T, D>,
+    particles: Particles<T, D>,
+    steps: usize,
+    objective: &O,
+) -> Result<Vec<T>, AdjointError> {
+    let mut out = Vec::new();
+    run_each(config, particles, steps, |s, p| {
+        objective.residuals(s, p, &mut out)
+    })?;
+    Ok(out)
+}
+
+/// Runs `steps` steps, handing the state after each (and the initial one, step 0) to `visit`.
+fn run_each<T: Scalar, const D: usize>(
+    config: Config<T, D>,
+    mut particles: Particles<T, D>,
+    steps: usize,
+    mut visit: impl FnMut(usize, &Particles<T, D>),
+) -> Result<(), AdjointError> {
     let mut solver = Solver::new(config, &particles)?;
-    let mut loss = objective.value(0, &particles);
+    visit(0, &particles);
     for s in 1..=steps {
         solver.step(&mut particles, f64::INFINITY)?;
-        loss += objective.value(s, &particles);
+        visit(s, &particles);
     }
-    Ok(loss)
+    Ok(())
 }

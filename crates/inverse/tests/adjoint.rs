@@ -21,7 +21,7 @@ use loam_core::tensor::Vector;
 use loam_explicit::Solver;
 use loam_inverse::{
     Checkpoints, Control, MaterialField, Objective, Param, Problem, TrackedPositions, check,
-    gradient,
+    gradient, run_residuals,
 };
 use num_dual::Dual64;
 use std::collections::BTreeMap;
@@ -60,7 +60,7 @@ fn check<const D: usize>(
     target: [f64; D],
     params: &[Param],
     no_difference: &[Param],
-) {
+) -> (Problem<D, TrackedPositions<D>>, Vec<f64>) {
     let (config, particles) = scene::<D>(toml);
     let objective = objective(particles.len(), steps, stride, target);
     let mut direction = [0.0; D];
@@ -113,6 +113,7 @@ fn check<const D: usize>(
             );
         }
     }
+    gauss_newton(&problem, &theta, loss, &grad);
     // The segment length does not change the result (checkpointing is exact): one step, a
     // length that does not divide the run, the whole run traced in one forward pass (a budget
     // it fits in).
@@ -124,6 +125,62 @@ fn check<const D: usize>(
         problem.checkpoints = checkpoints;
         assert_eq!(problem.gradient(&theta).expect("gradient").1, grad);
     }
+    (problem, theta)
+}
+
+/// The Gauss–Newton model from the residuals' dual Jacobian ([`Problem::gauss_newton`]):
+/// its `L = Σ r²` is the loss and its `2 Jᵀr` the adjoint's gradient (the same exact
+/// derivative, summed in another order: 1e-10 relative).
+fn gauss_newton<const D: usize>(
+    problem: &Problem<D, TrackedPositions<D>>,
+    theta: &[f64],
+    loss: f64,
+    grad: &[f64],
+) {
+    let model = problem.gauss_newton(theta).expect("Gauss–Newton model");
+    assert!(
+        (model.loss - loss).abs() <= 1e-12 * loss,
+        "{} vs {loss}",
+        model.loss
+    );
+    let scale = grad.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+    for (k, (a, b)) in model.gradient.iter().zip(grad).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-10 * scale,
+            "unknown {k}: 2Jᵀr {a:e} vs adjoint {b:e}"
+        );
+    }
+}
+
+/// The diagonal entry `2 ‖J_k‖²` of the Gauss–Newton matrix against the central difference
+/// `J_k ≈ (r(θ + δe_k) − r(θ − δe_k)) / 2δ` of the residuals (δ = 10⁻⁴ |θ_k|; truncation
+/// O(δ²) ≈ 1e-8 relative on this smooth fluid run, whose perturbed runs keep the forward
+/// run's stick/slip branches; 1e-5 leaves room for the round-off of the difference).
+fn gauss_newton_diagonal<const D: usize>(
+    problem: &Problem<D, TrackedPositions<D>>,
+    theta: &[f64],
+    k: usize,
+) {
+    let h = problem
+        .gauss_newton(theta)
+        .expect("Gauss–Newton model")
+        .matrix[k * theta.len() + k];
+    let delta = 1e-4 * theta[k].abs();
+    let residuals = |step: f64| {
+        let mut at = theta.to_vec();
+        at[k] += step;
+        let (config, particles) = problem.setup(&at).expect("setup");
+        run_residuals(config, particles, problem.steps, &problem.objective).expect("run")
+    };
+    let (plus, minus) = (residuals(delta), residuals(-delta));
+    let column: f64 = (plus.iter().zip(&minus))
+        .map(|(p, m)| ((p - m) / (2.0 * delta)).powi(2))
+        .sum();
+    assert!(
+        (2.0 * column - h).abs() <= 1e-5 * h,
+        "H_kk {h:e} vs difference {:e}",
+        2.0 * column
+    );
 }
 
 #[test]
@@ -137,7 +194,8 @@ fn fluid_mls_on_friction_segments() {
         Param::Material(0, MaterialField::Gamma),
         Param::Material(0, MaterialField::Density),
     ];
-    check::<2>(FLUID_2D, 60, 7, [0.3, 0.02], &params, &[]);
+    let (problem, theta) = check::<2>(FLUID_2D, 60, 7, [0.3, 0.02], &params, &[]);
+    gauss_newton_diagonal(&problem, &theta, 0);
 }
 
 /// A Neo-Hookean block (APIC with uGIMP: the affine matrix is the velocity gradient) thrown

@@ -60,6 +60,7 @@ fn invert(problem: &ImplicitProblem<2>, start: &[f64], scale: &[f64]) -> (Vec<f6
             x: z.to_vec(),
             loss,
             gradient: g.iter().zip(scale).map(|(g, s)| g * s).collect(),
+            curvature: None,
         })
     };
     let project = |z: &mut [f64]| z.iter_mut().for_each(|v| *v = v.clamp(0.5, 2.0));

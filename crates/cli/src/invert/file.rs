@@ -218,7 +218,19 @@ pub enum OptimizerSpec {
         #[serde(default = "tenth")]
         first_step: f64,
     },
+    /// Levenberg–Marquardt on the Gauss–Newton model, the Jacobian of the residuals by one
+    /// forward-mode dual run per unknown (explicit scenes, at most
+    /// [`LEVENBERG_MARQUARDT_UNKNOWNS`] unknowns).
+    LevenbergMarquardt {
+        /// The first damping `λ` (default 1e-3).
+        #[serde(default = "thousandth")]
+        damping: f64,
+    },
 }
+
+/// The most unknowns `method = "levenberg_marquardt"` takes: each costs a dual run per
+/// iteration, against one adjoint run for all of them with L-BFGS.
+pub const LEVENBERG_MARQUARDT_UNKNOWNS: usize = 16;
 
 impl Default for OptimizerSpec {
     fn default() -> Self {
@@ -240,6 +252,9 @@ fn ten() -> usize {
 }
 fn tenth() -> f64 {
     0.1
+}
+fn thousandth() -> f64 {
+    1e-3
 }
 
 /// `[stop]`: stop at the first rule met.
@@ -539,6 +554,19 @@ pub fn build<const D: usize>(
         }
     }
     check_optimiser(&file, &mut issue);
+    if matches!(file.optimizer, OptimizerSpec::LevenbergMarquardt { .. }) {
+        let unknowns: usize = controls.iter().map(Control::len).sum();
+        if unknowns > LEVENBERG_MARQUARDT_UNKNOWNS {
+            issue(
+                "optimizer.method".into(),
+                format!(
+                    "levenberg_marquardt takes one forward-mode run per unknown and iteration, \
+                     at most {LEVENBERG_MARQUARDT_UNKNOWNS}; this inversion has {unknowns} (a \
+                     velocity field's weights count one each): use lbfgs or adam"
+                ),
+            );
+        }
+    }
     let o = &file.observations;
     for (field, given) in [
         ("displacement", o.displacement.is_some()),
@@ -1089,6 +1117,14 @@ pub fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, Strin
                 issue(
                     "optimizer.first_step".into(),
                     format!("expected a positive number, got {first_step}"),
+                );
+            }
+        }
+        OptimizerSpec::LevenbergMarquardt { damping } => {
+            if !positive(damping) {
+                issue(
+                    "optimizer.damping".into(),
+                    format!("expected a positive number, got {damping}"),
                 );
             }
         }

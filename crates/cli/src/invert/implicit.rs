@@ -4,8 +4,8 @@
 //! (`docs/inversion-format.md`).
 
 use super::file::{
-    Invalid, Inversion, InversionFile, ParameterSpec, check_ids, check_optimiser, for_path,
-    invalid, tracked_ids, variable,
+    Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, check_ids, check_optimiser,
+    for_path, invalid, tracked_ids, variable,
 };
 use super::model::Model;
 use super::observed;
@@ -112,6 +112,14 @@ pub fn build<const D: usize>(
         });
     }
     check_optimiser(&file, &mut issue);
+    if matches!(file.optimizer, OptimizerSpec::LevenbergMarquardt { .. }) {
+        issue(
+            "optimizer.method".into(),
+            "levenberg_marquardt applies to explicit scenes; an implicit scene's inversion uses \
+             lbfgs or adam"
+                .into(),
+        );
+    }
     for (field, sigma) in [
         ("displacement_sigma", o.displacement_sigma),
         ("reaction_sigma", o.reaction_sigma),

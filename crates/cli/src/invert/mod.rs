@@ -20,7 +20,9 @@ use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
 use loam_core::tensor::Vector;
 use loam_inverse::optimise::norm;
-use loam_inverse::{Adam, AdjointError, Control, Evaluation, Lbfgs, Optimiser};
+use loam_inverse::{
+    Adam, AdjointError, Control, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt, Optimiser,
+};
 use model::Model;
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
@@ -268,6 +270,9 @@ fn optimiser(spec: &OptimizerSpec, n: usize) -> Optimiser {
         OptimizerSpec::Lbfgs { memory, first_step } => {
             Optimiser::Lbfgs(Lbfgs::new(memory, first_step))
         }
+        OptimizerSpec::LevenbergMarquardt { damping } => {
+            Optimiser::LevenbergMarquardt(LevenbergMarquardt::new(damping))
+        }
     }
 }
 
@@ -283,23 +288,38 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
     // z ↦ (L, ∇_z L) with ∇_z L = dL/dθ · dθ/dz.
     // After the first point, a trial point whose implicit run stops has an infinite loss.
     let first_done = Cell::new(resume);
+    let gauss_newton = matches!(inv.file.optimizer, OptimizerSpec::LevenbergMarquardt { .. });
     let mut evaluate = |z: &[f64]| -> Result<Evaluation, AdjointError> {
         runs.set(runs.get() + 1);
         let theta = physical(z);
-        let (loss, g) = if first_done.get() {
-            inv.problem.trial_gradient(&theta)?
+        let slopes: Vec<f64> = z.iter().zip(vars).map(|(z, v)| v.slope(*z)).collect();
+        let (loss, g, curvature) = if gauss_newton {
+            // The Gauss–Newton matrix in z: Sᵀ H S with S = diag(dθ/dz).
+            let GaussNewtonModel {
+                loss,
+                gradient,
+                matrix,
+            } = inv.problem.gauss_newton(&theta)?;
+            let n = z.len();
+            let h = (0..n * n)
+                .map(|i| matrix[i] * slopes[i / n] * slopes[i % n])
+                .collect();
+            (loss, gradient, Some(h))
+        } else if first_done.get() {
+            let (loss, g) = inv.problem.trial_gradient(&theta)?;
+            (loss, g, None)
         } else {
-            inv.problem.gradient(&theta)?
+            let (loss, g) = inv.problem.gradient(&theta)?;
+            (loss, g, None)
         };
         first_done.set(true);
-        let gz = (g.iter().zip(z).zip(vars))
-            .map(|((g, z), v)| g * v.slope(*z))
-            .collect();
+        let gz = g.iter().zip(&slopes).map(|(g, s)| g * s).collect();
         *last_physical.borrow_mut() = g;
         Ok(Evaluation {
             x: z.to_vec(),
             loss,
             gradient: gz,
+            curvature,
         })
     };
     let project = |z: &mut [f64]| z.iter_mut().zip(vars).for_each(|(z, v)| *z = v.project(*z));
@@ -437,8 +457,7 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
                 current = next;
             }
             Ok(None) => {
-                break "the line search found no decrease: a minimum to the loss's precision"
-                    .into();
+                break "no step found a decrease: a minimum to the loss's precision".into();
             }
             Err(e) => return failed(&inv.path, e),
         }

@@ -3,7 +3,7 @@
 //! and the checks see only a loss and its gradient as functions of `θ`.
 
 use loam_inverse::implicit::{ImplicitParam, ImplicitProblem, check as implicit_check};
-use loam_inverse::{AdjointError, Control, Observations, Problem, check};
+use loam_inverse::{AdjointError, Control, GaussNewtonModel, Observations, Problem, check};
 
 /// The loss of an inversion as a function of its unknowns.
 pub enum Model<const D: usize> {
@@ -40,6 +40,18 @@ impl<const D: usize> Model<D> {
         match self {
             Self::Explicit(p) => p.gradient(theta),
             Self::Implicit { problem, .. } => problem.trial_gradient(theta),
+        }
+    }
+
+    /// The Gauss–Newton model of the loss at `θ` ([`Problem::gauss_newton`]); the file's
+    /// checks allow it on explicit scenes only.
+    ///
+    /// # Errors
+    /// A run that fails.
+    pub fn gauss_newton(&self, theta: &[f64]) -> Result<GaussNewtonModel, AdjointError> {
+        match self {
+            Self::Explicit(p) => p.gauss_newton(theta),
+            Self::Implicit { .. } => unreachable!("optimizer.method is checked for the scene"),
         }
     }
 
