@@ -75,16 +75,7 @@ fn observe(
     let run = run_recorded(&problem.config, &problem.initial, None).map_err(failed)?;
     problem.observations.items = quantities
         .iter()
-        .map(|&(step, quantity, sigma)| {
-            let mut o = Observation {
-                step,
-                quantity,
-                value: 0.0,
-                sigma,
-            };
-            o.value = ImplicitObservations::model(&o, &run);
-            o
-        })
+        .map(|&(step, quantity, sigma)| Observation::of_run(step, quantity, sigma, &run))
         .collect();
     Ok(())
 }

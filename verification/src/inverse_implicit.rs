@@ -72,16 +72,7 @@ fn synthetic(
 ) -> Result<ImplicitProblem<2>, VerifyError> {
     let run = run_recorded(&config, &initial, None).map_err(failed(case))?;
     let items = (quantities.iter())
-        .map(|&(step, quantity)| {
-            let mut o = Observation {
-                step,
-                quantity,
-                value: 0.0,
-                sigma,
-            };
-            o.value = ImplicitObservations::model(&o, &run);
-            o
-        })
+        .map(|&(step, quantity)| Observation::of_run(step, quantity, sigma, &run))
         .collect();
     Ok(ImplicitProblem {
         config,

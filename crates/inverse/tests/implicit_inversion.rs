@@ -33,16 +33,7 @@ fn synthetic(
     let run = run_recorded(config, initial, None).expect("truth run");
     let items = quantities
         .iter()
-        .map(|&(step, quantity)| {
-            let mut o = Observation {
-                step,
-                quantity,
-                value: 0.0,
-                sigma,
-            };
-            o.value = ImplicitObservations::model(&o, &run);
-            o
-        })
+        .map(|&(step, quantity)| Observation::of_run(step, quantity, sigma, &run))
         .collect();
     ImplicitObservations { items }
 }

@@ -721,14 +721,7 @@ pub fn build<const D: usize>(
                 );
             }
             if truth.is_none() {
-                for (i, p) in file.parameters.iter().enumerate() {
-                    if p.truth.is_none() {
-                        issue(
-                            format!("parameters[{i}].truth"),
-                            "[synthetic] needs the truth value of every parameter".into(),
-                        );
-                    }
-                }
+                require_truth(&file, &mut issue);
             }
         }
         None => {
@@ -1079,6 +1072,18 @@ fn check_velocities(controls: &[Control], scalars: usize, issue: &mut dyn FnMut(
                     );
                 }
             }
+        }
+    }
+}
+
+/// Names every parameter without a `truth`, which `[synthetic]` needs.
+pub fn require_truth(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
+    for (i, p) in file.parameters.iter().enumerate() {
+        if p.truth.is_none() {
+            issue(
+                format!("parameters[{i}].truth"),
+                "[synthetic] needs the truth value of every parameter".into(),
+            );
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use super::file::{
     Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, check_ids, check_optimiser,
-    for_path, invalid, tracked_ids, variable,
+    for_path, invalid, require_truth, tracked_ids, variable,
 };
 use super::model::Model;
 use super::observed;
@@ -209,14 +209,7 @@ pub fn build<const D: usize>(
                 );
             }
             if truth.is_none() {
-                for (i, p) in file.parameters.iter().enumerate() {
-                    if p.truth.is_none() {
-                        issue(
-                            format!("parameters[{i}].truth"),
-                            "[synthetic] needs the truth value of every parameter".into(),
-                        );
-                    }
-                }
+                require_truth(&file, &mut issue);
             }
         }
         None => {
@@ -289,16 +282,7 @@ pub fn build<const D: usize>(
                 ));
             }
             (items.into_iter())
-                .map(|(step, quantity, sigma)| {
-                    let mut o = Observation {
-                        step,
-                        quantity,
-                        value: 0.0,
-                        sigma,
-                    };
-                    o.value = ImplicitObservations::model(&o, &run);
-                    o
-                })
+                .map(|(step, quantity, sigma)| Observation::of_run(step, quantity, sigma, &run))
                 .collect()
         }
         None => read_observations::<D>(path, &file, steps, n, sigmas, &reactions)?,

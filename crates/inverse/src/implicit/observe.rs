@@ -38,6 +38,27 @@ pub struct Observation {
     pub sigma: f64,
 }
 
+impl Observation {
+    /// The observation of `quantity` after load step `step` that `run` makes, `d = m(run)`
+    /// ([`ImplicitObservations::model`]: a synthetic observation), with standard deviation
+    /// `sigma`.
+    pub fn of_run<const D: usize>(
+        step: usize,
+        quantity: Quantity,
+        sigma: f64,
+        run: &Trajectory<D>,
+    ) -> Self {
+        let mut o = Self {
+            step,
+            quantity,
+            value: 0.0,
+            sigma,
+        };
+        o.value = ImplicitObservations::model(&o, run);
+        o
+    }
+}
+
 /// A least-squares loss `L = ½ Σ_k ((m_k − d_k)/σ_k)²` over observations `d_k` of model
 /// quantities `m_k` of the run.
 #[derive(Clone, Debug, Default, PartialEq)]
