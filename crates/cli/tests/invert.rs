@@ -1,27 +1,14 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files.
 
+mod common;
+
+use common::{assert_refused, loam, repo, text};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn loam(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args(args)
-        .output()
-        .expect("the loam binary runs")
-}
-
+/// A file of `examples/inverse/`.
 fn example(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../examples/inverse")
-        .join(name)
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+    repo("examples/inverse").join(name)
 }
 
 /// A small inversion of the example scene: the initial horizontal velocity (truth 2.0, first
@@ -408,23 +395,7 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
         ),
     ];
     std::fs::write(dir.path().join("obs.csv"), "step,id,x,y\n10,3,0.1\n").unwrap();
-    for (k, (body, field, words)) in cases.iter().enumerate() {
-        let path = dir.path().join(format!("bad{k}.toml"));
-        std::fs::write(&path, body).unwrap();
-        for cmd in ["gradient", "check"] {
-            let out = loam(&[cmd, path.to_str().unwrap()]);
-            let err = String::from_utf8_lossy(&out.stderr);
-            assert_eq!(out.status.code(), Some(2), "{cmd} case {k}: {err}");
-            assert!(
-                err.starts_with("error: ") && !err.contains("panicked"),
-                "{err}"
-            );
-            assert!(
-                err.contains(&format!("{field}: ")) && err.contains(words),
-                "case {k}: {err}"
-            );
-        }
-    }
+    assert_refused(dir.path(), &cases);
 }
 
 /// `--memory` chooses the adjoint's segments: a budget the whole run fits in gives the same

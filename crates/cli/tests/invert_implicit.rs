@@ -1,29 +1,10 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files
 //! whose scene is implicit (quasi-static load steps).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn loam(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args(args)
-        .output()
-        .expect("the loam binary runs")
-}
-
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
+use common::{assert_refused, loam, repo, text};
+use std::path::Path;
 
 /// The verification cantilever (64 particles) over 3 load steps: E and the tip load from
 /// the displacement of the loaded particle.
@@ -248,23 +229,7 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
         "step,reaction,force\n0,r,-1.0\n",
     )
     .unwrap();
-    for (k, (body, field, words)) in cases.iter().enumerate() {
-        let path = dir.path().join(format!("bad{k}.toml"));
-        std::fs::write(&path, body).unwrap();
-        for cmd in ["gradient", "check"] {
-            let out = loam(&[cmd, path.to_str().unwrap()]);
-            let err = String::from_utf8_lossy(&out.stderr);
-            assert_eq!(out.status.code(), Some(2), "{cmd} case {k}: {err}");
-            assert!(
-                err.starts_with("error: ") && !err.contains("panicked"),
-                "{err}"
-            );
-            assert!(
-                err.contains(&format!("{field}: ")) && err.contains(words),
-                "case {k}: {err}"
-            );
-        }
-    }
+    assert_refused(dir.path(), &cases);
 }
 
 /// An implicit inversion stopped after 2 iterations and resumed to 5 ends where a run of 5

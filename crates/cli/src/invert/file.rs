@@ -357,6 +357,20 @@ pub fn read(path: &Path) -> Result<InversionFile, Invalid> {
     Ok(file)
 }
 
+/// Why an observation file is refused beside `[synthetic]`.
+pub const SYNTHETIC_CLASH: &str = "not with [synthetic]: synthetic observations come from the \
+                                   truth run (and are written to the output folder)";
+
+/// The field paths (`observations.NAME`) of the observation files given beside
+/// `[synthetic]`, from `(NAME, given)` pairs.
+pub fn observed_with_synthetic(given: &[(&str, bool)]) -> Vec<String> {
+    given
+        .iter()
+        .filter(|(_, g)| *g)
+        .map(|(name, _)| format!("observations.{name}"))
+        .collect()
+}
+
 /// An invalid-file error listing `issues`, each line starting with the file name.
 pub fn invalid(path: &Path, issues: Vec<Issue>) -> Invalid {
     Invalid(
@@ -673,19 +687,12 @@ pub fn build<const D: usize>(
     }
     match &file.synthetic {
         Some(s) => {
-            for (field, given) in [
+            for field in observed_with_synthetic(&[
                 ("tracked", o.tracked.is_some()),
                 ("velocity", o.velocity.is_some()),
                 ("deposit", o.deposit.is_some()),
-            ] {
-                if given {
-                    issue(
-                        format!("observations.{field}"),
-                        "not with [synthetic]: synthetic observations come from the truth run \
-                         (and are written to the output folder)"
-                            .into(),
-                    );
-                }
+            ]) {
+                issue(field, SYNTHETIC_CLASH.into());
             }
             match s.every {
                 Some(0) => issue("synthetic.every".into(), "expected at least 1 step".into()),

@@ -4,8 +4,9 @@
 //! (`docs/inversion-format.md`).
 
 use super::file::{
-    Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, check_ids, check_optimiser,
-    for_path, invalid, require_truth, tracked_ids, variable,
+    Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, SYNTHETIC_CLASH, check_ids,
+    check_optimiser, for_path, invalid, observed_with_synthetic, require_truth, tracked_ids,
+    variable,
 };
 use super::model::Model;
 use super::observed;
@@ -168,18 +169,11 @@ pub fn build<const D: usize>(
     }
     match &file.synthetic {
         Some(s) => {
-            for (field, given) in [
+            for field in observed_with_synthetic(&[
                 ("displacement", o.displacement.is_some()),
                 ("reaction", o.reaction.is_some()),
-            ] {
-                if given {
-                    issue(
-                        format!("observations.{field}"),
-                        "not with [synthetic]: synthetic observations come from the truth run \
-                         (and are written to the output folder)"
-                            .into(),
-                    );
-                }
+            ]) {
+                issue(field, SYNTHETIC_CLASH.into());
             }
             if s.every == Some(0) {
                 issue(
