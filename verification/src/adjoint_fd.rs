@@ -182,6 +182,7 @@ fn check_scene<const D: usize>(
         .map(|(lo, hi)| MonitorBox {
             lo: Vector::from_fn(|a, _| lo[a]),
             hi: Vector::from_fn(|a, _| hi[a]),
+            edge: scene.grid.cell_size,
         })
         .collect();
     let observed: BTreeSet<usize> = (10..=steps).step_by(10).collect();

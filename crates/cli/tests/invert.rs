@@ -393,6 +393,14 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
             "observations.stations",
             "needs deposit stations",
         ),
+        (
+            format!(
+                "{head}{synth}{param}[[observations.monitors]]\nname = \"g\"\nlo = [0.1, 0.0]\n\
+                 hi = [0.2, 0.1]\nedge = -0.01\n"
+            ),
+            "observations.monitors[0].edge",
+            "expected a width ≥ 0",
+        ),
     ];
     std::fs::write(dir.path().join("obs.csv"), "step,id,x,y\n10,3,0.1\n").unwrap();
     assert_refused(dir.path(), &cases);

@@ -11,55 +11,118 @@ use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
 use std::collections::{BTreeMap, BTreeSet};
 
-/// An axis-aligned box `[lo, hi)` of an Eulerian velocity monitor.
+/// An axis-aligned box `[lo, hi]` of an Eulerian velocity monitor, with edges smoothed
+/// over a width `ε`.
+///
+/// A particle at `x` counts with the weight `W(x) = Π_a s((x_a − lo_a)/ε + ½) ·
+/// (1 − s((x_a − hi_a)/ε + ½))`, `s(t) = t³ (10 − 15t + 6t²)` on `[0, 1]` (0 below, 1 above):
+/// 1 inside the box at least `ε/2` from its faces, 0 outside it at least `ε/2` from them,
+/// ½ on a face, and twice continuously differentiable in `x`. So the mean velocity changes
+/// smoothly as particles cross a face and the loss has no jumps. `ε = 0` is the sharp box
+/// `[lo, hi)`: a particle counts or not, decided on the forward state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MonitorBox<const D: usize> {
-    /// Lower corner (inclusive).
+    /// Lower corner.
     pub lo: Vector<f64, D>,
-    /// Upper corner (exclusive).
+    /// Upper corner.
     pub hi: Vector<f64, D>,
+    /// Width `ε ≥ 0` of the smoothed edges (m).
+    pub edge: f64,
+}
+
+/// The quintic ramp `s(t) = t³ (10 − 15t + 6t²)`, clamped to 0 for `t ≤ 0` and 1 for
+/// `t ≥ 1`, of `t` given by its value `t.re()`; `s'(t) = 30 t² (1 − t)²`.
+fn ramp<T: Scalar>(t: T) -> T {
+    if t.re() <= 0.0 {
+        T::zero()
+    } else if t.re() >= 1.0 {
+        T::one()
+    } else {
+        t * t * t * (t * (t * T::cst(6.0) - T::cst(15.0)) + T::cst(10.0))
+    }
+}
+
+/// The derivative of [`ramp`].
+fn ramp_slope(t: f64) -> f64 {
+    if t <= 0.0 || t >= 1.0 {
+        0.0
+    } else {
+        30.0 * t * t * (1.0 - t) * (1.0 - t)
+    }
 }
 
 impl<const D: usize> MonitorBox<D> {
-    /// Whether `x` lies in `[lo, hi)`.
-    pub fn contains(&self, x: &Vector<f64, D>) -> bool {
-        (0..D).all(|a| self.lo[a] <= x[a] && x[a] < self.hi[a])
+    /// The weight `W(x)` of a particle at `x` (the type's doc), in any scalar type so that
+    /// dual positions carry its derivative.
+    pub fn weight<T: Scalar>(&self, x: &Vector<T, D>) -> T {
+        let mut w = T::one();
+        for a in 0..D {
+            let f = if self.edge > 0.0 {
+                let e = T::cst(self.edge);
+                let half = T::cst(0.5);
+                ramp((x[a] - T::cst(self.lo[a])) / e + half)
+                    * (T::one() - ramp((x[a] - T::cst(self.hi[a])) / e + half))
+            } else if self.lo[a] <= x[a].re() && x[a].re() < self.hi[a] {
+                T::one()
+            } else {
+                T::zero()
+            };
+            if f.re() == 0.0 {
+                return T::zero();
+            }
+            w *= f;
+        }
+        w
     }
 
-    /// The particles inside the box (by their primal positions) and the mass-weighted mean
-    /// velocity of the material there, `v̄ = Σ_(p∈S) m_p v_p / Σ_(p∈S) m_p`; `v̄ = 0` when the
-    /// box holds no particle.
-    pub fn mean_velocity<T: Scalar>(
-        &self,
-        particles: &Particles<T, D>,
-    ) -> (Vec<usize>, Vector<T, D>) {
-        let inside: Vec<usize> = (0..particles.len())
-            .filter(|&p| self.contains(&particles.x[p].map(|c| c.re())))
-            .collect();
+    /// `W(x)` and its gradient `∇W(x)` (zero for the sharp box).
+    pub fn weight_and_gradient(&self, x: &Vector<f64, D>) -> (f64, Vector<f64, D>) {
+        let w = self.weight(x);
+        let mut grad = Vector::<f64, D>::zeros();
+        if w == 0.0 || self.edge == 0.0 {
+            return (w, grad);
+        }
+        for a in 0..D {
+            let (tl, th) = (
+                (x[a] - self.lo[a]) / self.edge + 0.5,
+                (x[a] - self.hi[a]) / self.edge + 0.5,
+            );
+            let f = ramp(tl) * (1.0 - ramp(th));
+            let df = (ramp_slope(tl) * (1.0 - ramp(th)) - ramp(tl) * ramp_slope(th)) / self.edge;
+            grad[a] = w / f * df;
+        }
+        (w, grad)
+    }
+
+    /// The mass- and weight-averaged velocity of the material in the box,
+    /// `v̄ = Σ_p m_p W_p v_p / Σ_p m_p W_p`; `v̄ = 0` when no particle has weight.
+    pub fn mean_velocity<T: Scalar>(&self, particles: &Particles<T, D>) -> Vector<T, D> {
         let mut mass = T::zero();
         let mut momentum = Vector::<T, D>::zeros();
-        for &p in &inside {
-            mass += particles.mass[p];
-            momentum += particles.v[p] * particles.mass[p];
+        for p in 0..particles.len() {
+            let w = self.weight(&particles.x[p]);
+            if w.re() != 0.0 {
+                mass += particles.mass[p] * w;
+                momentum += particles.v[p] * (particles.mass[p] * w);
+            }
         }
-        let mean = if inside.is_empty() {
+        if mass.re() == 0.0 {
             momentum
         } else {
             momentum / mass
-        };
-        (inside, mean)
+        }
     }
 }
 
 /// Squared mismatch of the mean velocity in monitor boxes:
-/// `ℓ_n = Σ_(b, v*) ∈ targets[n] w ‖v̄_b − v*‖²`, `v̄_b` the mass-weighted mean velocity of the
-/// particles in box `b` ([`MonitorBox::mean_velocity`]).
+/// `ℓ_n = Σ_(b, v*) ∈ targets[n] w ‖v̄_b − v*‖²`, `v̄_b` the weighted mean velocity of the
+/// material in box `b` ([`MonitorBox::mean_velocity`]).
 ///
-/// Which particles are in a box is decided on the forward state and held fixed: the loss
-/// is differentiated through the velocities and masses of those particles, not through the
-/// particles entering or leaving the box (a jump, whose derivative is zero almost
-/// everywhere). With `M = Σ m_p`, `∂ℓ/∂v_p = 2w (v̄ − v*) m_p / M` and
-/// `∂ℓ/∂m_p = 2w (v̄ − v*)·(v_p − v̄) / M`.
+/// With `M = Σ m_q W_q` and `g = 2w (v̄ − v*)`: `∂ℓ/∂v_p = g m_p W_p / M`,
+/// `∂ℓ/∂m_p = g·(v_p − v̄) W_p / M` and `∂ℓ/∂x_p = g·(v_p − v̄) m_p ∇W_p / M`. With sharp
+/// boxes (`ε = 0`) `∇W = 0`: the loss is differentiated through the velocities and masses
+/// of the particles inside, not through particles entering or leaving (a jump, whose
+/// derivative is zero almost everywhere).
 #[derive(Clone, Debug, PartialEq)]
 pub struct VelocityMonitors<const D: usize> {
     /// The boxes.
@@ -90,12 +153,25 @@ impl<const D: usize> Objective<D> for VelocityMonitors<D> {
     ) -> f64 {
         if let (Some(adj), Some(targets)) = (adjoint, self.targets.get(&step)) {
             for (b, target) in targets {
-                let (inside, mean) = self.boxes[*b].mean_velocity(particles);
-                let mass: f64 = inside.iter().map(|&p| particles.mass[p]).sum();
+                let monitor = &self.boxes[*b];
+                let weights: Vec<(usize, f64, Vector<f64, D>)> = (0..particles.len())
+                    .filter_map(|p| {
+                        let (w, dw) = monitor.weight_and_gradient(&particles.x[p]);
+                        (w != 0.0).then_some((p, w, dw))
+                    })
+                    .collect();
+                let mass: f64 = weights.iter().map(|&(p, w, _)| particles.mass[p] * w).sum();
+                if mass == 0.0 {
+                    continue;
+                }
+                let mean = monitor.mean_velocity(particles);
                 let g = (mean - target) * (2.0 * self.weight);
-                for &p in &inside {
-                    adj.v[p] += g * (particles.mass[p] / mass);
-                    adj.mass[p] += g.dot(&(particles.v[p] - mean)) / mass;
+                for &(p, w, dw) in &weights {
+                    let m = particles.mass[p];
+                    let along = g.dot(&(particles.v[p] - mean));
+                    adj.v[p] += g * (m * w / mass);
+                    adj.mass[p] += along * w / mass;
+                    adj.x[p] += dw * (along * m / mass);
                 }
             }
         }
@@ -110,7 +186,7 @@ impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
         };
         let mut loss = T::zero();
         for (b, target) in targets {
-            let (_, mean) = self.boxes[*b].mean_velocity(particles);
+            let mean = self.boxes[*b].mean_velocity(particles);
             loss += (mean - target.map(T::cst)).norm_squared() * T::cst(self.weight);
         }
         loss
@@ -120,7 +196,7 @@ impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
     fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
         let root = T::cst(self.weight.sqrt());
         for (b, target) in self.targets.get(&step).into_iter().flatten() {
-            let (_, mean) = self.boxes[*b].mean_velocity(particles);
+            let mean = self.boxes[*b].mean_velocity(particles);
             let d = mean - target.map(T::cst);
             out.extend(d.iter().map(|&d| d * root));
         }
@@ -198,7 +274,7 @@ impl<const D: usize> Observations<D> {
             }
             if !out.monitors.boxes.is_empty() {
                 let v = (out.monitors.boxes.iter().enumerate())
-                    .map(|(b, m)| (b, m.mean_velocity(p).1))
+                    .map(|(b, m)| (b, m.mean_velocity(p)))
                     .collect();
                 out.monitors.targets.insert(s, v);
             }
@@ -269,5 +345,57 @@ mod tests {
         assert_ne!(a, choose(1000, 100, 8));
         assert!(a.windows(2).all(|w| w[0] < w[1]) && a.len() == 100 && a[99] < 1000);
         assert_eq!(choose(5, 9, 1), vec![0, 1, 2, 3, 4]);
+    }
+
+    fn unit_box(edge: f64) -> MonitorBox<2> {
+        MonitorBox {
+            lo: Vector::from([0.0, 0.0]),
+            hi: Vector::from([1.0, 2.0]),
+            edge,
+        }
+    }
+
+    #[test]
+    fn smoothed_box_weight_is_one_inside_half_on_a_face_and_zero_outside() {
+        let b = unit_box(0.2);
+        // s(½) = ½ exactly: a face is half in; the corner is half of half.
+        assert_eq!(b.weight(&Vector::from([0.5, 1.0])), 1.0);
+        assert_eq!(b.weight(&Vector::from([0.0, 1.0])), 0.5);
+        assert_eq!(b.weight(&Vector::from([1.0, 2.0])), 0.25);
+        assert_eq!(b.weight(&Vector::from([-0.1, 1.0])), 0.0);
+        assert_eq!(b.weight(&Vector::from([0.5, 2.1])), 0.0);
+        // The sharp box is `[lo, hi)`.
+        let sharp = unit_box(0.0);
+        assert_eq!(sharp.weight(&Vector::from([0.0, 1.0])), 1.0);
+        assert_eq!(sharp.weight(&Vector::from([1.0, 1.0])), 0.0);
+        assert_eq!(
+            sharp.weight_and_gradient(&Vector::from([0.5, 0.5])).1,
+            Vector::<f64, 2>::zeros()
+        );
+    }
+
+    #[test]
+    fn smoothed_box_gradient_matches_the_dual_derivative() {
+        use num_dual::Dual64;
+        let b = unit_box(0.2);
+        // Points in one ramp, in two ramps (a corner) and in the flat part.
+        for x in [[0.03, 1.0], [0.95, 1.93], [-0.05, 0.07], [0.5, 1.0]] {
+            let (w, grad) = b.weight_and_gradient(&Vector::from(x));
+            for a in 0..2 {
+                let xd = Vector::<Dual64, 2>::from_fn(|k, _| {
+                    let d = Dual64::from(x[k]);
+                    if k == a { d.derivative() } else { d }
+                });
+                let wd = b.weight(&xd);
+                assert_eq!(wd.re, w);
+                // The same polynomial evaluated two ways: equal to round-off.
+                assert!(
+                    (wd.eps - grad[a]).abs() <= 1e-12,
+                    "{x:?} axis {a}: {} vs {}",
+                    wd.eps,
+                    grad[a]
+                );
+            }
+        }
     }
 }

@@ -158,7 +158,8 @@ pub struct StationSpec {
     pub width: Option<f64>,
 }
 
-/// `[[observations.monitors]]`: a box `[lo, hi)`.
+/// `[[observations.monitors]]`: a box `[lo, hi]` with smoothed edges
+/// ([`loam_inverse::MonitorBox`]).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MonitorSpec {
@@ -168,6 +169,9 @@ pub struct MonitorSpec {
     pub lo: Vec<f64>,
     /// Upper corner.
     pub hi: Vec<f64>,
+    /// Width of the smoothed edges (default: the grid's cell size; 0 for a sharp box).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge: Option<f64>,
 }
 
 /// `[synthetic]`: observations made from a run at the parameters' `truth` values.
@@ -617,9 +621,14 @@ pub fn build<const D: usize>(
         if (0..D).any(|a| m.lo[a].partial_cmp(&m.hi[a]) != Some(std::cmp::Ordering::Less)) {
             issue(at("hi"), "expected hi > lo on every axis".into());
         }
+        let edge = m.edge.unwrap_or(scene.grid.cell_size);
+        if !(edge.is_finite() && edge >= 0.0) {
+            issue(at("edge"), format!("expected a width ≥ 0, got {edge}"));
+        }
         boxes.push(MonitorBox {
             lo: Vector::from_iterator(m.lo.iter().copied()),
             hi: Vector::from_iterator(m.hi.iter().copied()),
+            edge,
         });
     }
     // Deposit stations, on the floor: the vertical is the axis of gravity (the last axis
