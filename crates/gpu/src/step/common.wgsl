@@ -231,33 +231,36 @@ fn det3(m: mat3x3<f32>) -> f32 {
 
 // ---- node fields ----
 
-fn node_v(n: u32) -> vec3<f32> {
+// The vector of node `n` in the node buffer's part that starts at word `first`.
+fn node_vec(first: u32, n: u32) -> vec3<f32> {
     var r = vec3<f32>(0.0);
     for (var a = 0u; a < D; a++) {
-        r[a] = nodev[n * D + a];
+        r[a] = nodev[first + n * D + a];
     }
     return r;
+}
+
+fn set_node_vec(first: u32, n: u32, v: vec3<f32>) {
+    for (var a = 0u; a < D; a++) {
+        nodev[first + n * D + a] = v[a];
+    }
+}
+
+fn node_v(n: u32) -> vec3<f32> {
+    return node_vec(0u, n);
 }
 
 fn set_node_v(n: u32, v: vec3<f32>) {
-    for (var a = 0u; a < D; a++) {
-        nodev[n * D + a] = v[a];
-    }
+    set_node_vec(0u, n, v);
 }
 
-// FLIP's start-of-step velocity v_iⁿ of node `n`.
+// FLIP's start-of-step velocity v_iⁿ of node `n` (after the velocities and the state words).
 fn node_v_old(n: u32) -> vec3<f32> {
-    var r = vec3<f32>(0.0);
-    for (var a = 0u; a < D; a++) {
-        r[a] = nodev[(D + 1u) * prm.nodes.w + n * D + a];
-    }
-    return r;
+    return node_vec((D + 1u) * prm.nodes.w, n);
 }
 
 fn set_node_v_old(n: u32, v: vec3<f32>) {
-    for (var a = 0u; a < D; a++) {
-        nodev[(D + 1u) * prm.nodes.w + n * D + a] = v[a];
-    }
+    set_node_vec((D + 1u) * prm.nodes.w, n, v);
 }
 
 fn node_state(n: u32) -> u32 {
