@@ -200,15 +200,15 @@ fn the_scene_can_ask_for_the_gpu() {
 #[test]
 fn a_feature_the_gpu_lacks_is_refused_with_its_field() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let flip = scene("", FIXED).replace(
-        "transfer = \"mls\"",
-        "transfer = { type = \"flip\", alpha = 0.95 }",
+    let cubic = scene("", FIXED).replace(
+        "cell_size = 0.02",
+        "cell_size = 0.02\nshape_function = \"cubic_bspline\"",
     );
-    let out = run(dir.path(), "gpu", &flip, &["--device", "gpu"]);
+    let out = run(dir.path(), "gpu", &cubic, &["--device", "gpu"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("solver.transfer") && stderr.contains("not supported on the GPU yet"),
+        stderr.contains("grid.shape_function") && stderr.contains("not supported on the GPU yet"),
         "{stderr}"
     );
     assert!(!dir.path().join("gpu").exists());

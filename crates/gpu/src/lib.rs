@@ -1,7 +1,9 @@
 //! The explicit MPM step of loam on a GPU, through wgpu (Vulkan, Metal, DX12), in f32.
 //!
 //! [`GpuSolver`] runs the same step as `loam_explicit::Solver` with `T = f32` (the test
-//! oracle): quadratic B-spline stencil, PIC / APIC / TPIC / MLS transfers, USL or MUSL, the
+//! oracle): quadratic B-spline stencil, PIC / FLIP / APIC / TPIC / MLS transfers (FLIP:
+//! `v_p ← α (v_p + Σ w (v_i − v_iⁿ)) + (1 − α) Σ w v_i`, the grid keeping the start-of-step
+//! velocity `v_iⁿ = p_i / m_i` beside `v_i`), USL or MUSL, the
 //! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
 //! Coulomb friction segments on the faces, rigid obstacles (boxes and cylinders, fixed or
 //! moving, frictionless or Coulomb), the weakly compressible fluid, Neo-Hookean and Hencky
@@ -11,8 +13,8 @@
 //! the particles when asked.
 //!
 //! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
-//! linear elasticity and J2 plasticity, FLIP, shapes other than the quadratic B-spline, more
-//! than 16 obstacles.
+//! linear elasticity and J2 plasticity, shapes other than the quadratic B-spline, more than 16
+//! obstacles.
 
 mod device;
 mod error;

@@ -36,7 +36,7 @@ pub(crate) struct Params {
     pub reach: f32,
     pub time_end: f32,
     pub adaptive: u32,
-    pub pad_a: u32,
+    pub flip_alpha: f32,
     pub pad_b: u32,
 }
 
@@ -45,14 +45,27 @@ pub(crate) struct Params {
 pub(crate) const MAX_OBSTACLES: usize = 16;
 
 /// The transfer scheme as `common.wgsl` numbers it (`TRANSFER_*`).
-pub(crate) fn transfer_code(transfer: Transfer) -> Result<u32, GpuError> {
+pub(crate) fn transfer_code(transfer: Transfer) -> u32 {
     match transfer {
-        Transfer::Pic => Ok(0),
-        Transfer::Apic => Ok(1),
-        Transfer::Tpic => Ok(2),
-        Transfer::Mls => Ok(3),
-        Transfer::Flip { .. } => Err(unsupported("solver.transfer", "FLIP")),
+        Transfer::Pic => 0,
+        Transfer::Apic => 1,
+        Transfer::Tpic => 2,
+        Transfer::Mls => 3,
+        Transfer::Flip { .. } => 4,
     }
+}
+
+/// The words of the node buffer of `nodes` nodes in `D` dimensions (`nodev` of
+/// `common.wgsl`): the velocities and the state words, then for FLIP the start-of-step
+/// velocities `v_iⁿ` that G2P's increment `Σ w (v_i − v_iⁿ)` reads.
+pub(crate) fn node_words<const D: usize>(config: &Config<f32, D>) -> usize {
+    let nodes = config.grid.num_nodes();
+    let old = if config.transfer.needs_old_grid_velocity() {
+        D * nodes
+    } else {
+        0
+    };
+    (D + 1) * nodes + old
 }
 
 fn unsupported(field: &str, what: &str) -> GpuError {
@@ -81,7 +94,6 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuEr
             &format!("{:?} (only quadratic_bspline)", config.shape),
         ));
     }
-    transfer_code(config.transfer)?;
     if config.contact.obstacles.len() > MAX_OBSTACLES {
         return Err(unsupported(
             &format!("obstacles[{MAX_OBSTACLES}]"),
@@ -150,6 +162,10 @@ pub(crate) fn params<const D: usize>(
     p.obstacles = config.contact.obstacles.len() as u32;
     p.reach = (config.contact.support * grid.h) as f32;
     p.adaptive = adaptive;
+    // FLIP's α in f32, as the CPU's f32 run rounds it (`T::cst`).
+    if let Transfer::Flip { alpha } = config.transfer {
+        p.flip_alpha = alpha as f32;
+    }
     p
 }
 

@@ -134,7 +134,7 @@ impl<const D: usize> GpuSolver<D> {
         let variant = Variant {
             dim: D,
             atomics: gpu.atomics(),
-            transfer: params::transfer_code(config.transfer)?,
+            transfer: params::transfer_code(config.transfer),
             musl: params::is_musl(config),
         };
         let mut kin = Vec::with_capacity(3 * D * n);
@@ -166,7 +166,7 @@ impl<const D: usize> GpuSolver<D> {
             ("particle F", 4 * D * D * n),
             ("particle stress and mass", 4 * mat.len()),
             ("grid accumulator", 4 * (1 + 2 * D) * nodes),
-            ("grid velocity", 4 * (D + 1) * nodes),
+            ("grid velocity", 4 * params::node_words(config)),
         ];
         for (what, bytes) in buffers {
             if bytes as u64 > gpu.max_binding() {
@@ -200,7 +200,7 @@ impl<const D: usize> GpuSolver<D> {
         );
         let mat = storage(gpu, "stress and mass", bytemuck::cast_slice(&mat));
         let acc = zeroed(gpu, "accumulator", (1 + 2 * D) * nodes);
-        let nodev = zeroed(gpu, "node velocity", (D + 1) * nodes);
+        let nodev = zeroed(gpu, "node velocity", params::node_words(config));
         let flags = zeroed(gpu, "flags", SPEEDS + config.materials.len());
         let table = storage(gpu, "table", bytemuck::cast_slice(&table));
         use wgpu::BufferBindingType::{Storage, Uniform};

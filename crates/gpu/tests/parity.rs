@@ -7,278 +7,9 @@ use loam_core::Particles;
 use loam_explicit::{Config, Solver};
 use loam_gpu::{Gpu, GpuError, GpuSolver};
 use loam_scene::Scene;
+use scenes::{FLIP, SceneText, fixed, solid};
 
-/// The 2D dam-break of examples/dam_break.toml at 0.02 m (100 × 6 cells, 1,000 particles),
-/// MUSL + APIC, with a fixed step of 1e-4 s (the example's `max_dt`).
-const DAM_BREAK_2D: &str = r#"
-[grid]
-lo = [0.0, 0.0]
-hi = [2.0, 0.12]
-cell_size = 0.02
-shape_function = "quadratic_bspline"
-
-[[materials]]
-name = "water"
-model = "fluid"
-density = 1000.0
-sound_speed = 35.0
-gamma = 7.0
-viscosity = 0.0
-
-[[bodies]]
-material = "water"
-shape = { type = "box", lo = [0.0, 0.0], hi = [1.0, 0.1] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = "slip"
-y_max = "slip"
-
-[loads]
-gravity = [0.0, -9.8]
-
-[solver]
-type = "explicit"
-scheme = "SCHEME"
-transfer = "TRANSFER"
-time_step = { type = "fixed", dt = 1e-4 }
-end_time = 1.0
-"#;
-
-/// The 3D dam-break of examples/dambreak_obstacles_3d.toml without its columns, at 0.05 m
-/// (24 × 8 × 12 cells, 4,608 particles), a separable slip floor, fixed step 5e-4 s (CFL 0.3
-/// at the sound speed).
-const DAM_BREAK_3D: &str = r#"
-[grid]
-lo = [0.0, 0.0, 0.0]
-hi = [1.2, 0.4, 0.6]
-cell_size = 0.05
-shape_function = "quadratic_bspline"
-
-[[materials]]
-name = "water"
-model = "fluid"
-density = 1000.0
-sound_speed = 30.0
-gamma = 7.0
-viscosity = 0.0
-
-[[bodies]]
-material = "water"
-shape = { type = "box", lo = [0.0, 0.0, 0.0], hi = [0.4, 0.3, 0.6] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = { kind = "slip", separable = true }
-y_max = "slip"
-z_min = "slip"
-z_max = "slip"
-
-[loads]
-gravity = [0.0, -9.81, 0.0]
-
-[solver]
-type = "explicit"
-scheme = "SCHEME"
-transfer = "TRANSFER"
-time_step = { type = "fixed", dt = 5e-4 }
-end_time = 1.0
-"#;
-
-/// The two columns of the obstacle parity scene ([`obstacles_3d`]), 0.08 m in radius.
-const COLUMNS: &str = r#"
-[[obstacles]]
-shape = "cylinder"
-centre = [0.7, 0.2, 0.15]
-radius = 0.08
-axis = "y"
-length = 0.4
-
-[[obstacles]]
-shape = "cylinder"
-centre = [0.7, 0.2, 0.45]
-radius = 0.08
-axis = "y"
-length = 0.4
-
-"#;
-
-/// The 3D dam-break of examples/dambreak_obstacles_3d.toml at 0.05 m (4,608 particles) with
-/// its two columns widened to 0.08 m (the example keeps the radius at least 1.5 cells), MUSL
-/// and APIC as in the example, a fixed step of 5e-4 s (CFL 0.3 at the sound speed): by step
-/// 400 (0.2 s) the surge has run into the columns.
-/// It is `DAM_BREAK_3D` on a bilateral slip floor with the two `COLUMNS`.
-fn obstacles_3d() -> String {
-    let floor = "y_min = { kind = \"slip\", separable = true }";
-    assert!(DAM_BREAK_3D.contains(floor) && DAM_BREAK_3D.contains("[loads]"));
-    DAM_BREAK_3D
-        .replace(floor, "y_min = \"slip\"")
-        .replace("[loads]", &format!("{COLUMNS}[loads]"))
-}
-
-/// The friction dam-break of examples/dambreak_friction.toml at 0.02 m (100 × 20 cells,
-/// 1,500 particles): five Coulomb segments on a separable slip floor (μ = 0, 0.5, 0.1, 0.2,
-/// 0), fixed step 6e-5 s (the example's CFL 0.1 at this cell size).
-const FRICTION_2D: &str = r#"
-[grid]
-lo = [0.0, 0.0]
-hi = [2.0, 0.4]
-cell_size = 0.02
-shape_function = "quadratic_bspline"
-
-[[materials]]
-name = "water"
-model = "fluid"
-density = 1000.0
-sound_speed = 35.0
-gamma = 7.0
-viscosity = 0.0
-
-[[bodies]]
-material = "water"
-shape = { type = "box", lo = [0.0, 0.0], hi = [0.5, 0.3] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = { kind = "slip", separable = true }
-y_max = "slip"
-
-[[friction]]
-wall = "y_min"
-mu = 0.0
-from = [0.0]
-to = [0.4]
-
-[[friction]]
-wall = "y_min"
-mu = 0.5
-from = [0.4]
-to = [0.8]
-
-[[friction]]
-wall = "y_min"
-mu = 0.1
-from = [0.8]
-to = [1.2]
-
-[[friction]]
-wall = "y_min"
-mu = 0.2
-from = [1.2]
-to = [1.6]
-
-[[friction]]
-wall = "y_min"
-mu = 0.0
-from = [1.6]
-to = [2.0]
-
-[loads]
-gravity = [0.0, -9.8]
-
-[solver]
-type = "explicit"
-scheme = "SCHEME"
-transfer = "TRANSFER"
-time_step = { type = "fixed", dt = 6e-5 }
-end_time = 1.0
-"#;
-
-/// The 3D granular column collapse of examples/granular_collapse_3d.toml (a quarter of a
-/// column of cohesionless Drucker–Prager sand, φ = 30°, ψ = 0, on a Coulomb floor with
-/// μ = tan φ; 0.01 m cells, 3,456 particles), MUSL + APIC as in the example, with a fixed step
-/// of 2e-4 s (CFL 0.4 at the elastic wave speed, 20.6 m/s). MATERIAL_EXTRA takes more keys of
-/// the material.
-const COLUMN_3D: &str = r#"
-[grid]
-lo = [0.0, 0.0, 0.0]
-hi = [0.4, 0.15, 0.4]
-cell_size = 0.01
-shape_function = "quadratic_bspline"
-
-[[materials]]
-name = "sand"
-model = "drucker_prager"
-density = 2650.0
-youngs_modulus = 0.84e6
-poisson_ratio = 0.3
-friction_angle = 30.0
-dilation_angle = 0.0
-MATERIAL_EXTRA
-
-[[bodies]]
-material = "sand"
-shape = { type = "box", lo = [0.0, 0.0, 0.0], hi = [0.06, 0.12, 0.06] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-z_min = "slip"
-x_max = "slip"
-z_max = "slip"
-y_min = { kind = "slip", separable = true }
-
-[[friction]]
-wall = "y_min"
-mu = 0.5774
-
-[loads]
-gravity = [0.0, -9.81, 0.0]
-
-[solver]
-type = "explicit"
-scheme = "SCHEME"
-transfer = "TRANSFER"
-time_step = { type = "fixed", dt = 2e-4 }
-end_time = 1.0
-"#;
-
-/// The elastic block drop of examples/elastic_block_drop.toml, widened to 0.4 m × 0.3 m
-/// (0.02 m cells, 1,200 particles): the block falls 0.3 m onto a unilateral no-slip floor
-/// (impact at t ≈ 0.25 s, 2.4 m/s) and rebounds. MODEL is `neo_hookean` or `hencky`
-/// (E = 1e5 Pa, ν = 0.3); a fixed step of 5e-4 s (CFL 0.4 at the wave speed, 11.6 m/s, plus
-/// the impact speed).
-const BLOCK_DROP_2D: &str = r#"
-[grid]
-lo = [0.0, 0.0]
-hi = [1.0, 1.0]
-cell_size = 0.02
-shape_function = "quadratic_bspline"
-
-[[materials]]
-name = "rubber"
-model = "MODEL"
-density = 1000.0
-youngs_modulus = 1.0e5
-poisson_ratio = 0.3
-
-[[bodies]]
-material = "rubber"
-shape = { type = "box", lo = [0.3, 0.3], hi = [0.7, 0.6] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = { kind = "no_slip", separable = true }
-y_max = "slip"
-
-[loads]
-gravity = [0.0, -9.81]
-
-[solver]
-type = "explicit"
-scheme = "SCHEME"
-transfer = "TRANSFER"
-time_step = { type = "fixed", dt = 5e-4 }
-end_time = 1.0
-"#;
+mod scenes;
 
 /// The GPU, or `None` (with a note) where there is none outside CI.
 fn gpu(compare_exchange: bool) -> Option<Gpu> {
@@ -294,17 +25,22 @@ fn gpu(compare_exchange: bool) -> Option<Gpu> {
     }
 }
 
-fn scene<const D: usize>(
-    text: &str,
-    scheme: &str,
-    transfer: &str,
-) -> (Config<f64, D>, Particles<f64, D>) {
-    let text = text.replace("SCHEME", scheme).replace("TRANSFER", transfer);
-    let built = Scene::from_toml_str(&text)
+/// The solver inputs of a scene file's text.
+fn build<const D: usize>(text: &str) -> (Config<f64, D>, Particles<f64, D>) {
+    let built = Scene::from_toml_str(text)
         .and_then(|s| s.build::<D>())
         .expect("the test scene builds");
     let config = built.explicit_config().expect("an explicit scene");
     (config, built.particles)
+}
+
+/// The solver inputs of `scene` with `scheme` and `transfer`.
+fn scene<const D: usize>(
+    scene: &SceneText<D>,
+    scheme: &str,
+    transfer: &str,
+) -> (Config<f64, D>, Particles<f64, D>) {
+    build(&scene.toml(scheme, transfer))
 }
 
 fn cpu<T: loam_core::Scalar, const D: usize>(
@@ -333,6 +69,13 @@ fn front<const D: usize>(x: &[[f64; D]]) -> f64 {
     x.iter().map(|p| p[0]).fold(f64::MIN, f64::max)
 }
 
+/// The bound of [`parity`] on the distance of the GPU positions from the CPU f32 run, whose
+/// own distance from the f64 run is `e32`: `10 e32` plus 4 ulps of the domain's length.
+fn bound<const D: usize>(config: &Config<f64, D>, e32: f64) -> f64 {
+    let size = config.grid.hi()[0] - config.grid.lo[0];
+    10.0 * e32 + 4.0 * f32::EPSILON as f64 * size
+}
+
 /// Runs `steps` steps on the CPU in f64 and f32 and on the GPU (native atomics where the
 /// adapter has them, and the compare-exchange fallback), and compares.
 ///
@@ -342,12 +85,12 @@ fn front<const D: usize>(x: &[[f64; D]]) -> f64 {
 /// round-off of the same size per step, amplified by the same dynamics; so `max |x_gpu −
 /// x_cpu32|` must be of the order of `e32`. We require at most 10 e32 (one order of
 /// magnitude), plus 4 ulps of the domain size for runs so short that `e32` is below that.
-fn parity<const D: usize>(text: &str, scheme: &str, transfer: &str, steps: usize) {
+fn parity<const D: usize>(case: &SceneText<D>, scheme: &str, transfer: &str, steps: usize) {
     for compare_exchange in [false, true] {
         let Some(gpu) = gpu(compare_exchange) else {
             return;
         };
-        let (config, particles) = scene::<D>(text, scheme, transfer);
+        let (config, particles) = scene::<D>(case, scheme, transfer);
         let x64 = cpu::<f64, D>(&config, &particles, steps);
         let x32 = cpu::<f32, D>(&config, &particles, steps);
         let p32 = particles.lift::<f32>();
@@ -362,8 +105,6 @@ fn parity<const D: usize>(text: &str, scheme: &str, transfer: &str, steps: usize
             .collect();
         let e32 = max_distance(&x32, &x64);
         let eg = max_distance(&xg, &x32);
-        let size = config.grid.hi()[0] - config.grid.lo[0];
-        let floor = 4.0 * f32::EPSILON as f64 * size;
         let what = format!(
             "{D}D {scheme} {transfer} on {} ({:?}), {steps} steps",
             gpu.name(),
@@ -371,7 +112,7 @@ fn parity<const D: usize>(text: &str, scheme: &str, transfer: &str, steps: usize
         );
         eprintln!("{what}: |gpu − cpu32| = {eg:.3e}, |cpu32 − cpu64| = {e32:.3e}");
         assert!(
-            eg <= 10.0 * e32 + floor,
+            eg <= bound(&config, e32),
             "{what}: GPU positions {eg:.3e} from CPU f32, whose own round-off is {e32:.3e}"
         );
         // The fronts (largest x) agree within 0.5 %.
@@ -395,43 +136,74 @@ fn parity<const D: usize>(text: &str, scheme: &str, transfer: &str, steps: usize
 
 #[test]
 fn dam_break_2d_musl_apic() {
-    parity::<2>(DAM_BREAK_2D, "musl", "apic", 1500);
+    parity::<2>(&scenes::dam_break_2d(), "musl", "apic", 1500);
 }
 
 #[test]
 fn dam_break_2d_usl_mls() {
-    parity::<2>(DAM_BREAK_2D, "usl", "mls", 1500);
+    parity::<2>(&scenes::dam_break_2d(), "usl", "mls", 1500);
 }
 
 #[test]
 fn dam_break_3d_musl_apic() {
-    parity::<3>(DAM_BREAK_3D, "musl", "apic", 200);
+    parity::<3>(&scenes::dam_break_3d(), "musl", "apic", 200);
 }
 
 #[test]
 fn dam_break_3d_usl_mls() {
-    parity::<3>(DAM_BREAK_3D, "usl", "mls", 200);
+    parity::<3>(&scenes::dam_break_3d(), "usl", "mls", 200);
 }
 
 #[test]
 fn dam_break_3d_obstacles_musl_apic() {
-    parity::<3>(&obstacles_3d(), "musl", "apic", 400);
+    parity::<3>(&scenes::obstacles_3d(), "musl", "apic", 400);
 }
 
 #[test]
 fn dam_break_2d_friction_usl_mls() {
-    parity::<2>(FRICTION_2D, "usl", "mls", 2500);
+    parity::<2>(&scenes::friction_2d(), "usl", "mls", 2500);
 }
 
 #[test]
 fn dam_break_2d_friction_musl_apic() {
-    parity::<2>(FRICTION_2D, "musl", "apic", 2500);
+    parity::<2>(&scenes::friction_2d(), "musl", "apic", 2500);
+}
+
+/// [`parity`] with FLIP ([`FLIP`], α = 0.95), on a run where FLIP is told from PIC: the CPU
+/// f32 runs of the two transfers end more than ten times the parity bound apart, so a GPU
+/// step that left out the FLIP increment `Σ w (v_i − v_iⁿ)` or the particle's own velocity
+/// would fail the bound.
+fn flip_parity<const D: usize>(case: &SceneText<D>, scheme: &str, steps: usize) {
+    let (config, particles) = scene::<D>(case, scheme, FLIP);
+    let x32 = cpu::<f32, D>(&config, &particles, steps);
+    let e32 = max_distance(&x32, &cpu::<f64, D>(&config, &particles, steps));
+    let (pic, _) = scene::<D>(case, scheme, "pic");
+    let apart = max_distance(&x32, &cpu::<f32, D>(&pic, &particles, steps));
+    let bound = bound(&config, e32);
+    eprintln!("{D}D {scheme}: FLIP and PIC end {apart:.3e} apart, the parity bound is {bound:.3e}");
+    assert!(apart > 10.0 * bound, "FLIP {apart:.3e} from PIC");
+    parity::<D>(case, scheme, FLIP, steps);
+}
+
+/// The 2D dam-break with FLIP (USL: G2P blends the gathered increment into the particle's
+/// velocity): the ghost nodes behind the four bilateral slip walls carry the reflected
+/// start-of-step velocity as well.
+#[test]
+fn dam_break_2d_usl_flip() {
+    flip_parity::<2>(&scenes::dam_break_2d(), "usl", 1500);
+}
+
+/// The 3D dam-break with FLIP and MUSL (the blended velocity is what the second transfer
+/// carries back to the grid), on its separable floor.
+#[test]
+fn dam_break_3d_musl_flip() {
+    flip_parity::<3>(&scenes::dam_break_3d(), "musl", 200);
 }
 
 /// How many particle updates of a CPU f32 run of `steps` steps took each branch of the
 /// return mapping (elastic, shear, tension, corner: `Region` in that order).
-fn regions<const D: usize>(text: &str, steps: usize) -> [usize; 4] {
-    let (config, particles) = scene::<D>(text, "musl", "apic");
+fn regions<const D: usize>(case: &SceneText<D>, steps: usize) -> [usize; 4] {
+    let (config, particles) = scene::<D>(case, "musl", "apic");
     let mut p = particles.lift::<f32>();
     let mut solver = Solver::new(config.lift::<f32>(), &p).expect("valid config");
     let mut record = loam_core::step::StepRecord::default();
@@ -449,7 +221,8 @@ fn regions<const D: usize>(text: &str, steps: usize) -> [usize; 4] {
 
 /// The issue's case: the 3D Drucker–Prager column collapse of cohesionless sand, 500 steps
 /// (0.1 s: the column has sheared and spread along the floor), through the elastic, shear
-/// and apex (corner with `q_c = 0`) branches of the return mapping.
+/// and apex (corner with `q_c = 0`) branches of the return mapping, MUSL + APIC as in the
+/// example.
 ///
 /// The position bound is the one of [`parity`], with an argument for the branches: a trial
 /// stress within round-off of a region boundary can take one branch in f32 on the GPU and
@@ -460,50 +233,40 @@ fn regions<const D: usize>(text: &str, steps: usize) -> [usize; 4] {
 /// part of the f32 round-off the bound already scales with.
 #[test]
 fn column_3d_drucker_prager_musl_apic() {
-    let text = COLUMN_3D.replace("MATERIAL_EXTRA", "cohesion = 0.0");
-    let [elastic, shear, tension, corner] = regions::<3>(&text, 500);
+    let case = scenes::column_3d("cohesion = 0.0");
+    let [elastic, shear, tension, corner] = regions::<3>(&case, 500);
     eprintln!("regions: {elastic} elastic, {shear} shear, {tension} tension, {corner} corner");
     assert!(
         shear > 0 && corner > 0,
         "the run yields in shear and at the apex"
     );
-    parity::<3>(&text, "musl", "apic", 500);
+    parity::<3>(&case, "musl", "apic", 500);
 }
 
 /// The column with a cohesion of 200 Pa and a tension cutoff of 50 Pa below the apex
 /// (c cot φ = 346 Pa), so that `q_c > 0` and the tension branch is reachable.
 #[test]
 fn column_3d_drucker_prager_cohesive_musl_apic() {
-    let text = COLUMN_3D.replace("MATERIAL_EXTRA", "cohesion = 200.0\ntension_cutoff = 50.0");
-    let [elastic, shear, tension, corner] = regions::<3>(&text, 500);
+    let case = scenes::column_3d("cohesion = 200.0\ntension_cutoff = 50.0");
+    let [elastic, shear, tension, corner] = regions::<3>(&case, 500);
     eprintln!("regions: {elastic} elastic, {shear} shear, {tension} tension, {corner} corner");
     assert!(
         shear > 0 && tension > 0 && corner > 0,
         "every plastic branch is taken"
     );
-    parity::<3>(&text, "musl", "apic", 500);
+    parity::<3>(&case, "musl", "apic", 500);
 }
 
 /// A Neo-Hookean block falls onto the floor, bounces and rings: 700 steps (0.35 s).
 #[test]
 fn block_drop_2d_neo_hookean_usl_mls() {
-    parity::<2>(
-        &BLOCK_DROP_2D.replace("MODEL", "neo_hookean"),
-        "usl",
-        "mls",
-        700,
-    );
+    parity::<2>(&scenes::block_drop_2d("neo_hookean"), "usl", "mls", 700);
 }
 
 /// The same drop with Hencky elasticity (its logarithm through the eigen-decomposition).
 #[test]
 fn block_drop_2d_hencky_musl_apic() {
-    parity::<2>(
-        &BLOCK_DROP_2D.replace("MODEL", "hencky"),
-        "musl",
-        "apic",
-        700,
-    );
+    parity::<2>(&scenes::block_drop_2d("hencky"), "musl", "apic", 700);
 }
 
 /// A particle put inside an obstacle is reported with its id and the obstacle's index (the
@@ -513,7 +276,7 @@ fn a_particle_inside_an_obstacle_is_reported() {
     let Some(gpu) = gpu(false) else {
         return;
     };
-    let (config, particles) = scene::<3>(&obstacles_3d(), "musl", "apic");
+    let (config, particles) = scene::<3>(&scenes::obstacles_3d(), "musl", "apic");
     let mut p32 = particles.lift::<f32>();
     p32.x[7] = nalgebra::vector![0.7, 0.1, 0.45];
     let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
@@ -529,27 +292,26 @@ fn a_particle_inside_an_obstacle_is_reported() {
 /// does, so the runs take the same steps (to f32 round-off of the largest speed).
 #[test]
 fn dam_break_2d_adaptive_musl_apic() {
-    let adaptive = DAM_BREAK_2D.replace(
-        "time_step = { type = \"fixed\", dt = 1e-4 }",
-        "time_step = { type = \"adaptive\", cfl = 0.3, max_dt = 1e-3 }",
-    );
+    let adaptive = SceneText {
+        time_step: "{ type = \"adaptive\", cfl = 0.3, max_dt = 1e-3 }".into(),
+        ..scenes::dam_break_2d()
+    };
     parity::<2>(&adaptive, "musl", "apic", 1000);
 }
 
+/// A shape function other than the quadratic B-spline is refused when the solver is made,
+/// naming `grid.shape_function`.
 #[test]
 fn unsupported_features_name_their_field() {
     let Some(gpu) = gpu(false) else {
         return;
     };
-    let text = DAM_BREAK_2D
-        .replace("SCHEME", "musl")
-        .replace("\"TRANSFER\"", "{ type = \"flip\", alpha = 0.95 }");
-    let built = Scene::from_toml_str(&text)
-        .and_then(|s| s.build::<2>())
-        .unwrap();
-    let config = built.explicit_config().unwrap().lift::<f32>();
-    match GpuSolver::new(&gpu, &config, &built.particles.lift()) {
-        Err(GpuError::Unsupported { field, .. }) => assert_eq!(field, "solver.transfer"),
+    let text = scenes::dam_break_2d()
+        .toml("musl", "apic")
+        .replace("quadratic_bspline", "cubic_bspline");
+    let (config, particles) = build::<2>(&text);
+    match GpuSolver::new(&gpu, &config.lift(), &particles.lift()) {
+        Err(GpuError::Unsupported { field, .. }) => assert_eq!(field, "grid.shape_function"),
         Err(e) => panic!("expected an unsupported field, got {e}"),
         Ok(_) => panic!("expected an unsupported field"),
     }
@@ -559,27 +321,18 @@ fn unsupported_features_name_their_field() {
 /// opened, naming the material's field.
 #[test]
 fn unsupported_models_name_their_field() {
-    let text = BLOCK_DROP_2D
-        .replace("MODEL", "linear_elastic")
-        .replace("SCHEME", "musl")
-        .replace("TRANSFER", "apic");
-    let built = Scene::from_toml_str(&text)
-        .and_then(|s| s.build::<2>())
-        .unwrap();
-    let config = built.explicit_config().unwrap().lift::<f32>();
-    match GpuSolver::supports(&config) {
+    let (config, _) = scene::<2>(&scenes::block_drop_2d("linear_elastic"), "musl", "apic");
+    match GpuSolver::supports(&config.lift()) {
         Err(GpuError::Unsupported { field, .. }) => assert_eq!(field, "materials[0].model"),
         other => panic!("expected materials[0].model to be refused, got {other:?}"),
     }
-    let supported = text.replace("linear_elastic", "drucker_prager").replace(
-        "poisson_ratio = 0.3",
-        "poisson_ratio = 0.3\nfriction_angle = 30.0\ndilation_angle = 0.0\ncohesion = 0.0",
-    );
-    let built = Scene::from_toml_str(&supported)
-        .and_then(|s| s.build::<2>())
-        .unwrap();
-    let config = built.explicit_config().unwrap().lift::<f32>();
-    assert!(GpuSolver::supports(&config).is_ok());
+    let sand = "friction_angle = 30.0\ndilation_angle = 0.0\ncohesion = 0.0";
+    let supported = SceneText {
+        material: solid("drucker_prager", 1000.0, 1.0e5, sand),
+        ..scenes::block_drop_2d("")
+    };
+    let (config, _) = scene::<2>(&supported, "musl", "apic");
+    assert!(GpuSolver::supports(&config.lift()).is_ok());
 }
 
 /// The fixed step's stability check, step by step on the device: the 2D dam-break with a
@@ -593,8 +346,11 @@ fn a_fixed_step_above_the_stability_bound_is_reported_at_its_step() {
     let Some(gpu) = gpu(false) else {
         return;
     };
-    let text = DAM_BREAK_2D.replace("dt = 1e-4", "dt = 5.5e-4");
-    let (config, particles) = scene::<2>(&text, "musl", "apic");
+    let case = SceneText {
+        time_step: fixed(5.5e-4),
+        ..scenes::dam_break_2d()
+    };
+    let (config, particles) = scene::<2>(&case, "musl", "apic");
     let mut p = particles.lift::<f32>();
     let mut solver = Solver::new(config.lift::<f32>(), &p).expect("valid config");
     let (cpu_step, cpu_particle) = loop {

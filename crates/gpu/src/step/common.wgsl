@@ -15,6 +15,12 @@ const TRANSFER_PIC: u32 = 0u;
 const TRANSFER_APIC: u32 = 1u;
 const TRANSFER_TPIC: u32 = 2u;
 const TRANSFER_MLS: u32 = 3u;
+const TRANSFER_FLIP: u32 = 4u;
+
+// Whether P2G carries the affine term C_p (x_i − x_p) (loam-core's `Transfer::is_affine`).
+fn affine_transfer() -> bool {
+    return TRANSFER == TRANSFER_APIC || TRANSFER == TRANSFER_TPIC || TRANSFER == TRANSFER_MLS;
+}
 
 const WALL_FREE: u32 = 0u;
 const WALL_FIXED: u32 = 1u;
@@ -74,7 +80,8 @@ struct Params {
     // each step.
     time_end: f32,
     adaptive: u32,
-    pad_a: u32,
+    // FLIP's fraction α of v_p ← α (v_p + Σ w (v_i − v_iⁿ)) + (1 − α) Σ w v_i.
+    flip_alpha: f32,
     pad_b: u32,
 }
 
@@ -89,7 +96,8 @@ struct Params {
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
 // bits), equivalent plastic strain (n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
-// Node velocities (D N), then the wall bits that acted on each node (N, u32 bits).
+// Node velocities (D N), then the wall bits that acted on each node (N, u32 bits), then for
+// FLIP the start-of-step velocities v_iⁿ = p_i / m_i (D N).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
 @group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
 // Per material MATERIAL_ENTRIES entries (constitutive.wgsl); then the friction segments and
@@ -223,18 +231,36 @@ fn det3(m: mat3x3<f32>) -> f32 {
 
 // ---- node fields ----
 
-fn node_v(n: u32) -> vec3<f32> {
+// The vector of node `n` in the node buffer's part that starts at word `first`.
+fn node_vec(first: u32, n: u32) -> vec3<f32> {
     var r = vec3<f32>(0.0);
     for (var a = 0u; a < D; a++) {
-        r[a] = nodev[n * D + a];
+        r[a] = nodev[first + n * D + a];
     }
     return r;
 }
 
-fn set_node_v(n: u32, v: vec3<f32>) {
+fn set_node_vec(first: u32, n: u32, v: vec3<f32>) {
     for (var a = 0u; a < D; a++) {
-        nodev[n * D + a] = v[a];
+        nodev[first + n * D + a] = v[a];
     }
+}
+
+fn node_v(n: u32) -> vec3<f32> {
+    return node_vec(0u, n);
+}
+
+fn set_node_v(n: u32, v: vec3<f32>) {
+    set_node_vec(0u, n, v);
+}
+
+// FLIP's start-of-step velocity v_iⁿ of node `n` (after the velocities and the state words).
+fn node_v_old(n: u32) -> vec3<f32> {
+    return node_vec((D + 1u) * prm.nodes.w, n);
+}
+
+fn set_node_v_old(n: u32, v: vec3<f32>) {
+    set_node_vec((D + 1u) * prm.nodes.w, n, v);
 }
 
 fn node_state(n: u32) -> u32 {

@@ -1,5 +1,5 @@
-// Grid to particle and the end of the particle's step: the gather (PIC / APIC / TPIC / MLS,
-// row by row as loam-core's `g2p` in transfer.rs), MUSL's second scatter of momentum, and the
+// Grid to particle and the end of the particle's step: the gather (PIC / FLIP / APIC / TPIC /
+// MLS, row by row as loam-core's `g2p` in transfer.rs), MUSL's second scatter of momentum, and the
 // update of F and the stress (constitutive.wgsl) with the wall projection and the stability
 // flags (loam-core's `particle_end`). Launched by step/mod.rs with common.wgsl, contact.wgsl
 // and constitutive.wgsl in front.
@@ -10,6 +10,8 @@ struct Gathered {
     affine: mat3x3<f32>,
     // Σ v ∇wᵀ.
     grad_v: mat3x3<f32>,
+    // Σ w (v_i − v_iⁿ) (FLIP).
+    dv: vec3<f32>,
 }
 
 fn gather(st: Stencil) -> Gathered {
@@ -17,6 +19,7 @@ fn gather(st: Stencil) -> Gathered {
     g.v = vec3<f32>(0.0);
     g.affine = mat3x3<f32>();
     g.grad_v = mat3x3<f32>();
+    g.dv = vec3<f32>(0.0);
     let ax0 = st.ax[0];
     for (var k = 0u; k < NK; k++) {
         for (var j = 0u; j < 3u; j++) {
@@ -24,17 +27,22 @@ fn gather(st: Stencil) -> Gathered {
             var s = vec3<f32>(0.0);
             var so = vec3<f32>(0.0);
             var sd = vec3<f32>(0.0);
+            var sf = vec3<f32>(0.0);
             for (var n = 0u; n < 3u; n++) {
                 let vi = node_v(r.index + n);
                 let nv = vi * ax0.w[n];
                 s += nv;
                 so += nv * ax0.o[n];
                 sd += vi * ax0.dw[n];
+                if TRANSFER == TRANSFER_FLIP {
+                    sf += (vi - node_v_old(r.index + n)) * ax0.w[n];
+                }
             }
             let sw = s * r.weight;
             g.v += sw;
             g.affine[0] += so * r.weight;
             g.grad_v[0] += sd * r.weight;
+            g.dv += sf * r.weight;
             for (var c = 1u; c < D; c++) {
                 g.affine[c] += sw * r.offset[c];
                 g.grad_v[c] += s * r.gradient[c];
@@ -54,6 +62,17 @@ fn affine_of(g: Gathered) -> mat3x3<f32> {
         return g.grad_v;
     }
     return mat3x3<f32>();
+}
+
+// The particle's new velocity from its old one `v_p`: FLIP's blend
+// α (v_p + Σ w (v_i − v_iⁿ)) + (1 − α) Σ w v_i, or Σ w v_i (loam-core's
+// `Transfer::particle_velocity`).
+fn velocity_of(v_p: vec3<f32>, g: Gathered) -> vec3<f32> {
+    if TRANSFER == TRANSFER_FLIP {
+        let a = prm.flip_alpha;
+        return (v_p + g.dv) * a + g.v * (1.0 - a);
+    }
+    return g.v;
 }
 
 // The velocity gradient of the step: the affine field for MLS, ∇v otherwise.
@@ -131,7 +150,8 @@ fn g2p_usl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
         }
         let g = gather(st);
         store_c(i, affine_of(g));
-        end_particle(i, x + g.v * prm.dt, g.v, velocity_gradient(g));
+        let v = velocity_of(load_vec(v_at(), i), g);
+        end_particle(i, x + g.v * prm.dt, v, velocity_gradient(g));
     }
 }
 
@@ -147,12 +167,13 @@ fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         }
         let g = gather(st);
         let c = affine_of(g);
+        let v = velocity_of(load_vec(v_at(), i), g);
         store_vec(x_next_at(), i, x + g.v * prm.dt);
-        store_vec(v_at(), i, g.v);
+        store_vec(v_at(), i, v);
         store_c(i, c);
         let m = mass_of(i);
         let mc = c * m;
-        let mv = g.v * m;
+        let mv = v * m;
         let ax0 = st.ax[0];
         for (var k = 0u; k < NK; k++) {
             for (var j = 0u; j < 3u; j++) {

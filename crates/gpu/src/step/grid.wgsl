@@ -68,7 +68,8 @@ fn fold(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     }
 }
 
-// Each ghost node takes the image of its mirror's velocity.
+// Each ghost node takes the image of its mirror's velocity (and, for FLIP, of its
+// start-of-step velocity).
 @compute @workgroup_size(WG)
 fn reflect(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let pad = prm.pad;
@@ -78,12 +79,20 @@ fn reflect(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     for (var n = gid.x; n < prm.nodes.w; n += stride(groups)) {
         var idx = node_index(n);
         let i = idx[AXIS];
+        var kind = WALL_FREE;
         if lo != WALL_FREE && i < pad {
             idx[AXIS] = 2u * pad - i;
-            set_node_v(n, image(lo, node_v(node_flat(idx))));
+            kind = lo;
         } else if hi != WALL_FREE && i > face_hi && 2u * face_hi >= i {
             idx[AXIS] = 2u * face_hi - i;
-            set_node_v(n, image(hi, node_v(node_flat(idx))));
+            kind = hi;
+        }
+        if kind != WALL_FREE {
+            let mirror = node_flat(idx);
+            set_node_v(n, image(kind, node_v(mirror)));
+            if TRANSFER == TRANSFER_FLIP {
+                set_node_v_old(n, image(kind, node_v_old(mirror)));
+            }
         }
     }
 }
@@ -96,14 +105,16 @@ fn on_any_face(idx: vec3<u32>) -> bool {
     return face;
 }
 
-// v = p/m + (f/m + g) Δt where the mass is above the floor, then contact (friction segments
-// on face nodes, obstacles anywhere) and the wall law (loam-core's `NodeLaw::apply`); MUSL's
-// second transfer finds the momentum entries zeroed.
+// v = vⁿ + (f/m + g) Δt with vⁿ = p/m where the mass is above the floor (zero below), then
+// contact (friction segments on face nodes, obstacles anywhere) and the wall law (loam-core's
+// `momentum_update` and `NodeLaw::apply`); FLIP keeps vⁿ beside v. MUSL's second transfer
+// finds the momentum entries zeroed.
 @compute @workgroup_size(WG)
 fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var n = gid.x; n < prm.nodes.w; n += stride(groups)) {
         let m = acc_load(acc_at(n, 0u));
         var v = vec3<f32>(0.0);
+        var v_old = vec3<f32>(0.0);
         var state = 0u;
         if m > prm.mass_floor {
             var p = vec3<f32>(0.0);
@@ -112,7 +123,8 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
                 p[a] = acc_load(acc_at(n, 1u + a));
                 f[a] = acc_load(acc_at(n, 1u + D + a));
             }
-            v = p / m + (f / m + prm.gravity.xyz) * prm.dt;
+            v_old = p / m;
+            v = v_old + (f / m + prm.gravity.xyz) * prm.dt;
             let idx = node_index(n);
             let face = on_any_face(idx);
             if (face && prm.segments > 0u) || prm.obstacles > 0u {
@@ -129,6 +141,9 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
         }
         set_node_v(n, v);
         set_node_state(n, state);
+        if TRANSFER == TRANSFER_FLIP {
+            set_node_v_old(n, v_old);
+        }
     }
 }
 

@@ -12,7 +12,8 @@
 //!
 //! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force.
 //! 2. `fold` per axis: ghost layers behind bilateral walls onto their mirrors.
-//! 3. `update`: the momentum update, contact and the wall law per node; `reflect` per axis.
+//! 3. `update`: the momentum update, contact and the wall law per node (FLIP keeps the
+//!    start-of-step velocity `v_iⁿ` beside `v_i`); `reflect` per axis (both velocities).
 //! 4. USL: `g2p_usl` gathers, moves and ends each particle's step. MUSL: `g2p_musl` gathers
 //!    and scatters the new momentum, `fold` (momentum only), `second_velocity`, `reflect`,
 //!    then `end_musl`.

@@ -59,7 +59,7 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
         let m = mass_of(i);
         let mls = TRANSFER == TRANSFER_MLS;
         var mc = mat3x3<f32>();
-        if TRANSFER != TRANSFER_PIC {
+        if affine_transfer() {
             mc = load_c(i) * m;
         }
         if mls {
