@@ -103,7 +103,9 @@ impl<const D: usize> ReverseStep<D> {
                             &adjoint.f[i],
                             &adjoint.stress[i],
                         );
-                        let r = fluid_mls::reverse(fluid, &end_f64, dt, &g, &p.x[i], &p.f[i], y);
+                        let with_params = self.particle_params.iter().any(|(_, m, _)| *m == mat);
+                        let (x, f) = (&p.x[i], &p.f[i]);
+                        let r = fluid_mls::reverse(with_params, fluid, &end_f64, dt, &g, x, f, y);
                         *share = r.share;
                         for (index, m, seeded) in &self.particle_params {
                             if let (true, Model::Fluid(s)) = (*m == mat, &seeded.model) {
