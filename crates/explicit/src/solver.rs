@@ -240,7 +240,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     ) -> Result<StepInfo, StepError> {
         let (mut none, mut trace) = (StepRecord::default(), StepTrace::default());
         rayon::scope(|_| {
-            self.step_in_pool::<false, false>(particles, max_dt, &mut none, &mut trace)
+            self.step_in_pool::<false, false>(None, particles, max_dt, &mut none, &mut trace)
         })
     }
 
@@ -256,7 +256,9 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         record: &mut StepRecord,
     ) -> Result<StepInfo, StepError> {
         let mut trace = StepTrace::default();
-        rayon::scope(|_| self.step_in_pool::<true, false>(particles, max_dt, record, &mut trace))
+        rayon::scope(|_| {
+            self.step_in_pool::<true, false>(None, particles, max_dt, record, &mut trace)
+        })
     }
 
     /// [`Solver::step`], keeping in `trace` the grid of its first projection (the folded P2G
@@ -271,37 +273,68 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         trace: &mut StepTrace<T, D>,
     ) -> Result<StepInfo, StepError> {
         let mut none = StepRecord::default();
-        rayon::scope(|_| self.step_in_pool::<false, true>(particles, max_dt, &mut none, trace))
+        rayon::scope(|_| {
+            self.step_in_pool::<false, true>(None, particles, max_dt, &mut none, trace)
+        })
+    }
+
+    /// [`Solver::step_traced`] from the particles `start` into `out`, which receives the state
+    /// after the step (the same bits as stepping a copy of `start` in place), without copying
+    /// the state first: each particle's fields are read from `start` where the step reads them
+    /// and written into `out` once. `out`'s buffers are reused (a state of the same particles
+    /// keeps its allocations; its mass, reference volume, half-width, material and
+    /// acceleration are copied from `start`).
+    pub fn step_traced_from(
+        &mut self,
+        start: &Particles<T, D>,
+        out: &mut Particles<T, D>,
+        max_dt: f64,
+        trace: &mut StepTrace<T, D>,
+    ) -> Result<StepInfo, StepError> {
+        let mut none = StepRecord::default();
+        rayon::scope(|_| {
+            self.step_in_pool::<false, true>(Some(start), out, max_dt, &mut none, trace)
+        })
     }
 
     /// [`Solver::step`], on a pool thread; fills `record` when `RECORD` and `trace` when
-    /// `TRACE`.
+    /// `TRACE`. With `start`, the step reads the state before it from `start` and writes the
+    /// state after it into `particles` ([`Solver::step_traced_from`]); without, it advances
+    /// `particles` in place.
     fn step_in_pool<const RECORD: bool, const TRACE: bool>(
         &mut self,
+        start: Option<&Particles<T, D>>,
         particles: &mut Particles<T, D>,
         max_dt: f64,
         record: &mut StepRecord,
         trace: &mut StepTrace<T, D>,
     ) -> Result<StepInfo, StepError> {
-        let located = self.locate(particles);
-        let limit = self.config.grid.h / located.max_rate;
-        let dt = self.choose_dt(limit, max_dt, particles)?;
-        if located.off_grid {
-            return Err(self.left_grid(particles));
-        }
-        self.blocks.sort(&self.keys);
-        self.mass_floor = MASS_EPS * located.max_mass;
-        self.transfer_to_grid::<TRACE>(particles, dt);
+        let dt = {
+            let before = start.unwrap_or(&*particles);
+            let located = self.locate(before);
+            let limit = self.config.grid.h / located.max_rate;
+            let dt = self.choose_dt(limit, max_dt, before)?;
+            if located.off_grid {
+                return Err(self.left_grid(before));
+            }
+            self.blocks.sort(&self.keys);
+            self.mass_floor = MASS_EPS * located.max_mass;
+            self.transfer_to_grid::<TRACE>(before, dt);
+            dt
+        };
         if TRACE {
             self.trace_grid(trace, dt);
         }
         if RECORD {
             self.record_nodes(record, dt);
         }
+        if let Some(start) = start {
+            constants_from(start, particles);
+        }
         let branches = &mut record.particles;
         let flagged = match self.config.scheme {
-            Scheme::Usl => self.update_particles_usl::<RECORD>(particles, dt, branches),
-            Scheme::Musl => self.update_particles_musl::<RECORD>(particles, dt, branches),
+            Scheme::Usl => self.update_particles_usl::<RECORD>(start, particles, dt, branches),
+            Scheme::Musl => self.update_particles_musl::<RECORD>(start, particles, dt, branches),
         };
         self.steps += 1;
         self.time += dt;
@@ -582,9 +615,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     /// USL: stage 3, G2P ([`G2p::particle`]), then stage 4 with the velocity gradient of the
     /// updated grid velocity ([`particle_end`]). Returns whether a particle needs a closer
     /// look by the checks ([`EndOfStep::flag`]); records the particles' branches into
-    /// `branches` when `RECORD`.
+    /// `branches` when `RECORD`. With `start`, the state before the step is read from it.
     fn update_particles_usl<const RECORD: bool>(
         &self,
+        start: Option<&Particles<T, D>>,
         p: &mut Particles<T, D>,
         dt: f64,
         branches: &mut Vec<ParticleBranch>,
@@ -596,6 +630,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         // G2P in a function of its own: inlined into the particle pass, the stages of a
         // particle need about 30 more instructions (register pressure).
         finish_particles::<RECORD, T, D>(
+            start,
             p,
             cfg,
             self.time + dt,
@@ -615,9 +650,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     /// ([`G2p::velocity_gradient`]) for stage 4. G2P and the second P2G run in one pass over
     /// the blocks (the new state waits in `kernels`); stage 4 writes it back. Returns whether
     /// a particle needs a closer look by the checks; records the particles' branches into
-    /// `branches` when `RECORD`.
+    /// `branches` when `RECORD`. With `start`, the state before the step is read from it.
     fn update_particles_musl<const RECORD: bool>(
         &mut self,
+        start: Option<&Particles<T, D>>,
         p: &mut Particles<T, D>,
         dt: f64,
         branches: &mut Vec<ParticleBranch>,
@@ -626,7 +662,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let stage = G2p::new(&cfg.grid, cfg.shape, cfg.transfer, dt);
         let affine = cfg.transfer.is_affine();
         {
-            let pr = &*p;
+            let pr = start.unwrap_or(&*p);
             let (vel, vel_old) = (&self.velocity, &self.velocity_old);
             self.blocks.for_each_block(
                 &mut self.kernels,
@@ -678,11 +714,19 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 });
         }
         let (vel, blocks, kernels) = (&self.velocity, &self.blocks, &self.kernels);
-        finish_particles::<RECORD, T, D>(p, cfg, self.time + dt, dt, branches, |i, x, v, c| {
-            let k = &kernels[blocks.rank(i)];
-            (*x, *v, *c) = (k.x, k.v, k.c);
-            stage.velocity_gradient(&k.stencil, vel)
-        })
+        finish_particles::<RECORD, T, D>(
+            start,
+            p,
+            cfg,
+            self.time + dt,
+            dt,
+            branches,
+            |i, x, v, c| {
+                let k = &kernels[blocks.rank(i)];
+                (*x, *v, *c) = (k.x, k.v, k.c);
+                stage.velocity_gradient(&k.stencil, vel)
+            },
+        )
     }
 }
 
@@ -691,9 +735,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
 /// 4 ([`particle_end`]: wall projection, `F ← (I + Δt L) F`, stress update, check flag) at the
 /// end-of-step time `time`. Returns whether a particle needs a closer look by the checks
 /// ([`EndOfStep::flag`]). With `RECORD`, `branches` receives every particle's branches, by
-/// id; without, nothing of them is kept (the choice is made at compile time).
+/// id; without, nothing of them is kept (the choice is made at compile time). With `start`,
+/// each particle's fields are first taken from it (the step from `start` into `p`).
 #[inline(always)]
 fn finish_particles<const RECORD: bool, T: Scalar, const D: usize>(
+    start: Option<&Particles<T, D>>,
     p: &mut Particles<T, D>,
     cfg: &Config<T, D>,
     time: f64,
@@ -723,6 +769,10 @@ fn finish_particles<const RECORD: bool, T: Scalar, const D: usize>(
         .map(
             #[inline(always)]
             |(i, ((x, v, f, c, stress, state), &mat))| {
+                if let Some(s) = start {
+                    (*x, *v, *f, *c) = (s.x[i], s.v[i], s.f[i], s.c[i]);
+                    (*stress, *state) = (s.stress[i], s.state[i]);
+                }
                 let l = motion(i, x, v, c);
                 let material = &cfg.materials[mat as usize];
                 particle_end(&end, material, &l, dt, x, v, f, stress, state)
@@ -735,6 +785,21 @@ fn finish_particles<const RECORD: bool, T: Scalar, const D: usize>(
     } else {
         each.map(|(flag, _)| flag).reduce(|| false, |a, b| a || b)
     }
+}
+
+/// Makes `out` a state of the particles of `start` for a step from `start` into it: the fields
+/// a step does not change (mass, reference volume and half-width, material, acceleration) are
+/// copied, the others sized (the step writes them); the buffers keep their allocations.
+fn constants_from<T: Scalar, const D: usize>(start: &Particles<T, D>, out: &mut Particles<T, D>) {
+    if out.len() != start.len() {
+        out.clone_from(start);
+        return;
+    }
+    out.a.clone_from(&start.a);
+    out.mass.clone_from(&start.mass);
+    out.volume0.clone_from(&start.volume0);
+    out.half_width0.clone_from(&start.half_width0);
+    out.material.clone_from(&start.material);
 }
 
 /// Stops the run on NaN/Inf in any particle field or an inverted particle.

@@ -136,7 +136,8 @@ fn the_record_holds_the_return_region() {
     );
 }
 
-/// A traced step is the same step, bit for bit, in USL and MUSL; its trace holds the acted
+/// A traced step is the same step, bit for bit, in USL and MUSL, in place or from one state
+/// into another (two buffers taking turns, the first one empty); its trace holds the acted
 /// nodes of the record and, expanded on every node, the step's nodal masses.
 #[test]
 fn a_traced_step_is_the_same_step_and_keeps_its_grid() {
@@ -144,9 +145,12 @@ fn a_traced_step_is_the_same_step_and_keeps_its_grid() {
         let (mut config, p) = sliding_block(0.2, rubber());
         config.scheme = scheme;
         let n = config.grid.num_nodes();
-        let (mut plain, mut traced) = (p.clone(), p);
+        let (mut plain, mut traced) = (p.clone(), p.clone());
+        let (mut from, mut into) = (p, Particles::default());
         let mut a = Solver::new(config.clone(), &plain).expect("valid");
-        let mut b = Solver::new(config, &traced).expect("valid");
+        let mut b = Solver::new(config.clone(), &traced).expect("valid");
+        let mut c = Solver::new(config, &from).expect("valid");
+        let mut other = StepTrace::default();
         let mut trace = StepTrace::default();
         let mut sums = vec![NodeSums::zero(); n];
         let (mut velocity, mut velocity_old) = (vec![Vector::zeros(); n], vec![Vector::zeros(); n]);
@@ -159,6 +163,11 @@ fn a_traced_step_is_the_same_step_and_keeps_its_grid() {
                 .step_traced(&mut traced, f64::INFINITY, &mut trace)
                 .expect("stable");
             assert_eq!(plain, traced);
+            c.step_traced_from(&from, &mut into, f64::INFINITY, &mut other)
+                .expect("stable");
+            std::mem::swap(&mut from, &mut into);
+            assert_eq!(from, traced);
+            assert_eq!((&other.index, &other.sums), (&trace.index, &trace.sums));
             assert_eq!(trace.dt, info.dt);
             assert_eq!(trace.nodes, record.nodes);
             assert!(trace.index.len() < n, "only the nodes the block reaches");

@@ -97,18 +97,23 @@ pub fn gradient<const D: usize>(
     let mut adjoint = ParticleAdjoint::zeros(p.len());
     let mut grad = vec![0.0; params.len()];
     objective.term(steps, &p, Some(&mut adjoint));
-    let mut next = Particles::default();
+    let (mut next, mut end) = (Particles::default(), Particles::default());
     for (j, &s0) in starts.iter().enumerate().rev() {
         let s1 = starts.get(j + 1).copied().unwrap_or(steps);
         if s1 < steps {
-            // `next` holds the state at `s1`, where the segment must end.
-            let mut q = checkpoints.pop().expect("a checkpoint per earlier segment");
-            let mut solver = Solver::new(config.clone(), &q)?;
+            // `next` holds the state at `s1`, where the segment must end. Each step goes from
+            // one kept state into the next one's buffer (the last into `end`), uncopied.
+            states[0] = checkpoints.pop().expect("a checkpoint per earlier segment");
+            let mut solver = Solver::new(config.clone(), &states[0])?;
             solver.set_clock(times[s0], s0);
             for s in s0..s1 {
-                states[s - s0].clone_from(&q);
+                let (done, rest) = states.split_at_mut(s + 1 - s0);
+                let out = match rest.first_mut() {
+                    Some(q) if s + 1 < s1 => q,
+                    _ => &mut end,
+                };
                 let trace = &mut traces[s - s0];
-                let info = solver.step_traced(&mut q, f64::INFINITY, trace)?;
+                let info = solver.step_traced_from(&done[s - s0], out, f64::INFINITY, trace)?;
                 if info.dt.to_bits() != dts[s].to_bits() {
                     return Err(AdjointError::Replay {
                         step: s + 1,
@@ -116,7 +121,7 @@ pub fn gradient<const D: usize>(
                     });
                 }
             }
-            if next != q {
+            if next != end {
                 return Err(AdjointError::Replay {
                     step: s1,
                     what: "the particle state differs from the checkpoint".into(),
@@ -136,7 +141,7 @@ pub fn gradient<const D: usize>(
             objective.term(s, start, Some(&mut adjoint));
         }
         if s0 < s1 {
-            next.clone_from(&states[0]);
+            std::mem::swap(&mut next, &mut states[0]);
         }
     }
     // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.

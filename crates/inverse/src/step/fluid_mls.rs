@@ -12,6 +12,8 @@
 //! (in-plane block); `F̄ = (I + Δt L)ᵀ F̄'`; `Ḡ.affine = C̄' + L̄`, `Ḡ.v = v̄' + Δt x̄'`, `x̄ = x̄'`.
 //! Parameters: `∂σ/∂K = −(J^{−γ} − 1)/γ I`,
 //! `∂σ/∂γ = [(K/γ²)(J^{−γ} − 1) + (K/γ) ln J J^{−γ}] I`, `∂σ/∂η = 2 dev sym L`.
+//! `J^{−γ} = 1 + γ p(J)/K` is taken from the forward's own pressure ([`Fluid::pressure`]: by
+//! repeated multiplication for a whole `γ`), so `ln J` is formed only for the parameters.
 
 use super::ParticleShare;
 use loam_core::constitutive::Fluid;
@@ -35,13 +37,16 @@ pub(super) struct FluidEnd<const D: usize> {
     pub g_bar: Gathered<f64, D>,
     /// The particle's share of the start-of-step adjoint.
     pub share: ParticleShare<D>,
-    /// `∂L/∂K`, `∂L/∂γ`, `∂L/∂η` of this particle's step.
+    /// `∂L/∂K`, `∂L/∂γ`, `∂L/∂η` of this particle's step (zero unless asked for).
     pub params: [f64; 3],
 }
 
 /// The closed-form reverse of one particle's USL MLS-MPM end of step with the fluid (see the
 /// module docs); `y_x, y_v, y_c, y_f, y_s` are the adjoints of the end-of-step `x, v, C, F, σ`.
+/// The parameters' shares are formed when `with_params`.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn reverse<const D: usize>(
+    with_params: bool,
     fluid: &Fluid<f64>,
     end: &EndOfStep<'_, f64, D>,
     dt: f64,
@@ -70,7 +75,9 @@ pub(super) fn reverse<const D: usize>(
     let f1 = delta_f * f;
     let j = det(&f1);
     let tr = y_s.trace();
-    let power = (-gamma * j.ln()).exp();
+    // J^{−γ} − 1 = γ p(J)/K.
+    let excess = gamma * fluid.pressure(j) / k;
+    let power = 1.0 + excess;
     // J̄ = −p'(J) tr σ̄ with p'(J) = −K J^{−γ−1}.
     let j_bar = k * power / j * tr;
     let cof = inverse(&f1).map_or_else(Tensor::zeros, |inv| inv.transpose() * j);
@@ -78,11 +85,19 @@ pub(super) fn reverse<const D: usize>(
     let sym_bar = (y_s + y_s.transpose()) * 0.5;
     let s_bar = (sym_bar - Matrix3::identity() * (tr / 3.0)) * (2.0 * eta);
     let l_bar = Tensor::<f64, D>::from_fn(|r, c| s_bar[(r, c)]) + f1_bar * f.transpose() * dt;
-    let l3 = to3(&l, 0.0);
-    let s = (l3 + l3.transpose()) * 0.5;
-    let dev_s = s - Matrix3::identity() * (s.trace() / 3.0);
-    let k_bar = -tr * (power - 1.0) / gamma;
-    let dp_dgamma = -(k / (gamma * gamma)) * (power - 1.0) - (k / gamma) * j.ln() * power;
+    let params = if with_params {
+        let l3 = to3(&l, 0.0);
+        let s = (l3 + l3.transpose()) * 0.5;
+        let dev_s = s - Matrix3::identity() * (s.trace() / 3.0);
+        let dp_dgamma = -(k / (gamma * gamma)) * excess - (k / gamma) * j.ln() * power;
+        [
+            -tr * excess / gamma,
+            -tr * dp_dgamma,
+            2.0 * y_s.component_mul(&dev_s).sum(),
+        ]
+    } else {
+        [0.0; 3]
+    };
     FluidEnd {
         g_bar: Gathered {
             v: v_bar + x_bar * dt,
@@ -95,10 +110,6 @@ pub(super) fn reverse<const D: usize>(
             f: delta_f.transpose() * f1_bar,
             ..ParticleShare::zero()
         },
-        params: [
-            k_bar,
-            -tr * dp_dgamma,
-            2.0 * y_s.component_mul(&dev_s).sum(),
-        ],
+        params,
     }
 }

@@ -77,6 +77,9 @@ pub struct ReverseStep<const D: usize> {
     /// Every particle's stencil at the start of the step being reversed, formed once and
     /// shared by the reverse passes.
     stencils: Vec<Stencil<f64, D>>,
+    /// The G2P adjoint's scatter before its sum, kept from step to step (every entry is
+    /// written before it is read).
+    scatter: Scatter<D>,
 }
 
 /// The grid of one step, from its trace, and the adjoints of its fields.
@@ -206,6 +209,7 @@ impl<const D: usize> ReverseStep<D> {
                 adj_v_old: vec![Vector::zeros(); n],
             },
             stencils: Vec::new(),
+            scatter: Vec::new(),
             config: config.clone(),
         })
     }

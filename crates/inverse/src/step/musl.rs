@@ -4,7 +4,7 @@
 
 use super::kernels::{self, End, Motion, musl_end_start};
 use super::transfers::{GatherForm, NodeAdjoints, gather_adjoint};
-use super::{CHUNK, ParticleShare, ReverseStep, Scatter, add_parts, pack_end, pack_end_adjoint};
+use super::{CHUNK, ParticleShare, ReverseStep, add_parts, pack_end, pack_end_adjoint};
 use crate::adjoint_state::ParticleAdjoint;
 use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
 use loam_core::stencil::Layout;
@@ -99,8 +99,8 @@ impl<const D: usize> ReverseStep<D> {
             .collect();
         let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut moved_bar = vec![(Vector::zeros(), Vector::zeros()); p.len()];
-        let mut scatter: Scatter<D> =
-            vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
+        let mut scatter = std::mem::take(&mut self.scatter);
+        scatter.resize(p.len() * stencil_len, (0, Vector::zeros(), Vector::zeros()));
         let nparams = gradient.len();
         let parts: Vec<Vec<f64>> = shares
             .par_chunks_mut(CHUNK)
@@ -279,6 +279,7 @@ impl<const D: usize> ReverseStep<D> {
                 }
             });
         self.scatter_to_first_grid(&scatter);
+        self.scatter = scatter;
         (shares, adj_m2)
     }
 }

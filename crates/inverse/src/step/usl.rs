@@ -6,7 +6,7 @@
 use super::fluid_mls;
 use super::kernels::{self, End, Motion};
 use super::transfers::gather_adjoint;
-use super::{CHUNK, ParticleShare, ReverseStep, Scatter, add_parts, pack_end, pack_end_adjoint};
+use super::{CHUNK, ParticleShare, ReverseStep, add_parts, pack_end, pack_end_adjoint};
 use crate::adjoint_state::ParticleAdjoint;
 use crate::lanes::{Packed, Unpack};
 use loam_core::constitutive::Model;
@@ -59,8 +59,8 @@ impl<const D: usize> ReverseStep<D> {
         let (lo, hi) = (grid.lo, grid.hi());
         let on_the_box = |x: &Vector<f64, D>| (0..D).any(|a| x[a] == lo[a] || x[a] == hi[a]);
         let mut shares = vec![ParticleShare::zero(); p.len()];
-        let mut scatter: Scatter<D> =
-            vec![(0, Vector::zeros(), Vector::zeros()); p.len() * stencil_len];
+        let mut scatter = std::mem::take(&mut self.scatter);
+        scatter.resize(p.len() * stencil_len, (0, Vector::zeros(), Vector::zeros()));
         let nparams = gradient.len();
         let parts: Vec<Vec<f64>> = shares
             .par_chunks_mut(CHUNK)
@@ -103,7 +103,9 @@ impl<const D: usize> ReverseStep<D> {
                             &adjoint.f[i],
                             &adjoint.stress[i],
                         );
-                        let r = fluid_mls::reverse(fluid, &end_f64, dt, &g, &p.x[i], &p.f[i], y);
+                        let with_params = self.particle_params.iter().any(|(_, m, _)| *m == mat);
+                        let (x, f) = (&p.x[i], &p.f[i]);
+                        let r = fluid_mls::reverse(with_params, fluid, &end_f64, dt, &g, x, f, y);
                         *share = r.share;
                         for (index, m, seeded) in &self.particle_params {
                             if let (true, Model::Fluid(s)) = (*m == mat, &seeded.model) {
@@ -157,6 +159,7 @@ impl<const D: usize> ReverseStep<D> {
             .collect();
         add_parts(gradient, parts);
         self.scatter_to_first_grid(&scatter);
+        self.scatter = scatter;
         shares
     }
 }
