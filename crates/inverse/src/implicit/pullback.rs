@@ -27,12 +27,13 @@
 //! linearisation per particle.
 
 use super::kernel::{Loads, ParticleState, Setting, carries_history, state_len};
-use loam_core::constitutive::MaterialState;
+use loam_core::Scalar;
+use loam_core::constitutive::{MaterialState, Model};
 use loam_core::stencil::particle_half_width;
-use loam_core::tensor::{Tensor, Vector};
+use loam_core::tensor::{Tensor, Vector, det, from3, inverse, to3};
 use loam_core::{Material, Stencil};
 use loam_implicit::kernel::{lift_state, stress_update};
-use nalgebra::{Matrix3, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector};
 use num_dual::{Derivative, Dual64, DualSVec64};
 
 /// The weights of a particle's step outputs in `ψₚ` (module docs).
@@ -49,6 +50,7 @@ pub struct Cotangent<'a, const D: usize> {
 /// The material table lifted to the multi-lane duals of the stress update's Jacobian.
 pub struct LaneMaterials {
     real: Vec<Material<f64>>,
+    lanes7: Vec<Material<DualSVec64<7>>>,
     lanes8: Vec<Material<DualSVec64<8>>>,
     lanes18: Vec<Material<DualSVec64<18>>>,
     lanes28: Vec<Material<DualSVec64<28>>>,
@@ -58,6 +60,7 @@ impl LaneMaterials {
     /// Lifts a real material table.
     pub fn new(real: &[Material<f64>]) -> Self {
         Self {
+            lanes7: real.iter().map(|m| m.lift()).collect(),
             lanes8: real.iter().map(|m| m.lift()).collect(),
             lanes18: real.iter().map(|m| m.lift()).collect(),
             lanes28: real.iter().map(|m| m.lift()).collect(),
@@ -144,7 +147,10 @@ impl<const D: usize> Linearisation<D> {
         }
         let carries = carries_history(&materials.real[material]);
         let inputs = (&delta_f, state, setting.volume0, carries);
+        let j2 = matches!(materials.real[material].model, Model::J2(_));
         let (stress, jacobian) = match (D, carries) {
+            (2, _) if j2 => j2_stress_jacobian::<18, D>(&materials.lanes7[material], inputs)?,
+            _ if j2 => j2_stress_jacobian::<28, D>(&materials.lanes7[material], inputs)?,
             (2, false) => stress_jacobian::<8, D>(&materials.lanes8[material], inputs)?,
             (2, true) | (3, false) => {
                 stress_jacobian::<18, D>(&materials.lanes18[material], inputs)?
@@ -343,24 +349,106 @@ fn stress_jacobian<const L: usize, const D: usize>(
         lift_state(h)
     };
     let (s, _, h2) = stress_update(material, &f, &history, DualSVec64::from_re(volume0), &g)?;
-    let cols = constitutive_inputs(D, carries);
+    Some(jacobian_rows(&s, carries.then_some(&h2)))
+}
+
+/// `S` and `J_C` from the outputs of the stress update with `L` lanes ([`stress_jacobian`]):
+/// rows `S` row by row, then the new history where it is carried.
+fn jacobian_rows<const L: usize, const D: usize>(
+    s: &Tensor<DualSVec64<L>, D>,
+    history: Option<&MaterialState<DualSVec64<L>>>,
+) -> (Tensor<f64, D>, Vec<f64>) {
+    let cols = constitutive_inputs(D, history.is_some());
     let mut outputs: Vec<DualSVec64<L>> = s.transpose().iter().copied().collect();
-    if carries {
-        outputs.push(h2.plastic_strain);
-        outputs.extend(h2.tensor.transpose().iter().copied());
+    if let Some(h) = history {
+        outputs.push(h.plastic_strain);
+        outputs.extend(h.tensor.transpose().iter().copied());
     }
-    let jacobian = (outputs.iter())
-        .flat_map(|v| (0..cols).map(move |k| lane(v, k)))
-        .collect();
-    Some((s.map(|v| v.re), jacobian))
+    let mut jacobian = vec![0.0; outputs.len() * cols];
+    for (row, v) in jacobian.chunks_exact_mut(cols).zip(&outputs) {
+        if let Some(e) = v.eps.0.as_ref() {
+            row.copy_from_slice(&e.as_slice()[..cols]);
+        }
+    }
+    (s.map(|v| v.re), jacobian)
+}
+
+/// The independent components of a symmetric 3 × 3 matrix.
+const SYMMETRIC: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+
+/// [`stress_jacobian`] for [`J2`](loam_core::constitutive::J2), whose update reads `ΔF` and
+/// `bₑ` only through the trial state `bₑᵗʳ = sym(ΔF bₑ ΔFᵀ)`: its return mapping is
+/// differentiated by `(bₑᵗʳ, ε̄ᵖ)` alone (7 lanes, at `ΔF = I` with `bₑ = bₑᵗʳ`, the same
+/// trial state), and that Jacobian composed with the trial state's `L` lanes.
+fn j2_stress_jacobian<const L: usize, const D: usize>(
+    material: &Material<DualSVec64<7>>,
+    (delta_f, state, volume0, _): (&Tensor<f64, D>, &ParticleState<f64, D>, f64, bool),
+) -> Option<(Tensor<f64, D>, Vec<f64>)> {
+    if det(delta_f) <= 0.0 {
+        return None;
+    }
+    let dd = D * D;
+    let h = &state.history;
+    let g = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(delta_f[(r, c)], r * D + c));
+    let g3 = to3(&g, DualSVec64::from_re(1.0));
+    let be = Matrix3::from_fn(|r, c| seed::<L>(h.tensor[(r, c)], 2 * dd + 1 + r * 3 + c));
+    let b = product(&product(&g3, &be), &g3.transpose());
+    let trial = (b + b.transpose()) * DualSVec64::from_re(0.5);
+    let inputs: [DualSVec64<L>; 7] = std::array::from_fn(|k| match SYMMETRIC.get(k) {
+        Some(&(r, c)) => trial[(r, c)],
+        None => seed(h.plastic_strain, 2 * dd),
+    });
+    let component = |r: usize, c: usize| {
+        (SYMMETRIC.iter())
+            .position(|&rc| rc == (r.min(c), r.max(c)))
+            .expect("every entry has a component")
+    };
+    let inner = MaterialState {
+        plastic_strain: seed::<7>(h.plastic_strain, 6),
+        tensor: Matrix3::from_fn(|r, c| seed::<7>(trial[(r, c)].re, component(r, c))),
+    };
+    let identity = Matrix3::<DualSVec64<7>>::identity();
+    let (tau, history) = material.kirchhoff_update(&identity, &identity, &inner);
+    // v with ∂v/∂(bₑᵗʳ, ε̄ᵖ) carried through to the `L` lanes of the inputs.
+    let compose = |v: DualSVec64<7>| {
+        let mut e = SVector::<f64, L>::zeros();
+        for (k, z) in inputs.iter().enumerate() {
+            if let Some(dz) = z.eps.0.as_ref() {
+                e += dz * lane(&v, k);
+            }
+        }
+        DualSVec64::<L>::new(v.re, Derivative::some(e))
+    };
+    let tau = tau.map(compose);
+    let history = MaterialState {
+        plastic_strain: compose(history.plastic_strain),
+        tensor: history.tensor.map(compose),
+    };
+    let s = product(&from3::<_, D>(&tau), &inverse(&g)?.transpose()) * DualSVec64::from_re(volume0);
+    Some(jacobian_rows(&s, Some(&history)))
+}
+
+/// `a b` summed in a plain loop: nalgebra's generic product also multiplies by its `α = 1`
+/// (and `β`), each a full product of the many-lane duals.
+fn product<T: Scalar, const R: usize, const K: usize, const C: usize>(
+    a: &SMatrix<T, R, K>,
+    b: &SMatrix<T, K, C>,
+) -> SMatrix<T, R, C> {
+    SMatrix::from_fn(|i, j| {
+        let mut sum = a[(i, 0)] * b[(0, j)];
+        for k in 1..K {
+            sum += a[(i, k)] * b[(k, j)];
+        }
+        sum
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::kernel::{lift_loads, particle_step};
     use super::*;
-    use loam_core::constitutive::{J2, Lame, Model};
-    use loam_core::{Grid, Scalar, Shape};
+    use loam_core::constitutive::{J2, Lame};
+    use loam_core::{Grid, Shape};
 
     /// `ψₚ` (module docs) of a particle's step in scalar `T`.
     fn psi<T: Scalar>(
