@@ -50,8 +50,9 @@ pub struct Cotangent<'a, const D: usize> {
 /// The material table lifted to the multi-lane duals of the stress update's Jacobian.
 pub struct LaneMaterials {
     real: Vec<Material<f64>>,
+    lanes4: Vec<Material<DualSVec64<4>>>,
     lanes7: Vec<Material<DualSVec64<7>>>,
-    lanes8: Vec<Material<DualSVec64<8>>>,
+    lanes9: Vec<Material<DualSVec64<9>>>,
     lanes18: Vec<Material<DualSVec64<18>>>,
     lanes28: Vec<Material<DualSVec64<28>>>,
 }
@@ -60,8 +61,9 @@ impl LaneMaterials {
     /// Lifts a real material table.
     pub fn new(real: &[Material<f64>]) -> Self {
         Self {
+            lanes4: real.iter().map(|m| m.lift()).collect(),
             lanes7: real.iter().map(|m| m.lift()).collect(),
-            lanes8: real.iter().map(|m| m.lift()).collect(),
+            lanes9: real.iter().map(|m| m.lift()).collect(),
             lanes18: real.iter().map(|m| m.lift()).collect(),
             lanes28: real.iter().map(|m| m.lift()).collect(),
             real: real.to_vec(),
@@ -147,15 +149,18 @@ impl<const D: usize> Linearisation<D> {
         }
         let carries = carries_history(&materials.real[material]);
         let inputs = (&delta_f, state, setting.volume0, carries);
-        let j2 = matches!(materials.real[material].model, Model::J2(_));
-        let (stress, jacobian) = match (D, carries) {
-            (2, _) if j2 => j2_stress_jacobian::<18, D>(&materials.lanes7[material], inputs)?,
-            _ if j2 => j2_stress_jacobian::<28, D>(&materials.lanes7[material], inputs)?,
-            (2, false) => stress_jacobian::<8, D>(&materials.lanes8[material], inputs)?,
-            (2, true) | (3, false) => {
+        let model = &materials.real[material].model;
+        let (stress, jacobian) = match (model, D) {
+            (Model::J2(_), 2) => j2_stress_jacobian::<18, D>(&materials.lanes7[material], inputs)?,
+            (Model::J2(_), _) => j2_stress_jacobian::<28, D>(&materials.lanes7[material], inputs)?,
+            (Model::DruckerPrager(_), 2) => {
                 stress_jacobian::<18, D>(&materials.lanes18[material], inputs)?
             }
-            _ => stress_jacobian::<28, D>(&materials.lanes28[material], inputs)?,
+            (Model::DruckerPrager(_), _) => {
+                stress_jacobian::<28, D>(&materials.lanes28[material], inputs)?
+            }
+            (_, 2) => hyperelastic_stress_jacobian::<8, 4, D>(&materials.lanes4[material], inputs)?,
+            _ => hyperelastic_stress_jacobian::<18, 9, D>(&materials.lanes9[material], inputs)?,
         };
         Some(Self {
             nodes,
@@ -384,9 +389,6 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
     material: &Material<DualSVec64<7>>,
     (delta_f, state, volume0, _): (&Tensor<f64, D>, &ParticleState<f64, D>, f64, bool),
 ) -> Option<(Tensor<f64, D>, Vec<f64>)> {
-    if det(delta_f) <= 0.0 {
-        return None;
-    }
     let dd = D * D;
     let h = &state.history;
     let g = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(delta_f[(r, c)], r * D + c));
@@ -394,7 +396,7 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
     let be = Matrix3::from_fn(|r, c| seed::<L>(h.tensor[(r, c)], 2 * dd + 1 + r * 3 + c));
     let b = product(&product(&g3, &be), &g3.transpose());
     let trial = (b + b.transpose()) * DualSVec64::from_re(0.5);
-    let inputs: [DualSVec64<L>; 7] = std::array::from_fn(|k| match SYMMETRIC.get(k) {
+    let arguments: [DualSVec64<L>; 7] = std::array::from_fn(|k| match SYMMETRIC.get(k) {
         Some(&(r, c)) => trial[(r, c)],
         None => seed(h.plastic_strain, 2 * dd),
     });
@@ -403,29 +405,73 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
             .position(|&rc| rc == (r.min(c), r.max(c)))
             .expect("every entry has a component")
     };
-    let inner = MaterialState {
-        plastic_strain: seed::<7>(h.plastic_strain, 6),
-        tensor: Matrix3::from_fn(|r, c| seed::<7>(trial[(r, c)].re, component(r, c))),
-    };
     let identity = Matrix3::<DualSVec64<7>>::identity();
-    let (tau, history) = material.kirchhoff_update(&identity, &identity, &inner);
-    // v with ∂v/∂(bₑᵗʳ, ε̄ᵖ) carried through to the `L` lanes of the inputs.
-    let compose = |v: DualSVec64<7>| {
+    composed_jacobian(&g, volume0, &arguments, |z| {
+        let inner = MaterialState {
+            plastic_strain: z[6],
+            tensor: Matrix3::from_fn(|r, c| z[component(r, c)]),
+        };
+        let (tau, history) = material.kirchhoff_update(&identity, &identity, &inner);
+        (tau, Some(history))
+    })
+}
+
+/// [`stress_jacobian`] for a hyperelastic model, whose `τ` reads the total `F = ΔF Fⁿ` only:
+/// `τ` is differentiated by the `M = D²` entries of `F` and composed with the `L` lanes of
+/// `(ΔF, Fⁿ)`.
+fn hyperelastic_stress_jacobian<const L: usize, const M: usize, const D: usize>(
+    material: &Material<DualSVec64<M>>,
+    (delta_f, state, volume0, _): (&Tensor<f64, D>, &ParticleState<f64, D>, f64, bool),
+) -> Option<(Tensor<f64, D>, Vec<f64>)> {
+    let dd = D * D;
+    let g = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(delta_f[(r, c)], r * D + c));
+    let f_n = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(state.f[(r, c)], dd + r * D + c));
+    let f = product(&g, &f_n);
+    let arguments: [DualSVec64<L>; M] = std::array::from_fn(|k| f[(k / D, k % D)]);
+    let history = lift_state(&state.history);
+    composed_jacobian(&g, volume0, &arguments, |z| {
+        let f3 = to3(
+            &Tensor::<_, D>::from_fn(|r, c| z[r * D + c]),
+            DualSVec64::from_re(1.0),
+        );
+        (material.kirchhoff_update(&f3, &f3, &history).0, None)
+    })
+}
+
+/// `S = V⁰ τ ΔF⁻ᵀ` and the Jacobian of [`jacobian_rows`] for an update `(τ, h') = update(z)`
+/// of `M` arguments `z = arguments` (functions of the `L` input lanes): `update` is evaluated
+/// once with `M` lanes, and its Jacobian composed with that of `arguments`; `None` at
+/// `det ΔF ≤ 0`.
+fn composed_jacobian<const L: usize, const M: usize, const D: usize>(
+    g: &Tensor<DualSVec64<L>, D>,
+    volume0: f64,
+    arguments: &[DualSVec64<L>; M],
+    update: impl Fn(
+        &[DualSVec64<M>; M],
+    ) -> (Matrix3<DualSVec64<M>>, Option<MaterialState<DualSVec64<M>>>),
+) -> Option<(Tensor<f64, D>, Vec<f64>)> {
+    if det(&g.map(|v| v.re)) <= 0.0 {
+        return None;
+    }
+    let z: [DualSVec64<M>; M] = std::array::from_fn(|k| seed(arguments[k].re, k));
+    let (tau, history) = update(&z);
+    // v with ∂v/∂z carried through to the `L` lanes of the inputs.
+    let compose = |v: DualSVec64<M>| {
         let mut e = SVector::<f64, L>::zeros();
-        for (k, z) in inputs.iter().enumerate() {
-            if let Some(dz) = z.eps.0.as_ref() {
-                e += dz * lane(&v, k);
+        for (k, a) in arguments.iter().enumerate() {
+            if let Some(da) = a.eps.0.as_ref() {
+                e += da * lane(&v, k);
             }
         }
         DualSVec64::<L>::new(v.re, Derivative::some(e))
     };
     let tau = tau.map(compose);
-    let history = MaterialState {
-        plastic_strain: compose(history.plastic_strain),
-        tensor: history.tensor.map(compose),
-    };
-    let s = product(&from3::<_, D>(&tau), &inverse(&g)?.transpose()) * DualSVec64::from_re(volume0);
-    Some(jacobian_rows(&s, Some(&history)))
+    let history = history.map(|h| MaterialState {
+        plastic_strain: compose(h.plastic_strain),
+        tensor: h.tensor.map(compose),
+    });
+    let s = product(&from3::<_, D>(&tau), &inverse(g)?.transpose()) * DualSVec64::from_re(volume0);
+    Some(jacobian_rows(&s, history.as_ref()))
 }
 
 /// `a b` summed in a plain loop: nalgebra's generic product also multiplies by its `α = 1`
@@ -447,7 +493,7 @@ fn product<T: Scalar, const R: usize, const K: usize, const C: usize>(
 mod tests {
     use super::super::kernel::{lift_loads, particle_step};
     use super::*;
-    use loam_core::constitutive::{J2, Lame};
+    use loam_core::constitutive::{Hencky, J2, Lame};
     use loam_core::{Grid, Shape};
 
     /// `ψₚ` (module docs) of a particle's step in scalar `T`.
@@ -486,11 +532,9 @@ mod tests {
 
     /// Every product of a linearised J2 particle (cpGIMP, yielding in the step, a plastic
     /// history at its start) against `Dual64` evaluations of `ψₚ` through the generic kernel,
-    /// one seeded input at a time. Both are exact derivatives; they differ by the rounding of
-    /// different operation orders, far below 1e-10 of the largest entry.
+    /// one seeded input at a time (the constants: E and σ_y).
     #[test]
-    fn chain_rule_matches_dual_evaluations() {
-        let grid = Grid::<2>::new([0.0, 0.0], [8, 8], 0.25, 2);
+    fn j2_chain_rule_matches_dual_evaluations() {
         let j2 = |e: Dual64, sy: Dual64| Material {
             density: Dual64::from_re(2000.0),
             model: Model::J2(J2 {
@@ -499,7 +543,7 @@ mod tests {
                 hardening: Dual64::from_re(2e4),
             }),
         };
-        let real: Material<f64> = Material {
+        let real = Material {
             density: 2000.0,
             model: Model::J2(J2 {
                 lame: Lame::from_young_poisson(1e6, 0.3),
@@ -507,7 +551,39 @@ mod tests {
                 hardening: 2e4,
             }),
         };
-        let plain = j2(Dual64::from_re(1e6), Dual64::from_re(1e3));
+        check_against_duals(real, (1e6, 1e3), j2);
+    }
+
+    /// As [`j2_chain_rule_matches_dual_evaluations`] for a Hencky particle (the constants: E
+    /// and ν).
+    #[test]
+    fn hencky_chain_rule_matches_dual_evaluations() {
+        let hencky = |e: Dual64, nu: Dual64| Material {
+            density: Dual64::from_re(2000.0),
+            model: Model::Hencky(Hencky {
+                lame: Lame::from_young_poisson(e, nu),
+            }),
+        };
+        let real = Material {
+            density: 2000.0,
+            model: Model::Hencky(Hencky {
+                lame: Lame::from_young_poisson(1e6, 0.3),
+            }),
+        };
+        check_against_duals(real, (1e6, 0.3), hencky);
+    }
+
+    /// The products of [`Linearisation`] for material `real` against `Dual64` evaluations;
+    /// `seeded(a, b)` is the material with its two constants `(a, b)` (real values `values`).
+    /// Both are exact derivatives; they differ by the rounding of different operation orders,
+    /// far below 1e-10 of the largest entry.
+    fn check_against_duals(
+        real: Material<f64>,
+        values: (f64, f64),
+        seeded: impl Fn(Dual64, Dual64) -> Material<Dual64>,
+    ) {
+        let grid = Grid::<2>::new([0.0, 0.0], [8, 8], 0.25, 2);
+        let plain = seeded(Dual64::from_re(values.0), Dual64::from_re(values.1));
         let setting = Setting {
             grid: &grid,
             shape: Shape::Cpgimp,
@@ -545,10 +621,12 @@ mod tests {
             end: &end,
         };
         let step = particle_step(&setting, &real, &state, &loads, du).expect("not inverted");
-        assert!(
-            step.end.history.plastic_strain > state.history.plastic_strain,
-            "it yields"
-        );
+        if matches!(real.model, Model::J2(_)) {
+            assert!(
+                step.end.history.plastic_strain > state.history.plastic_strain,
+                "it yields"
+            );
+        }
         let lin = Linearisation::new(
             &setting,
             &LaneMaterials::new(&[real]),
@@ -601,8 +679,8 @@ mod tests {
         );
 
         let materials = [
-            j2(Dual64::new(1e6, 1.0), Dual64::from_re(1e3)),
-            j2(Dual64::from_re(1e6), Dual64::new(1e3, 1.0)),
+            seeded(Dual64::new(values.0, 1.0), Dual64::from_re(values.1)),
+            seeded(Dual64::from_re(values.0), Dual64::new(values.1, 1.0)),
         ];
         let found: Vec<f64> = (materials.iter())
             .map(|m| lin.material_share(m, &cot).expect("not inverted"))
