@@ -4,8 +4,11 @@
 //! Of the maps in [`super::kernel::particle_step`] only two are not linear in their inputs:
 //! the stencil `(xₚ, Fₚ) ↦ (N_i, ∇N_i)` (the cpGIMP half-width follows `Fₚ`) and the stress
 //! update `C: (ΔF, Fₚ, hₚ) ↦ (S = V⁰τΔF⁻ᵀ, h')`. Each is differentiated once, by one
-//! evaluation with a multi-lane dual (`D + D²` lanes for the stencil, `2D²` for the stress
-//! update, `2D² + 10` with a history), and kept as its Jacobian `J_C`. For the scalar
+//! evaluation with a multi-lane dual, and kept as its Jacobian: `D + D²` lanes for the
+//! stencil; for the stress update the fewest arguments its model reads, composed with their
+//! own Jacobian by `(ΔF, Fₚ, hₚ)` into `J_C` (`D²` lanes, the entries of `F = ΔF Fₚ`, for
+//! the hyperelastic models; 7 for J2, its trial `bₑ` and `ε̄ᵖ`; `2D² + 10`, all inputs, for
+//! Drucker–Prager). For the scalar
 //!
 //! ```text
 //! ψₚ = Σ_i (a_i·S∇N_i + c_i·q N_i) + x̄'·(xₚ + Σ_i N_i Δu_i) + F̄':(ΔF Fₚ) + h̄'·h' + m̄' mₚ
