@@ -472,11 +472,20 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
+        self.tangent_from(|p| self.material_tangent(p, x, materials))
+    }
+
+    /// The tangent `K_{ia,jc} = Σ_p Σ_{bd} ∂_b N_i A_p[c][d]_{ab} ∂_d N_j` (plus `(4/Δt²) M`
+    /// for a dynamic step) from every particle's `A_p = ∂(V⁰ τ ΔF⁻ᵀ)/∂ΔF`, given by
+    /// `local(p)` (`None`: particle `p` is inverted).
+    pub fn tangent_from(
+        &self,
+        local: impl Fn(usize) -> Option<[[Tensor<f64, D>; D]; D]> + Sync,
+    ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
-        self.chunked(
-            |p| self.material_tangent(p, x, materials),
-            |p, a| self.scatter_local(&self.frozen[p].stencil, &a, &mut k),
-        )?;
+        self.chunked(local, |p, a| {
+            self.scatter_local(&self.frozen[p].stencil, &a, &mut k)
+        })?;
         self.add_inertia(&mut k);
         Ok(k)
     }

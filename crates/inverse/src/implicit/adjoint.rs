@@ -11,21 +11,21 @@
 //! ```
 //!
 //! Every term is a sum over particles of derivatives of one scalar per particle,
-//! `ψₚ = Σ_i (a_i·f_int,i + c_i·f_ext,i) + s̄'ₚ·s'ₚ` ([`super::kernel`]), with `a = r̄ − λ` and
-//! `c = λ` on the nodes (through the unknown map, mirror signs included). The right-hand
+//! `ψₚ = Σ_i (a_i·f_int,i + c_i·f_ext,i) + s̄'ₚ·s'ₚ` ([`super::pullback`]), with `a = r̄ − λ`
+//! and `c = λ` on the nodes (through the unknown map, mirror signs included). The right-hand
 //! side is `∂ψₚ/∂Δu` with `λ = 0`; the state's adjoint `∂ψₚ/∂sₚ` and each parameter's share
-//! `∂ψₚ/∂θ` come from `Dual64` evaluations of the same kernel the solver runs.
+//! `∂ψₚ/∂θ` follow from the same linearisation of the particle's step, whose `∂S/∂ΔF` also
+//! gives the tangent `J`.
 
-use super::kernel::{
-    Cotangent, lift_loads, psi_by_delta_f, psi_by_state, psi_derivative, state_len,
-};
+use super::kernel::state_len;
 use super::observe::ImplicitObservations;
 use super::params::ImplicitParam;
+use super::pullback::{Cotangent, LaneMaterials, Linearisation};
 use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
 use crate::error::AdjointError;
 use crate::params::MaterialField;
-use loam_core::tensor::{Tensor, Vector};
+use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::linear::LinearSolver;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
@@ -79,7 +79,7 @@ fn reverse_from<const D: usize>(
     let n = initial.len();
     let nodes = config.grid.num_nodes();
     let weights = observations.residual_weights(run);
-    let lifted: Vec<Material<Dual64>> = config.materials.iter().map(|m| m.lift()).collect();
+    let lanes = LaneMaterials::new(&config.materials);
     // Per parameter and material, the material with that parameter seeded (if it is one of
     // its constants).
     let seeded: Vec<Vec<Option<Material<Dual64>>>> = params
@@ -112,41 +112,40 @@ fn reverse_from<const D: usize>(
             .and_then(|s| s.reaction_weights.as_deref())
             .unwrap_or(&zeros);
         let material = |p: usize| initial.material[p] as usize;
-        // Right-hand side: ∂ψ/∂Δu with λ = 0, through ∂ψ/∂ΔF.
-        let by_delta_f: Vec<Option<Tensor<f64, D>>> = (0..n)
+        let linearised: Vec<Option<Linearisation<D>>> = (0..n)
             .into_par_iter()
             .map(|p| {
-                let cot = Cotangent {
+                let (setting, state, loads) = (replay.setting(p), replay.state(p), replay.loads(p));
+                let du = |f: usize, a: usize| replay.du(f, a);
+                Linearisation::new(&setting, &lanes, material(p), &state, &loads, du)
+            })
+            .collect();
+        let linearised: Vec<Linearisation<D>> = (linearised.into_iter().enumerate())
+            .map(|(p, l)| l.ok_or_else(|| inverted(p)))
+            .collect::<Result<_, _>>()?;
+        // Right-hand side: ∂ψ/∂Δu with λ = 0.
+        let by_increments: Vec<Vec<(usize, Vector<f64, D>)>> = (linearised.par_iter())
+            .zip(&sbar)
+            .map(|(lin, end)| {
+                lin.increments(&Cotangent {
                     internal: a_r,
                     external: &zeros,
-                    end: &sbar[p],
-                };
-                psi_by_delta_f(
-                    &replay.setting(p),
-                    &lifted[material(p)],
-                    &replay.state(p),
-                    &replay.loads(p),
-                    |f, a| replay.du(f, a),
-                    &cot,
-                )
+                    end,
+                })
             })
             .collect();
         let mut rhs = vec![0.0; system.len()];
-        for (p, g) in by_delta_f.iter().enumerate() {
-            let g = g.ok_or_else(|| inverted(p))?;
-            system.frozen[p].stencil.for_each(|node| {
-                for a in 0..D {
-                    if let NodeDof::Free { dof, sign } = system.dofs.get(node.flat, a) {
-                        let through_f: f64 = (0..D).map(|b| g[(a, b)] * node.gradient[b]).sum();
-                        rhs[dof] += sign * (through_f + sbar[p][a] * node.weight);
-                    }
+        for (flat, g) in by_increments.iter().flatten() {
+            for a in 0..D {
+                if let NodeDof::Free { dof, sign } = system.dofs.get(*flat, a) {
+                    rhs[dof] += sign * g[a];
                 }
-            });
+            }
         }
         let mut lambda = vec![0.0; system.len()];
         if rhs.iter().any(|v| *v != 0.0) {
             let k = system
-                .tangent_local(&sub.solution, solver.materials())
+                .tangent_from(|p| Some(linearised[p].tangent()))
                 .map_err(|e| inverted(e.particle))?;
             linear
                 .solve_transpose(&k, &rhs, &mut lambda)
@@ -177,58 +176,35 @@ fn reverse_from<const D: usize>(
         let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
             .into_par_iter()
             .map(|p| {
+                let lin = &linearised[p];
                 let cot = Cotangent {
                     internal: &internal,
                     external: &external,
                     end: &sbar[p],
                 };
-                let (setting, state, loads) = (replay.setting(p), replay.state(p), replay.loads(p));
-                let du = |f: usize, a: usize| replay.du(f, a);
-                let s = psi_by_state(&setting, &lifted[material(p)], &state, &loads, du, &cot)?;
-                let dual_state = state.dual(&vec![0.0; state_len(D)]);
-                let zero = Tensor::<Dual64, D>::zeros();
                 let mut shares = vec![0.0; params.len()];
                 for (j, q) in params.iter().enumerate() {
-                    let mut loads_d = lift_loads(&loads);
-                    let mat = &lifted[material(p)];
-                    let plain = |f: usize, a: usize| Dual64::from_re(du(f, a));
-                    let share = match *q {
+                    shares[j] = match *q {
                         // Through the masses, below.
                         ImplicitParam::Material(_, MaterialField::Density) => continue,
-                        ImplicitParam::Material(..) => {
-                            let Some(m) = &seeded[j][material(p)] else {
-                                continue;
-                            };
-                            psi_derivative(&setting, m, &dual_state, &loads_d, plain, &zero, &cot)
+                        ImplicitParam::Material(..) => match &seeded[j][material(p)] {
+                            Some(m) => lin.material_share(m, &cot)?,
+                            None => continue,
+                        },
+                        ImplicitParam::Gravity(a) => lin.load_share(&cot)[a] * initial.mass[p],
+                        ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
+                            lin.load_share(&cot)[a]
                         }
-                        ImplicitParam::Gravity(a) => {
-                            loads_d.gravity[a].eps = 1.0;
-                            psi_derivative(&setting, mat, &dual_state, &loads_d, plain, &zero, &cot)
-                        }
-                        ImplicitParam::PointLoad(k, a) => {
-                            if config.point_loads[k].particle != p {
-                                continue;
-                            }
-                            loads_d.point[a].eps = 1.0;
-                            psi_derivative(&setting, mat, &dual_state, &loads_d, plain, &zero, &cot)
-                        }
+                        ImplicitParam::PointLoad(..) => continue,
                         ImplicitParam::Displacement(..) => {
                             let rate = rates[j].as_ref().expect("rates of displacements");
-                            let seeded_du = |f: usize, a: usize| Dual64::new(du(f, a), rate[f][a]);
-                            psi_derivative(
-                                &setting,
-                                mat,
-                                &dual_state,
-                                &loads_d,
-                                seeded_du,
-                                &zero,
-                                &cot,
-                            )
+                            (lin.increments(&cot).iter())
+                                .map(|(f, g)| rate[*f].dot(g))
+                                .sum()
                         }
                     };
-                    shares[j] = share?;
                 }
-                Some((s, shares))
+                Some((lin.state_adjoint(&cot), shares))
             })
             .collect();
         for (p, r) in per_particle.into_iter().enumerate() {

@@ -1,5 +1,4 @@
-//! One particle's part of a converged implicit (sub-)step, generic over the scalar, and its
-//! local vector–Jacobian products by forward-mode duals.
+//! One particle's part of a converged implicit (sub-)step, generic over the scalar.
 //!
 //! For particle `p` with start-of-step state `sₚ = (xₚ, Fₚ, historyₚ, mₚ)` and the nodal
 //! increments `Δu_i` on its stencil, the step computes
@@ -13,17 +12,9 @@
 //!
 //! which is everything the step's residual `R = Σₚ (f_int − f_ext)`, its reactions and the
 //! next step read of the particle. Each particle depends only on its own state and on the
-//! increments of its own stencil, so the adjoint of the step is a sum of per-particle
-//! vector–Jacobian products of the scalar
-//!
-//! ```text
-//! ψₚ = Σ_i (a_i · f_int,i + c_i · f_ext,i) + x̄'·xₚ' + F̄' : Fₚ' + h̄'·historyₚ'
-//! ```
-//!
-//! for nodal weights `a`, `c` and the adjoint `(x̄', F̄', h̄')` of the particle's end state
-//! ([`Cotangent`]). `∂ψₚ/∂sₚ` takes one `Dual64` evaluation per component of `sₚ`
-//! (`D + D² + 11`); `∂ψₚ/∂Δu_i` goes through `ΔF`: with a perturbation `E` added to `ΔF`,
-//! `∂ψₚ/∂Δu_{i,a} = Σ_b ∂ψₚ/∂E_ab ∂_b N_i + x̄'_a N_i` (`D²` evaluations).
+//! increments of its own stencil. The forward-mode pass ([`super::tangent`]) evaluates
+//! [`particle_step`] with `Dual64` inputs; the reverse pass takes the same derivatives by the
+//! chain rule through the step's linearisation ([`super::pullback`]).
 
 use loam_core::constitutive::{MaterialState, Model};
 use loam_core::stencil::particle_half_width;
@@ -140,16 +131,14 @@ pub struct Loads<T, const D: usize> {
     pub point: Vector<T, D>,
 }
 
-/// The particle's part of the step (module docs) for the nodal increments `du(flat, a)` and a
-/// perturbation `perturbation` added to `ΔF` (zero in value; seeded for `∂/∂ΔF`). `None`
-/// when `det ΔF ≤ 0`.
+/// The particle's part of the step (module docs) for the nodal increments `du(flat, a)`;
+/// `None` when `det ΔF ≤ 0`.
 pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     setting: &Setting<'_, D>,
     material: &Material<T>,
     state: &ParticleState<T, D>,
     loads: &Loads<T, D>,
     du: impl Fn(usize, usize) -> T,
-    perturbation: &Tensor<T, D>,
 ) -> Option<ParticleStep<T, D>> {
     let grid = setting.grid;
     let hw = particle_half_width(
@@ -159,7 +148,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         &state.f,
     );
     let stencil = Stencil::new(setting.shape, grid, &state.x, &hw);
-    let g = delta_f::<T, T, D>(&stencil, &du) + perturbation;
+    let g = delta_f::<T, T, D>(&stencil, &du);
     let (s, _, history) = stress_update(
         material,
         &state.f,
@@ -193,117 +182,11 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     })
 }
 
-/// The weights of [`particle_step`]'s outputs in `ψₚ` (module docs).
-#[derive(Clone, Copy, Debug)]
-pub struct Cotangent<'a, const D: usize> {
-    /// `a_i` per grid node (flat index).
-    pub internal: &'a [Vector<f64, D>],
-    /// `c_i` per grid node.
-    pub external: &'a [Vector<f64, D>],
-    /// `(x̄', F̄', h̄', m̄')` of the end state, in the order of [`ParticleState::components`].
-    pub end: &'a [f64],
-}
-
-impl<const D: usize> Cotangent<'_, D> {
-    /// `ψₚ` of a particle's step.
-    pub fn contract<T: Scalar>(&self, step: &ParticleStep<T, D>) -> T {
-        let mut psi = T::zero();
-        for n in &step.nodes {
-            for a in 0..D {
-                psi += n.internal[a] * T::cst(self.internal[n.flat][a])
-                    + n.external[a] * T::cst(self.external[n.flat][a]);
-            }
-        }
-        let e = &step.end;
-        let mut k = 0;
-        let mut add = |v: T| {
-            psi += v * T::cst(self.end[k]);
-            k += 1;
-        };
-        e.x.iter().for_each(|&v| add(v));
-        e.f.transpose().iter().for_each(|&v| add(v));
-        add(e.history.plastic_strain);
-        e.history.tensor.transpose().iter().for_each(|&v| add(v));
-        add(e.mass);
-        psi
-    }
-}
-
-/// The derivative part of `ψₚ` for a particle's step evaluated with `Dual64` inputs (one
-/// seeded direction): `(∂ψₚ/∂inputs)·(seed)`; `None` at an inverted state.
-pub fn psi_derivative<const D: usize>(
-    setting: &Setting<'_, D>,
-    material: &Material<Dual64>,
-    state: &ParticleState<Dual64, D>,
-    loads: &Loads<Dual64, D>,
-    du: impl Fn(usize, usize) -> Dual64,
-    perturbation: &Tensor<Dual64, D>,
-    cotangent: &Cotangent<'_, D>,
-) -> Option<f64> {
-    let step = particle_step(setting, material, state, loads, du, perturbation)?;
-    Some(cotangent.contract(&step).eps)
-}
-
-/// `∂ψₚ/∂ΔF` (the derivative with respect to a perturbation of `ΔF`) at the real state, by
-/// `D²` `Dual64` evaluations; `None` at an inverted state.
-pub fn psi_by_delta_f<const D: usize>(
-    setting: &Setting<'_, D>,
-    material: &Material<Dual64>,
-    state: &ParticleState<f64, D>,
-    loads: &Loads<f64, D>,
-    du: impl Fn(usize, usize) -> f64,
-    cotangent: &Cotangent<'_, D>,
-) -> Option<Tensor<f64, D>> {
-    let state = state.dual(&vec![0.0; state_len(D)]);
-    let loads = lift_loads(loads);
-    let du = |n: usize, c: usize| Dual64::from_re(du(n, c));
-    let mut out = Tensor::<f64, D>::zeros();
-    for a in 0..D {
-        for b in 0..D {
-            let e = Tensor::<Dual64, D>::from_fn(|r, c| {
-                Dual64::new(0.0, if (r, c) == (a, b) { 1.0 } else { 0.0 })
-            });
-            out[(a, b)] = psi_derivative(setting, material, &state, &loads, du, &e, cotangent)?;
-        }
-    }
-    Some(out)
-}
-
 /// Whether a model reads and updates its history (J2, Drucker–Prager). The others return it
 /// unchanged and their stress does not depend on it, so its adjoint passes through a step as
 /// it is (`h̄ = h̄'`) without an evaluation.
 pub fn carries_history<T>(material: &Material<T>) -> bool {
     matches!(material.model, Model::J2(_) | Model::DruckerPrager(_))
-}
-
-/// `∂ψₚ/∂sₚ` in the order of [`ParticleState::components`], by one `Dual64` evaluation per
-/// component (the history's `∂ψₚ/∂h = h̄'` taken directly for a model without one);
-/// `None` at an inverted state.
-pub fn psi_by_state<const D: usize>(
-    setting: &Setting<'_, D>,
-    material: &Material<Dual64>,
-    state: &ParticleState<f64, D>,
-    loads: &Loads<f64, D>,
-    du: impl Fn(usize, usize) -> f64,
-    cotangent: &Cotangent<'_, D>,
-) -> Option<Vec<f64>> {
-    let loads = lift_loads(loads);
-    let du = |n: usize, c: usize| Dual64::from_re(du(n, c));
-    let zero = Tensor::<Dual64, D>::zeros();
-    let history = D + D * D..D + D * D + 10;
-    let passes = !carries_history(material);
-    let mut seed = vec![0.0; state_len(D)];
-    (0..state_len(D))
-        .map(|k| {
-            if passes && history.contains(&k) {
-                return Some(cotangent.end[k]);
-            }
-            seed[k] = 1.0;
-            let s = state.dual(&seed);
-            seed[k] = 0.0;
-            psi_derivative(setting, material, &s, &loads, du, &zero, cotangent)
-        })
-        .collect()
 }
 
 /// The loads as `Dual64` constants.

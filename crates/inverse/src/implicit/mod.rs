@@ -5,8 +5,10 @@
 //! - [`record`]: the forward pass, keeping per accepted sub-step the particle state at its
 //!   start, its load factors and its converged unknowns (a cut load step is the sequence of
 //!   sub-steps it was accepted as).
-//! - [`kernel`]: one particle's part of a sub-step, generic over the scalar, and its local
-//!   vector–Jacobian products by `Dual64` evaluations.
+//! - [`kernel`]: one particle's part of a sub-step, generic over the scalar.
+//! - [`pullback`]: a particle's sub-step linearised (the Jacobians of its stencil and of its
+//!   stress update, one multi-lane dual evaluation each) and its local vector–Jacobian
+//!   products by the chain rule.
 //! - [`adjoint`]: backwards over the sub-steps, one transposed solve `Jᵀλ = …` with the
 //!   sub-step's tangent, then the state's adjoint and the parameters' shares per particle.
 //! - [`tangent`]: the forward-mode dual derivative (the oracle); [`check`]: central
@@ -20,6 +22,7 @@ mod identify;
 pub mod kernel;
 mod observe;
 mod params;
+pub mod pullback;
 pub mod record;
 mod seeds;
 pub mod tangent;

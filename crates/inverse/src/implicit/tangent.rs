@@ -17,7 +17,7 @@ use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
 use crate::error::AdjointError;
 use crate::params::MaterialField;
-use loam_core::tensor::{Tensor, Vector};
+use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::linear::LinearSolver;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
@@ -107,7 +107,6 @@ pub fn model_tangents<const D: usize>(
                         &replay.state(p).dual(&sdot[p]),
                         &loads,
                         du,
-                        &Tensor::<Dual64, D>::zeros(),
                     )
                 })
                 .collect();
