@@ -47,7 +47,7 @@ use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
 use crate::params::{Acts, Param};
 use kernels::node_update;
 use loam_core::constitutive::Material;
-use loam_core::stencil::particle_half_width;
+use loam_core::stencil::{Frame, particle_half_width};
 use loam_core::step::{NodeLaw, NodeState, NodeSums, on_a_face};
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
 use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
@@ -284,17 +284,26 @@ impl<const D: usize> ReverseStep<D> {
         particle_half_width(cfg.shape, cfg.grid.h, &p.half_width0[i], &p.f[i])
     }
 
-    /// Forms every particle's stencil at the start of the step (in parallel).
+    /// Forms every particle's stencil at the start of the step (in parallel), in place in the
+    /// stencils kept from the step before ([`Stencil::set_in`]: nothing built and copied).
     fn locate(&mut self, p: &Particles<f64, D>) {
         let mut stencils = std::mem::take(&mut self.stencils);
         let cfg = &self.config;
-        stencils.clear();
-        stencils.par_extend(
-            (0..p.len())
-                .into_par_iter()
-                .with_min_len(CHUNK)
-                .map(|i| Stencil::new(cfg.shape, &cfg.grid, &p.x[i], &self.half_width(p, i))),
-        );
+        let frame = Frame::new(&cfg.grid);
+        stencils.truncate(p.len());
+        for i in stencils.len()..p.len() {
+            stencils.push(Stencil::new(
+                cfg.shape,
+                &cfg.grid,
+                &p.x[i],
+                &self.half_width(p, i),
+            ));
+        }
+        stencils
+            .par_iter_mut()
+            .with_min_len(CHUNK)
+            .enumerate()
+            .for_each(|(i, s)| s.set_in(cfg.shape, &frame, &p.x[i], &self.half_width(p, i)));
         self.stencils = stencils;
     }
 
@@ -346,16 +355,21 @@ impl<const D: usize> ReverseStep<D> {
     fn add_scatter(
         scatter: &Scatter<D>,
         adj: &mut [Vector<f64, D>],
-        mut adj_old: Option<&mut [Vector<f64, D>]>,
+        adj_old: Option<&mut [Vector<f64, D>]>,
     ) {
         adj.fill(Vector::zeros());
-        if let Some(old) = adj_old.as_deref_mut() {
-            old.fill(Vector::zeros());
-        }
-        for &(node, a, a_old) in scatter {
-            adj[node] += a;
-            if let Some(old) = adj_old.as_deref_mut() {
-                old[node] += a_old;
+        match adj_old {
+            Some(old) => {
+                old.fill(Vector::zeros());
+                for &(node, a, a_old) in scatter {
+                    adj[node] += a;
+                    old[node] += a_old;
+                }
+            }
+            None => {
+                for &(node, a, _) in scatter {
+                    adj[node] += a;
+                }
             }
         }
     }

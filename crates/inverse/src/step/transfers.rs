@@ -8,6 +8,7 @@
 //! by row over the stencil ([`Site::rows`]): a node forms only its axis-0 terms, and the row's
 //! factors multiply the row's sums once.
 
+use loam_core::shape::MAX_SUPPORT;
 use loam_core::stencil::{Layout, Stencil, StencilRow};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::Gathered;
@@ -57,17 +58,18 @@ impl<'a, const D: usize> Site<'a, D> {
             .for_each_in(&Layout::grid(self.grid), |n, _, w, g, o| f(n, w, g, o));
     }
 
-    /// Calls `f(row, [N, N', o], nodes)` for every row of the stencil
-    /// ([`Stencil::for_each_row`]): the row's factors of the axes above 0, the axis-0 factors
-    /// of its nodes and the flat grid indices of its nodes.
+    /// Calls `f(row, [N, N', o])` for every row of the stencil ([`Stencil::for_each_row`]),
+    /// whose width must be `B`: the row's factors of the axes above 0 (its first node's flat
+    /// grid index `row.index`) and the axis-0 factors of its `B` nodes.
     #[inline]
-    pub fn rows(&self, f: impl FnMut(&StencilRow<f64, D>, [&[f64]; 3], std::ops::Range<usize>)) {
+    pub fn rows<const B: usize>(&self, f: impl FnMut(&StencilRow<f64, D>, [&[f64; B]; 3])) {
         let mut f = f;
-        let b = self.stencil.width();
+        debug_assert_eq!(self.stencil.width(), B);
         let [w0, dw0, o0] = self.stencil.axis0();
-        let axis0 = [&w0[..b], &dw0[..b], &o0[..b]];
+        let first = |a: &[f64; MAX_SUPPORT]| -> [f64; B] { std::array::from_fn(|i| a[i]) };
+        let axis0 = [first(w0), first(dw0), first(o0)];
         self.stencil.for_each_row(&Layout::grid(self.grid), |row| {
-            f(&row, axis0, row.index..row.index + b)
+            f(&row, [&axis0[0], &axis0[1], &axis0[2]])
         });
     }
 
@@ -156,7 +158,9 @@ pub(super) fn gather_adjoint<const D: usize>(
 /// `t_i = Ḡ.v + Ḡ.dv + Ā o_i`, so `∂J/∂x_p = Σ_i ∇w_i a_i − Āᵀ Σ_i w_i v_i`
 /// (`∂o_i/∂x_p = −I`): the weights' first derivatives only. Along a row `t_i = t_row + Ā e₀ o_i`
 /// with `t_row = Ḡ.v + Ḡ.dv + Σ_{a≥1} Ā e_a o_a` (the row's offsets), and `w_i`, `∇w_i` are the
-/// row's factors times the node's axis-0 factors, so a node forms only its axis-0 terms.
+/// row's factors times the node's axis-0 factors, so a node forms only its axis-0 terms. The
+/// support width and whether the transfer is FLIP are constants of the loop
+/// ([`closed_rows`]).
 fn closed_gather_adjoint<const D: usize>(
     site: &Site<'_, D>,
     g_bar: &Gathered<f64, D>,
@@ -166,10 +170,36 @@ fn closed_gather_adjoint<const D: usize>(
     old: &[Vector<f64, D>],
     out: &mut [(usize, Vector<f64, D>, Vector<f64, D>)],
 ) -> Vector<f64, D> {
-    let flip = !old.is_empty();
+    let a = (site, g_bar, gvd, aff_bar, velocity, old, out);
+    match (site.stencil().width(), old.is_empty()) {
+        (2, true) => closed_rows::<D, 2, false>(a),
+        (2, false) => closed_rows::<D, 2, true>(a),
+        (3, true) => closed_rows::<D, 3, false>(a),
+        (3, false) => closed_rows::<D, 3, true>(a),
+        (4, true) => closed_rows::<D, 4, false>(a),
+        (4, false) => closed_rows::<D, 4, true>(a),
+        (b, _) => unreachable!("support width {b}"),
+    }
+}
+
+/// The arguments of [`closed_gather_adjoint`].
+type ClosedArgs<'a, 's, const D: usize> = (
+    &'a Site<'s, D>,
+    &'a Gathered<f64, D>,
+    Vector<f64, D>,
+    Option<Tensor<f64, D>>,
+    &'a [Vector<f64, D>],
+    &'a [Vector<f64, D>],
+    &'a mut [(usize, Vector<f64, D>, Vector<f64, D>)],
+);
+
+/// [`closed_gather_adjoint`] for support width `B` and FLIP or not.
+fn closed_rows<const D: usize, const B: usize, const FLIP: bool>(
+    (site, g_bar, gvd, aff_bar, velocity, old, out): ClosedArgs<'_, '_, D>,
+) -> Vector<f64, D> {
     let (mut x_bar, mut wv) = (Vector::<f64, D>::zeros(), Vector::<f64, D>::zeros());
     let mut k = 0;
-    site.rows(|row, [w0, dw0, o0], nodes| {
+    site.rows::<B>(|row, [w0, dw0, o0]| {
         let (mut t_row, mut a0) = (gvd, Vector::<f64, D>::zeros());
         if let Some(aff) = &aff_bar {
             for c in 1..D {
@@ -177,20 +207,20 @@ fn closed_gather_adjoint<const D: usize>(
             }
             a0 = aff.column(0).into_owned();
         }
-        let v_row = &velocity[nodes.clone()];
-        let old_row = if flip { &old[nodes.clone()] } else { &[] };
+        let v_row: &[Vector<f64, D>; B] = velocity[row.index..row.index + B].try_into().unwrap();
+        let out_row: &mut [_; B] = (&mut out[k..k + B]).try_into().unwrap();
+        k += B;
         // Σ N' a, Σ N a and Σ N v over the row.
         let (mut sd, mut sw, mut sv) = (0.0, 0.0, Vector::<f64, D>::zeros());
-        for (i, n) in nodes.enumerate() {
+        for i in 0..B {
             let t = t_row + a0 * o0[i];
             let w = w0[i] * row.weight;
-            let shares = if flip { -g_bar.dv * w } else { Vector::zeros() };
-            out[k] = (n, t * w, shares);
-            k += 1;
+            let shares = if FLIP { -g_bar.dv * w } else { Vector::zeros() };
+            out_row[i] = (row.index + i, t * w, shares);
             let vi = v_row[i];
             let mut a = vi.dot(&t);
-            if flip {
-                a -= old_row[i].dot(&g_bar.dv);
+            if FLIP {
+                a -= old[row.index + i].dot(&g_bar.dv);
             }
             sd += dw0[i] * a;
             sw += w0[i] * a;
@@ -248,12 +278,17 @@ impl<const D: usize> NodeAdjoints<'_, D> {
             s2: Tensor::zeros(),
             s3: Tensor::zeros(),
         };
-        let closed = self.force.is_none();
+        if self.force.is_none() {
+            return match site.stencil().width() {
+                2 => self.closed_moments::<2>(site, m, v, a),
+                3 => self.closed_moments::<3>(site, m, v, a),
+                4 => self.closed_moments::<4>(site, m, v, a),
+                b => unreachable!("support width {b}"),
+            };
+        }
         let mv = v * m;
-        let mut x_bar = Vector::zeros();
         site.each(|n, w, gradient, offset| {
-            let pb = self.momentum[n];
-            let pw = pb * w;
+            let pw = self.momentum[n] * w;
             s.s1 += pw;
             s.s2 += pw * offset.transpose();
             if let Some(mass) = self.mass {
@@ -262,17 +297,7 @@ impl<const D: usize> NodeAdjoints<'_, D> {
             if let Some(force) = self.force {
                 s.s3 += force[n] * gradient.transpose();
             }
-            if closed {
-                let mut b = pb.dot(&(mv + a * offset));
-                if let Some(mass) = self.mass {
-                    b += m * mass[n];
-                }
-                x_bar += gradient * b;
-            }
         });
-        if closed {
-            return (s, x_bar - a.transpose() * s.s1);
-        }
         let mv = mv.map(Dual64::from_re);
         let a = a.map(Dual64::from_re);
         let sv = sv.map(Dual64::from_re);
@@ -288,5 +313,48 @@ impl<const D: usize> NodeAdjoints<'_, D> {
             j
         });
         (s, x_bar)
+    }
+
+    /// [`NodeAdjoints::moments_and_position`] without a force term, for support width `B`
+    /// (row by row, [`Site::rows`], a node forming the same terms as [`Site::each`] gives):
+    /// the moments and `x̄_p = Σ_i ∇w_i b_i − Aᵀ S₁`, `b_i = m m̄_i + P̄_i·(m v + A o_i)`.
+    fn closed_moments<const B: usize>(
+        &self,
+        site: &Site<'_, D>,
+        m: f64,
+        v: &Vector<f64, D>,
+        a: &Tensor<f64, D>,
+    ) -> (Moments<D>, Vector<f64, D>) {
+        let mut s = Moments {
+            s0: 0.0,
+            s1: Vector::zeros(),
+            s2: Tensor::zeros(),
+            s3: Tensor::zeros(),
+        };
+        let mv = v * m;
+        let mut x_bar = Vector::zeros();
+        site.rows::<B>(|row, [w0, dw0, o0]| {
+            let nodes = row.index..row.index + B;
+            let p_row: &[Vector<f64, D>; B] = self.momentum[nodes.clone()].try_into().unwrap();
+            let m_row: Option<&[f64; B]> = self.mass.map(|mass| mass[nodes].try_into().unwrap());
+            for i in 0..B {
+                let w = w0[i] * row.weight;
+                let mut gradient = row.gradient * w0[i];
+                gradient[0] = dw0[i] * row.weight;
+                let mut offset = row.offset;
+                offset[0] = o0[i];
+                let pb = p_row[i];
+                let pw = pb * w;
+                s.s1 += pw;
+                s.s2 += pw * offset.transpose();
+                let mut b = pb.dot(&(mv + a * offset));
+                if let Some(mass) = m_row {
+                    s.s0 += w * mass[i];
+                    b += m * mass[i];
+                }
+                x_bar += gradient * b;
+            }
+        });
+        (s, x_bar - a.transpose() * s.s1)
     }
 }
