@@ -380,3 +380,68 @@ fn a_fixed_step_above_the_stability_bound_is_reported_at_its_step() {
         other => panic!("expected the step to be too large at step {cpu_step}, got {other:?}"),
     }
 }
+
+/// The particles' order on the device after 48 steps of the 3D dam-break (sorted before the
+/// first step and after steps 16, 32 and 48): every particle in exactly one slot, the bins
+/// ascending and, within a bin, the original ids ascending (a stable sort of the scene's
+/// order); each bin is the block-major number of the particle's base node
+/// `floor((x − origin)/h − ½)` (blocks of 4³ nodes, x fastest); and the particles read back
+/// by original id match the CPU f32 run per particle within the parity bound.
+#[test]
+fn sorting_is_a_stable_permutation_and_read_back_keeps_the_ids() {
+    let Some(gpu) = gpu(false) else {
+        return;
+    };
+    let steps = 48;
+    let (config, particles) = scene::<3>(&scenes::dam_break_3d(), "musl", "apic");
+    let n = particles.len();
+    let p32 = particles.lift::<f32>();
+    let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
+    solver.advance(steps).expect("stable");
+    let (ids, bins) = solver.sorted_order().expect("read-back");
+    let mut seen = vec![false; n];
+    for &id in &ids {
+        assert!(!seen[id as usize], "particle {id} in two slots");
+        seen[id as usize] = true;
+    }
+    assert!(seen.iter().all(|&s| s), "a particle has no slot");
+    for k in 1..n {
+        let (a, b) = ((bins[k - 1], ids[k - 1]), (bins[k], ids[k]));
+        assert!(a < b, "slots {} and {k}: (bin, id) {a:?} then {b:?}", k - 1);
+    }
+    // The sort moved particles: the scene's order is not the block order.
+    assert!(ids.iter().enumerate().any(|(k, &id)| id as usize != k));
+    let mut out = p32.clone();
+    solver.read_particles(&mut out).expect("read-back");
+    let (grid, nodes) = (&config.grid, config.grid.nodes());
+    let blocks: Vec<u32> = (0..3).map(|a| (nodes[a] as u32).div_ceil(4)).collect();
+    for (k, (&id, &bin)) in ids.iter().zip(&bins).enumerate() {
+        let (block, cell) = (bin / 64, bin % 64);
+        let base = [
+            4 * (block % blocks[0]) + cell % 4,
+            4 * (block / blocks[0] % blocks[1]) + cell / 4 % 4,
+            4 * (block / (blocks[0] * blocks[1])) + cell / 16,
+        ];
+        for a in 0..3 {
+            // The GPU floors the f32 `(x − origin)/h − ½`; 1e-4 cells covers its round-off.
+            let xi = (f64::from(out.x[id as usize][a]) - grid.origin()[a]) / grid.h - 0.5;
+            let b = f64::from(base[a]);
+            assert!(
+                xi > b - 1e-4 && xi < b + 1.0 + 1e-4,
+                "slot {k} (particle {id}): axis {a} at {xi} cells, binned at node {b}"
+            );
+        }
+    }
+    let x64 = cpu::<f64, 3>(&config, &particles, steps);
+    let x32 = cpu::<f32, 3>(&config, &particles, steps);
+    let xg: Vec<[f64; 3]> = out
+        .x
+        .iter()
+        .map(|x| std::array::from_fn(|a| f64::from(x[a])))
+        .collect();
+    let (e32, eg) = (max_distance(&x32, &x64), max_distance(&xg, &x32));
+    assert!(
+        eg <= bound(&config, e32),
+        "GPU positions {eg:.3e} from CPU f32 per particle, whose own round-off is {e32:.3e}"
+    );
+}
