@@ -224,18 +224,7 @@ impl<const D: usize> GpuSolver<D> {
         let bound = [
             &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &table,
         ];
-        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("loam step"),
-            layout: &layout,
-            entries: &bound
-                .iter()
-                .enumerate()
-                .map(|(b, buffer)| wgpu::BindGroupEntry {
-                    binding: b as u32,
-                    resource: buffer.as_entire_binding(),
-                })
-                .collect::<Vec<_>>(),
-        });
+        let bind_group = crate::sort::bind(&gpu.device, "loam step", &layout, &bound);
         let kernels = Kernels::new(&gpu.device, &layout, variant);
         let section = |width: usize, sections: usize, offset: usize| Section {
             width: width as u32,

@@ -85,13 +85,15 @@ fn layout_entry(binding: u32, read_only: bool, uniform: bool) -> wgpu::BindGroup
     }
 }
 
-fn bind(
+/// A bind group of `layout` holding `buffers` whole, at bindings 0, 1, … in order.
+pub(crate) fn bind(
     device: &wgpu::Device,
+    label: &str,
     layout: &wgpu::BindGroupLayout,
     buffers: &[&wgpu::Buffer],
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("loam sort"),
+        label: Some(label),
         layout,
         entries: &buffers
             .iter()
@@ -173,6 +175,7 @@ impl Sorter {
         });
         let bind_group = bind(
             device,
+            "loam sort",
             &layout,
             &[
                 &uniform,
@@ -223,7 +226,12 @@ impl Sorter {
                             contents: bytemuck::bytes_of(s),
                             usage: wgpu::BufferUsages::UNIFORM,
                         });
-                        let group = bind(device, &section_layout, &[&params, buffer, &scratch]);
+                        let group = bind(
+                            device,
+                            "loam sort section",
+                            &section_layout,
+                            &[&params, buffer, &scratch],
+                        );
                         (group, (s.sections * s.particles) as usize)
                     })
                     .collect(),

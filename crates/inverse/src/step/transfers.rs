@@ -248,6 +248,18 @@ pub(super) struct Moments<const D: usize> {
     pub s3: Tensor<f64, D>,
 }
 
+impl<const D: usize> Moments<D> {
+    /// All four sums zero.
+    fn zero() -> Self {
+        Self {
+            s0: 0.0,
+            s1: Vector::zeros(),
+            s2: Tensor::zeros(),
+            s3: Tensor::zeros(),
+        }
+    }
+}
+
 /// The adjoints a P2G of mass, momentum and force reads (mass and force absent for MUSL's
 /// second, momentum-only transfer).
 #[derive(Clone, Copy)]
@@ -272,12 +284,7 @@ impl<const D: usize> NodeAdjoints<'_, D> {
         a: &Tensor<f64, D>,
         sv: &Tensor<f64, D>,
     ) -> (Moments<D>, Vector<f64, D>) {
-        let mut s = Moments {
-            s0: 0.0,
-            s1: Vector::zeros(),
-            s2: Tensor::zeros(),
-            s3: Tensor::zeros(),
-        };
+        let mut s = Moments::zero();
         if self.force.is_none() {
             return match site.stencil().width() {
                 2 => self.closed_moments::<2>(site, m, v, a),
@@ -325,12 +332,7 @@ impl<const D: usize> NodeAdjoints<'_, D> {
         v: &Vector<f64, D>,
         a: &Tensor<f64, D>,
     ) -> (Moments<D>, Vector<f64, D>) {
-        let mut s = Moments {
-            s0: 0.0,
-            s1: Vector::zeros(),
-            s2: Tensor::zeros(),
-            s3: Tensor::zeros(),
-        };
+        let mut s = Moments::zero();
         let mv = v * m;
         let mut x_bar = Vector::zeros();
         site.rows::<B>(|row, [w0, dw0, o0]| {
