@@ -9,9 +9,8 @@
 //! moving, frictionless or Coulomb), the weakly compressible fluid, Neo-Hookean and Hencky
 //! hyperelasticity, Drucker–Prager plasticity (its Jaumann update and closed-form return with
 //! the tension cutoff), fixed and adaptive time steps. Particles and grid
-//! live on the device, the particles counting-sorted by grid block every 16 steps (stable, so
-//! deterministic; read-backs and flags report the original ids and order); the host reads
-//! back the stability flags every [`CHECK_EVERY`] steps and the particles when asked.
+//! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
+//! the particles when asked.
 //!
 //! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
 //! linear elasticity and J2 plasticity, shapes other than the quadratic B-spline, more than 16
@@ -21,7 +20,6 @@ mod device;
 mod error;
 mod params;
 mod solver;
-mod sort;
 mod step;
 
 pub use device::{Atomics, Gpu};

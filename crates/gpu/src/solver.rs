@@ -4,7 +4,6 @@
 use crate::device::Gpu;
 use crate::error::GpuError;
 use crate::params::{self, Params};
-use crate::sort::{Section, Sorter};
 use crate::step::{Kernels, Variant};
 use loam_core::constitutive::{DruckerPrager, Model};
 use loam_core::tensor::{Tensor, Vector};
@@ -15,10 +14,6 @@ use wgpu::util::DeviceExt;
 
 /// Steps recorded into one command buffer.
 const STEPS_PER_SUBMIT: usize = 32;
-
-/// Steps between two sorts of the particles by grid block: a particle moves less than a cell
-/// a step (the stability bound), so the order stays close to sorted in between.
-const SORT_EVERY: usize = 16;
 
 /// Steps between two reads of the stability flags.
 pub const CHECK_EVERY: usize = 128;
@@ -41,7 +36,6 @@ const SPEEDS: usize = FLAG_WORDS;
 pub struct GpuSolver<const D: usize> {
     gpu: Gpu,
     kernels: Kernels,
-    sorter: Sorter,
     bind_group: wgpu::BindGroup,
     uniform: wgpu::Buffer,
     kin: wgpu::Buffer,
@@ -162,7 +156,6 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(&particles.volume0);
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
         mat.extend(particles.state.iter().map(|s| s.plastic_strain));
-        mat.extend((0..n as u32).map(f32::from_bits));
         let table = params::table(config);
         let buffers = [
             (
@@ -224,41 +217,23 @@ impl<const D: usize> GpuSolver<D> {
         let bound = [
             &uniform, &kin, &aff, &def, &mat, &acc, &nodev, &flags, &table,
         ];
-        let bind_group = crate::sort::bind(&gpu.device, "loam step", &layout, &bound);
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("loam step"),
+            layout: &layout,
+            entries: &bound
+                .iter()
+                .enumerate()
+                .map(|(b, buffer)| wgpu::BindGroupEntry {
+                    binding: b as u32,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
+        });
         let kernels = Kernels::new(&gpu.device, &layout, variant);
-        let section = |width: usize, sections: usize, offset: usize| Section {
-            width: width as u32,
-            sections: sections as u32,
-            offset: offset as u32,
-            particles: n as u32,
-        };
-        let tensor = [section(D * D, 1, 0)];
-        let sorter = Sorter::new(
-            &gpu.device,
-            D,
-            &prm,
-            &kin,
-            &mat,
-            &[
-                (&kin, &[section(D, 3, 0)]),
-                (&aff, &tensor),
-                (&def, &tensor),
-                (&mat, &[section(6, 1, 0), section(1, 5, 6 * n)]),
-            ],
-        );
-        // The first sort, before any step: the initial order is the scene's.
-        let mut encoder = gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("sort"),
-            });
-        sorter.record(&mut encoder);
-        gpu.queue.submit([encoder.finish()]);
-        let device_bytes = bound.iter().map(|b| b.size()).sum::<u64>() + sorter.device_bytes;
+        let device_bytes = bound.iter().map(|b| b.size()).sum();
         Ok(Self {
             gpu: gpu.clone(),
             kernels,
-            sorter,
             bind_group,
             uniform,
             kin,
@@ -333,8 +308,7 @@ impl<const D: usize> GpuSolver<D> {
     }
 
     /// Records `steps` steps into command buffers of [`STEPS_PER_SUBMIT`] steps each and
-    /// submits them, without waiting; the particles are sorted after every [`SORT_EVERY`]th
-    /// step.
+    /// submits them, without waiting.
     fn submit(&mut self, steps: usize) {
         let mut left = steps;
         while left > 0 {
@@ -345,23 +319,14 @@ impl<const D: usize> GpuSolver<D> {
                     .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                         label: Some("steps"),
                     });
-            let mut recorded = 0;
-            while recorded < k {
-                let done = self.steps + recorded;
-                let run = (k - recorded).min(SORT_EVERY - done % SORT_EVERY);
-                {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("steps"),
-                        timestamp_writes: None,
-                    });
-                    pass.set_bind_group(0, &self.bind_group, &[]);
-                    for _ in 0..run {
-                        self.kernels.step(&mut pass, self.particles, self.nodes, D);
-                    }
-                }
-                recorded += run;
-                if (done + run).is_multiple_of(SORT_EVERY) {
-                    self.sorter.record(&mut encoder);
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("steps"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, &self.bind_group, &[]);
+                for _ in 0..k {
+                    self.kernels.step(&mut pass, self.particles, self.nodes, D);
                 }
             }
             self.gpu.queue.submit([encoder.finish()]);
@@ -602,19 +567,17 @@ impl<const D: usize> GpuSolver<D> {
         let kin = self.read(&self.kin, 2 * D * n)?;
         let aff = self.read(&self.aff, D * D * n)?;
         let def = self.read(&self.def, D * D * n)?;
-        let mat = self.read(&self.mat, 11 * n)?;
+        let mat = self.read(&self.mat, 10 * n)?;
         let t = |x: f32| T::cst(f64::from(x));
-        for (k, id) in mat[10 * n..].iter().enumerate() {
-            // Slot k holds the particle of original id i.
-            let i = id.to_bits() as usize;
-            particles.x[i] = Vector::from_fn(|a, _| t(kin[k * D + a]));
-            particles.v[i] = Vector::from_fn(|a, _| t(kin[D * n + k * D + a]));
-            particles.c[i] = Tensor::from_fn(|r, c| t(aff[k * D * D + r * D + c]));
-            particles.f[i] = Tensor::from_fn(|r, c| t(def[k * D * D + r * D + c]));
-            let s = &mat[6 * k..6 * k + 6];
+        for i in 0..n {
+            particles.x[i] = Vector::from_fn(|a, _| t(kin[i * D + a]));
+            particles.v[i] = Vector::from_fn(|a, _| t(kin[D * n + i * D + a]));
+            particles.c[i] = Tensor::from_fn(|r, c| t(aff[i * D * D + r * D + c]));
+            particles.f[i] = Tensor::from_fn(|r, c| t(def[i * D * D + r * D + c]));
+            let s = &mat[6 * i..6 * i + 6];
             let stress = Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
             particles.stress[i] = stress.map(t);
-            particles.state[i].plastic_strain = t(mat[9 * n + k]);
+            particles.state[i].plastic_strain = t(mat[9 * n + i]);
             if let Some(dp) = &self.drucker_prager[particles.material[i] as usize]
                 && self.steps > 0
             {
@@ -623,18 +586,5 @@ impl<const D: usize> GpuSolver<D> {
             }
         }
         Ok(())
-    }
-
-    /// The particles' order on the device: per slot, the original id of the particle it holds
-    /// and the bin it was sorted into at the last sort (the cell of its stencil's base node,
-    /// numbered block by block as `sort.wgsl`'s `bin_of`). The particles are sorted before the
-    /// first step and after every `SORT_EVERY`th (16th) step; in between they move but keep
-    /// their slots.
-    pub fn sorted_order(&self) -> Result<(Vec<u32>, Vec<u32>), GpuError> {
-        let n = self.particles;
-        let ids = self.read_at(&self.mat, 10 * n, n)?;
-        let bins = self.read(&self.sorter.sorted_bins, n)?;
-        let bits = |v: Vec<f32>| v.iter().map(|x| x.to_bits()).collect();
-        Ok((bits(ids), bits(bins)))
     }
 }

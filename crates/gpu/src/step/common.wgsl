@@ -94,8 +94,7 @@ struct Params {
 // Deformation gradient F, D² per particle (row-major).
 @group(0) @binding(3) var<storage, read_write> def: array<f32>;
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
-// bits), equivalent plastic strain (n), original particle id (n, u32 bits: the particles are
-// reordered by grid block, sort.wgsl).
+// bits), equivalent plastic strain (n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits), then for
 // FLIP the start-of-step velocities v_iⁿ = p_i / m_i (D N).
@@ -221,11 +220,6 @@ fn plastic_strain_of(i: u32) -> f32 {
 
 fn set_plastic_strain(i: u32, x: f32) {
     mat[9u * prm.particles + i] = x;
-}
-
-// The id the particle in slot `i` had in the scene.
-fn particle_id(i: u32) -> u32 {
-    return bitcast<u32>(mat[10u * prm.particles + i]);
 }
 
 // The in-plane determinant (the D × D one: F_zz = 1 in 2D adds nothing).
@@ -425,12 +419,12 @@ fn walls(idx: vec3<u32>, v: ptr<function, vec3<f32>>, given: u32, decide: bool) 
 
 // ---- flags and the clock ----
 
-// Counts the particle in slot `i` under the flag `kind` (keeping the first MAX_IDS original
-// ids); returns how many were counted before it.
+// Counts particle `i` under the flag `kind` (keeping the first MAX_IDS ids); returns how many
+// were counted before it.
 fn raise(kind: u32, i: u32) -> u32 {
     let slot = atomicAdd(&flags[kind], 1u);
     if slot < MAX_IDS {
-        atomicStore(&flags[FLAG_KINDS + kind * MAX_IDS + slot], particle_id(i));
+        atomicStore(&flags[FLAG_KINDS + kind * MAX_IDS + slot], i);
     }
     return slot;
 }

@@ -17,8 +17,6 @@
 //! 4. USL: `g2p_usl` gathers, moves and ends each particle's step. MUSL: `g2p_musl` gathers
 //!    and scatters the new momentum, `fold` (momentum only), `second_velocity`, `reflect`,
 //!    then `end_musl`.
-//!
-//! Every 16th step is followed by the sort of the particles by grid block (`crate::sort`).
 
 use crate::device::Atomics;
 
