@@ -266,17 +266,11 @@ pub fn run_footing(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
     let scene = loam_scene::Scene::from_toml_str(FOOTING)
         .unwrap_or_else(|e| panic!("examples/inverse/footing_clay.toml: {e}"));
     let steps = if size == Size::Full { 16 } else { 8 };
-    let load: Vec<(usize, Quantity)> = (1..=steps)
-        .map(|step| {
-            (
-                step,
-                Quantity::Reaction {
-                    constraint: 0,
-                    component: 1,
-                },
-            )
-        })
-        .collect();
+    let load = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    }
+    .after_each(1..=steps);
     let problem = synthetic(
         CASE,
         setup(scene, size, steps),

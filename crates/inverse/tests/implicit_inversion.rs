@@ -93,17 +93,11 @@ const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footin
 fn cantilever_young_from_tip_deflection() {
     let (config, initial) = scene(CANTILEVER, 10);
     let tip = config.point_loads[0].particle;
-    let quantities: Vec<(usize, Quantity)> = (1..=10)
-        .map(|step| {
-            (
-                step,
-                Quantity::Displacement {
-                    particle: tip,
-                    component: 1,
-                },
-            )
-        })
-        .collect();
+    let quantities = Quantity::Displacement {
+        particle: tip,
+        component: 1,
+    }
+    .after_each(1..=10);
     let observations = synthetic(&config, &initial, &quantities, 1e-3);
     let problem = ImplicitProblem {
         config,
@@ -166,17 +160,11 @@ fn cantilever_young_and_poisson_from_all_particles() {
 fn footing_strength_and_stiffness_from_load_settlement() {
     let (mut config, initial) = scene(FOOTING, 8);
     config.newton.max_iterations = 25;
-    let quantities: Vec<(usize, Quantity)> = (1..=8)
-        .map(|step| {
-            (
-                step,
-                Quantity::Reaction {
-                    constraint: 0,
-                    component: 1,
-                },
-            )
-        })
-        .collect();
+    let quantities = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    }
+    .after_each(1..=8);
     let observations = synthetic(&config, &initial, &quantities, 100.0);
     let problem = ImplicitProblem {
         config,

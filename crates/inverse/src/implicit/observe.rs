@@ -25,6 +25,13 @@ pub enum Quantity {
     },
 }
 
+impl Quantity {
+    /// This quantity observed after each load step of `steps`: `(n, self)` for every `n`.
+    pub fn after_each(self, steps: impl IntoIterator<Item = usize>) -> Vec<(usize, Quantity)> {
+        steps.into_iter().map(|n| (n, self)).collect()
+    }
+}
+
 /// One measured value after a load step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Observation {
