@@ -3,6 +3,8 @@
 //! Under `CI=true` a missing adapter fails these tests; elsewhere they say they are skipped
 //! and pass (install `mesa-vulkan-drivers` for a software adapter).
 
+use std::sync::OnceLock;
+
 use loam_core::Particles;
 use loam_explicit::{Config, Solver};
 use loam_gpu::{Gpu, GpuError, GpuSolver};
@@ -12,9 +14,16 @@ use scenes::{FLIP, SceneText, fixed, solid};
 mod scenes;
 
 /// The GPU, or `None` (with a note) where there is none outside CI.
+///
+/// One device per atomics flavour serves the whole test binary: a process that opens a new
+/// device for every test can run out of them (the NVIDIA Vulkan driver refused the
+/// twenty-fifth open in one process), and a solver needs only one.
 fn gpu(compare_exchange: bool) -> Option<Gpu> {
-    match Gpu::new(compare_exchange) {
-        Ok(gpu) => Some(gpu),
+    static NATIVE: OnceLock<Result<Gpu, String>> = OnceLock::new();
+    static FALLBACK: OnceLock<Result<Gpu, String>> = OnceLock::new();
+    let cell = if compare_exchange { &FALLBACK } else { &NATIVE };
+    match cell.get_or_init(|| Gpu::new(compare_exchange).map_err(|e| e.to_string())) {
+        Ok(gpu) => Some(gpu.clone()),
         Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
             panic!("CI needs a GPU adapter for the GPU tests: {e}")
         }
