@@ -161,13 +161,15 @@ impl Measured {
 }
 
 /// Runs the named benches (all when empty) and prints a table; `steps` overrides the
-/// default step counts of the explicit scenes, `f32` runs them in single precision.
+/// default step counts of the explicit scenes, `f32` runs them in single precision. `gpu`
+/// runs them on the GPU (`Some`), with that many profiled steps after the timed ones where
+/// it holds a count.
 pub fn bench(
     names: &[String],
     list: bool,
     steps: Option<usize>,
     f32: bool,
-    gpu: bool,
+    gpu: Option<Option<usize>>,
     json: Option<&Path>,
 ) -> Outcome {
     if list {
@@ -191,14 +193,22 @@ pub fn bench(
         }
     }
     if selected.is_empty() {
-        selected = BENCHES.iter().filter(|b| !gpu || b.gpu_steps > 0).collect();
+        selected = BENCHES
+            .iter()
+            .filter(|b| gpu.is_none() || b.gpu_steps > 0)
+            .collect();
     }
     if steps == Some(0) {
         eprintln!("error: --steps must be at least 1");
         return Outcome::BadInput;
     }
-    if gpu {
-        return gpu_benches(&selected, steps, json);
+    match gpu {
+        Some(Some(0)) => {
+            eprintln!("error: --profile must be at least 1 step");
+            return Outcome::BadInput;
+        }
+        Some(profile) => return gpu_benches(&selected, steps, profile, json),
+        None => {}
     }
     println!("{} ({} threads)", cpu_model(), rayon::current_num_threads());
     println!(
@@ -262,7 +272,12 @@ pub fn bench(
 /// Times `steps` explicit steps of the bench `name` in precision `T`.
 /// The GPU benches (`--device gpu`): the 3D dam-breaks and cylinder collapses in f32 on the
 /// first adapter.
-fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -> Outcome {
+fn gpu_benches(
+    selected: &[&Bench],
+    steps: Option<usize>,
+    profile: Option<usize>,
+    json: Option<&Path>,
+) -> Outcome {
     if let Some(b) = selected.iter().find(|b| b.gpu_steps == 0) {
         let gpu: Vec<&str> = BENCHES
             .iter()
@@ -292,7 +307,14 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
     for b in selected {
         // The GPU benches' scene files are their names with underscores.
         let scene = b.name.replace('-', "_");
-        let m = match time_gpu_steps(&device, b.name, &scene, steps.unwrap_or(b.gpu_steps)) {
+        let run = time_gpu_steps(
+            &device,
+            b.name,
+            &scene,
+            steps.unwrap_or(b.gpu_steps),
+            profile,
+        );
+        let (m, kernels) = match run {
             Ok(m) => m,
             Err(e) => {
                 eprintln!("error: {}: {e}", b.name);
@@ -309,6 +331,9 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
             m.rate(),
             m.device_bytes.unwrap_or(0) as f64 / (1u64 << 20) as f64
         );
+        if let Some(p) = kernels {
+            print_profile(&p);
+        }
         results.push(m);
     }
     if let Some(path) = json
@@ -320,21 +345,41 @@ fn gpu_benches(selected: &[&Bench], steps: Option<usize>, json: Option<&Path>) -
     Outcome::Ok
 }
 
+/// Prints each kernel's device time per step and its share of the step.
+fn print_profile(p: &loam_gpu::Profile) {
+    let total = p.total();
+    println!(
+        "  kernels over {} profiled steps: {:.3} ms/step on the device",
+        p.steps,
+        1e3 * total / p.steps as f64
+    );
+    for (name, t) in &p.stages {
+        println!(
+            "    {:<18} {:>9.3} ms/step {:>6.1} %",
+            name,
+            1e3 * t / p.steps as f64,
+            100.0 * t / total
+        );
+    }
+}
+
 /// [`time_steps`] on the GPU: the steps are recorded and submitted in batches, with the
 /// stability flags read back every `loam_gpu::CHECK_EVERY` steps and at the end (so the wall
-/// time covers the finished work); also the device memory the solver's buffers take.
+/// time covers the finished work); also the device memory the solver's buffers take, and
+/// with `profile`, that many more steps with every kernel timed ([`loam_gpu::GpuSolver::profile`]).
 fn time_gpu_steps(
     device: &loam_gpu::Gpu,
     name: &'static str,
     scene: &str,
     steps: usize,
-) -> Result<Measured, loam_gpu::GpuError> {
+    profile: Option<usize>,
+) -> Result<(Measured, Option<loam_gpu::Profile>), loam_gpu::GpuError> {
     let (config, particles) = explicit_scene::<f32, 3>(scene);
     let mut solver = loam_gpu::GpuSolver::new(device, &config, &particles)?;
     solver.advance(WARM_UP_STEPS)?;
     let start = Instant::now();
     solver.advance(steps)?;
-    Ok(Measured {
+    let measured = Measured {
         name,
         precision: "f32",
         particles: particles.len(),
@@ -343,7 +388,9 @@ fn time_gpu_steps(
         iterations: None,
         ratio: None,
         device_bytes: Some(solver.device_bytes()),
-    })
+    };
+    let kernels = profile.map(|k| solver.profile(k)).transpose()?;
+    Ok((measured, kernels))
 }
 
 fn explicit<T: Scalar>(name: &'static str, steps: usize) -> Measured {

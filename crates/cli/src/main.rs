@@ -133,6 +133,10 @@ enum Command {
         /// (default: all nine) in f32 on the first GPU adapter (Vulkan, Metal or DX12).
         #[arg(long, value_enum, default_value_t = Device::Cpu)]
         device: Device,
+        /// With `--device gpu`: after the timed steps, take this many more with every kernel
+        /// timed by the device's timestamps, and print each kernel's time per step and share.
+        #[arg(long, value_name = "STEPS")]
+        profile: Option<usize>,
         /// Write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -257,15 +261,23 @@ fn main() -> ExitCode {
             steps,
             f32,
             device,
+            profile,
             json,
-        } => bench::bench(
-            &benches,
-            list,
-            steps,
-            f32,
-            device == Device::Gpu,
-            json.as_deref(),
-        ),
+        } => {
+            if device == Device::Cpu && profile.is_some() {
+                eprintln!("error: --profile times the GPU kernels; use it with --device gpu");
+                Outcome::BadInput
+            } else {
+                bench::bench(
+                    &benches,
+                    list,
+                    steps,
+                    f32,
+                    (device == Device::Gpu).then_some(profile),
+                    json.as_deref(),
+                )
+            }
+        }
     };
     match outcome {
         Outcome::Ok => ExitCode::SUCCESS,

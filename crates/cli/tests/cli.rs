@@ -789,6 +789,29 @@ fn bench_lists_its_scenes_and_refuses_an_unknown_one() {
         stderr.contains("unknown bench `dambreak-2m`") && stderr.contains("dambreak-1m"),
         "{stderr}"
     );
+    // `--profile` times GPU kernels: refused on the CPU, and for zero steps.
+    for (args, words) in [
+        (
+            &["bench", "--profile", "5", "dambreak"][..],
+            "use it with --device gpu",
+        ),
+        (
+            &[
+                "bench",
+                "--device",
+                "gpu",
+                "--profile",
+                "0",
+                "dambreak-3d-125k",
+            ][..],
+            "--profile must be at least 1 step",
+        ),
+    ] {
+        let out = loam(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(words), "{args:?}: {stderr}");
+    }
 }
 
 #[test]

@@ -18,6 +18,8 @@ pub struct Gpu {
     pub(crate) queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     atomics: Atomics,
+    /// Whether the device writes timestamps at the start and end of compute passes.
+    timestamps: bool,
 }
 
 impl Gpu {
@@ -49,10 +51,16 @@ impl Gpu {
         } else {
             Atomics::CompareExchange
         };
-        let required_features = match atomics {
+        // Timestamps only time the kernels (`GpuSolver::profile`); a device without them
+        // runs the step all the same.
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut required_features = match atomics {
             Atomics::Native => wgpu::Features::SHADER_FLOAT32_ATOMIC,
             Atomics::CompareExchange => wgpu::Features::empty(),
         };
+        if timestamps {
+            required_features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("loam"),
@@ -69,6 +77,7 @@ impl Gpu {
             queue,
             info: adapter.get_info(),
             atomics,
+            timestamps,
         })
     }
 
@@ -84,6 +93,12 @@ impl Gpu {
     /// How the scatter adds floats on this device.
     pub fn atomics(&self) -> Atomics {
         self.atomics
+    }
+
+    /// Whether the device can time compute passes (`Features::TIMESTAMP_QUERY`), which
+    /// `GpuSolver::profile` needs.
+    pub fn timestamps(&self) -> bool {
+        self.timestamps
     }
 
     /// The largest storage buffer one binding may hold, in bytes.

@@ -89,6 +89,9 @@ pub enum GpuError {
         /// Up to 16 of their ids.
         ids: Vec<u32>,
     },
+    /// The step cannot be profiled here (no timestamp queries, or an adaptive step).
+    #[error("cannot profile the GPU step: {0}")]
+    Profile(String),
     /// A buffer could not be read back.
     #[error("reading back from the GPU failed: {0}")]
     Readback(String),

@@ -24,4 +24,4 @@ mod step;
 
 pub use device::{Atomics, Gpu};
 pub use error::GpuError;
-pub use solver::{CHECK_EVERY, GpuSolver};
+pub use solver::{CHECK_EVERY, GpuSolver, Profile};

@@ -12,6 +12,10 @@ use loam_explicit::Config;
 use nalgebra::Matrix3;
 use wgpu::util::DeviceExt;
 
+mod profile;
+
+pub use profile::Profile;
+
 /// Steps recorded into one command buffer.
 const STEPS_PER_SUBMIT: usize = 32;
 
@@ -331,13 +335,18 @@ impl<const D: usize> GpuSolver<D> {
             }
             self.gpu.queue.submit([encoder.finish()]);
             left -= k;
-            self.steps += k;
-            // Summed step by step, as the CPU solver's clock is.
-            for _ in 0..k {
-                self.time += self.dt;
-            }
-            self.dt_range = (self.dt_range.0.min(self.dt), self.dt_range.1.max(self.dt));
+            self.count_steps(k);
         }
+    }
+
+    /// Counts `k` submitted steps of the current `dt` in the step counter and the clock.
+    fn count_steps(&mut self, k: usize) {
+        self.steps += k;
+        // Summed step by step, as the CPU solver's clock is.
+        for _ in 0..k {
+            self.time += self.dt;
+        }
+        self.dt_range = (self.dt_range.0.min(self.dt), self.dt_range.1.max(self.dt));
     }
 
     /// Takes `steps` steps, reading the stability flags back every [`CHECK_EVERY`] steps and
@@ -454,7 +463,17 @@ impl<const D: usize> GpuSolver<D> {
         first: usize,
         words: usize,
     ) -> Result<Vec<f32>, GpuError> {
-        let size = (4 * words) as u64;
+        let bytes = self.read_bytes(buffer, (4 * first) as u64, (4 * words) as u64)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// Reads `size` bytes of `buffer` from byte `offset` on back, through a mapped copy.
+    fn read_bytes(
+        &self,
+        buffer: &wgpu::Buffer,
+        offset: u64,
+        size: u64,
+    ) -> Result<Vec<u8>, GpuError> {
         let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("read-back"),
             size,
@@ -467,7 +486,7 @@ impl<const D: usize> GpuSolver<D> {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("read-back"),
             });
-        encoder.copy_buffer_to_buffer(buffer, (4 * first) as u64, &staging, 0, size);
+        encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
         self.gpu.queue.submit([encoder.finish()]);
         let slice = staging.slice(..);
         let (tx, rx) = std::sync::mpsc::channel();
@@ -484,7 +503,7 @@ impl<const D: usize> GpuSolver<D> {
         let view = slice
             .get_mapped_range()
             .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let out = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+        let out = view.to_vec();
         drop(view);
         staging.unmap();
         Ok(out)

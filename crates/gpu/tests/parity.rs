@@ -95,6 +95,19 @@ fn bound<const D: usize>(config: &Config<f64, D>, e32: f64) -> f64 {
 /// x_cpu32|` must be of the order of `e32`. We require at most 10 e32 (one order of
 /// magnitude), plus 4 ulps of the domain size for runs so short that `e32` is below that.
 fn parity<const D: usize>(case: &SceneText<D>, scheme: &str, transfer: &str, steps: usize) {
+    parity_of(case, scheme, transfer, steps, |solver, n| {
+        solver.advance(n).expect("stable")
+    });
+}
+
+/// [`parity`] with the GPU's steps taken by `take` (`advance`, or the profiled steps).
+fn parity_of<const D: usize>(
+    case: &SceneText<D>,
+    scheme: &str,
+    transfer: &str,
+    steps: usize,
+    take: impl Fn(&mut GpuSolver<D>, usize),
+) {
     for compare_exchange in [false, true] {
         let Some(gpu) = gpu(compare_exchange) else {
             return;
@@ -104,7 +117,7 @@ fn parity<const D: usize>(case: &SceneText<D>, scheme: &str, transfer: &str, ste
         let x32 = cpu::<f32, D>(&config, &particles, steps);
         let p32 = particles.lift::<f32>();
         let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
-        solver.advance(steps).expect("stable");
+        take(&mut solver, steps);
         let mut out = p32.clone();
         solver.read_particles(&mut out).expect("read-back");
         let xg: Vec<[f64; D]> = out
@@ -156,6 +169,49 @@ fn dam_break_2d_usl_mls() {
 #[test]
 fn dam_break_3d_musl_apic() {
     parity::<3>(&scenes::dam_break_3d(), "musl", "apic", 200);
+}
+
+/// Profiled steps are the same steps: each kernel in a timed pass of its own gives the
+/// positions `advance` gives (the parity bound against the CPU), the kernels come in the
+/// order of a MUSL step, and every time is finite and non-negative. An adapter without
+/// timestamps refuses with an error that says so.
+#[test]
+fn profiled_steps_are_the_steps() {
+    parity_of::<3>(
+        &scenes::dam_break_3d(),
+        "musl",
+        "apic",
+        200,
+        |solver, n| match solver.profile(n) {
+            Ok(p) => {
+                let names: Vec<&str> = p.stages.iter().map(|(name, _)| *name).collect();
+                assert_eq!(
+                    names,
+                    [
+                        "clear",
+                        "p2g",
+                        "fold",
+                        "update",
+                        "reflect",
+                        "g2p_musl",
+                        "fold momentum",
+                        "second_velocity",
+                        "reflect second",
+                        "end_musl"
+                    ]
+                );
+                assert_eq!(p.steps, n);
+                assert!(p.stages.iter().all(|(_, t)| t.is_finite() && *t >= 0.0));
+                assert!(p.total() > 0.0, "{p:?}");
+                assert_eq!(solver.steps(), n);
+            }
+            Err(GpuError::Profile(why)) => {
+                assert!(why.contains("timestamp"), "{why}");
+                solver.advance(n).expect("stable");
+            }
+            Err(e) => panic!("profile failed: {e}"),
+        },
+    );
 }
 
 #[test]

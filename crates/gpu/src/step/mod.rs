@@ -99,6 +99,14 @@ pub(crate) struct Kernels {
     musl: bool,
 }
 
+/// One dispatch of a step: the kernel's entry point, its pipeline and its workgroups.
+pub(crate) struct Stage<'a> {
+    /// The entry point (`fold`, `reflect` once per axis; MUSL's second passes with a suffix).
+    pub name: &'static str,
+    pub pipeline: &'a wgpu::ComputePipeline,
+    pub groups: u32,
+}
+
 /// Workgroups for `n` threads, capped at [`MAX_GROUPS`].
 pub(crate) fn groups(n: usize) -> u32 {
     n.div_ceil(WORKGROUP as usize).clamp(1, MAX_GROUPS as usize) as u32
@@ -158,6 +166,37 @@ impl Kernels {
         pass.dispatch_workgroups(groups(particles), 1, 1);
     }
 
+    /// The dispatches of one step, in order, for `particles` particles on `nodes` nodes.
+    pub fn stages(&self, particles: usize, nodes: usize, dim: usize) -> Vec<Stage<'_>> {
+        let (gp, gn) = (groups(particles), groups(nodes));
+        let stage = |name, pipeline, groups| Stage {
+            name,
+            pipeline,
+            groups,
+        };
+        let mut out = vec![
+            stage("clear", &self.clear, groups(nodes * (1 + 2 * dim))),
+            stage("p2g", &self.p2g, gp),
+        ];
+        out.extend(self.fold.iter().map(|[all, _]| stage("fold", all, gn)));
+        out.push(stage("update", &self.update, gn));
+        out.extend(self.reflect.iter().map(|r| stage("reflect", r, gn)));
+        if self.musl {
+            out.push(stage("g2p_musl", &self.g2p_musl, gp));
+            out.extend(
+                self.fold
+                    .iter()
+                    .map(|[_, momentum]| stage("fold momentum", momentum, gn)),
+            );
+            out.push(stage("second_velocity", &self.second_velocity, gn));
+            out.extend(self.reflect.iter().map(|r| stage("reflect second", r, gn)));
+            out.push(stage("end_musl", &self.end_musl, gp));
+        } else {
+            out.push(stage("g2p_usl", &self.g2p_usl, gp));
+        }
+        out
+    }
+
     /// Records one step into `pass`, for `particles` particles on `nodes` nodes (the bind
     /// group must be set).
     pub fn step(
@@ -167,32 +206,9 @@ impl Kernels {
         nodes: usize,
         dim: usize,
     ) {
-        let (gp, gn) = (groups(particles), groups(nodes));
-        let mut run = |p: &wgpu::ComputePipeline, g: u32| {
-            pass.set_pipeline(p);
-            pass.dispatch_workgroups(g, 1, 1);
-        };
-        run(&self.clear, groups(nodes * (1 + 2 * dim)));
-        run(&self.p2g, gp);
-        for [all, _] in &self.fold {
-            run(all, gn);
-        }
-        run(&self.update, gn);
-        for r in &self.reflect {
-            run(r, gn);
-        }
-        if self.musl {
-            run(&self.g2p_musl, gp);
-            for [_, momentum] in &self.fold {
-                run(momentum, gn);
-            }
-            run(&self.second_velocity, gn);
-            for r in &self.reflect {
-                run(r, gn);
-            }
-            run(&self.end_musl, gp);
-        } else {
-            run(&self.g2p_usl, gp);
+        for s in self.stages(particles, nodes, dim) {
+            pass.set_pipeline(s.pipeline);
+            pass.dispatch_workgroups(s.groups, 1, 1);
         }
     }
 }
