@@ -15,10 +15,10 @@
 //! `J^{−γ} = 1 + γ p(J)/K` is taken from the forward's own pressure ([`Fluid::pressure`]: by
 //! repeated multiplication for a whole `γ`), so `ln J` is formed only for the parameters.
 
-use super::ParticleShare;
+use super::{ParticleShare, cofactor};
 use loam_core::constitutive::Fluid;
 use loam_core::step::EndOfStep;
-use loam_core::tensor::{Tensor, Vector, det, inverse, to3};
+use loam_core::tensor::{Tensor, Vector, det, to3};
 use loam_core::transfer::Gathered;
 use nalgebra::Matrix3;
 
@@ -80,11 +80,13 @@ pub(super) fn reverse<const D: usize>(
     let power = 1.0 + excess;
     // J̄ = −p'(J) tr σ̄ with p'(J) = −K J^{−γ−1}.
     let j_bar = k * power / j * tr;
-    let cof = inverse(&f1).map_or_else(Tensor::zeros, |inv| inv.transpose() * j);
-    let f1_bar = y_f + cof * j_bar;
-    let sym_bar = (y_s + y_s.transpose()) * 0.5;
-    let s_bar = (sym_bar - Matrix3::identity() * (tr / 3.0)) * (2.0 * eta);
-    let l_bar = Tensor::<f64, D>::from_fn(|r, c| s_bar[(r, c)]) + f1_bar * f.transpose() * dt;
+    let f1_bar = y_f + cofactor(&f1) * j_bar;
+    // The in-plane block of 2η (sym σ̄' − ⅓ tr σ̄' I): L has no out-of-plane components.
+    let s_bar = Tensor::<f64, D>::from_fn(|r, c| {
+        let diagonal = if r == c { tr / 3.0 } else { 0.0 };
+        (0.5 * (y_s[(r, c)] + y_s[(c, r)]) - diagonal) * (2.0 * eta)
+    });
+    let l_bar = s_bar + f1_bar * f.transpose() * dt;
     let params = if with_params {
         let l3 = to3(&l, 0.0);
         let s = (l3 + l3.transpose()) * 0.5;
