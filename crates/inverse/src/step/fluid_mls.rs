@@ -31,19 +31,19 @@ pub(super) type EndAdjoint<'a, const D: usize> = (
     &'a Matrix3<f64>,
 );
 
-/// The adjoints a particle's end of step hands on.
+/// The adjoints a particle's end of step hands on besides its share of the start-of-step
+/// adjoint.
 pub(super) struct FluidEnd<const D: usize> {
     /// Adjoint of the gathered sums (`v` and `affine`; the others are not read).
     pub g_bar: Gathered<f64, D>,
-    /// The particle's share of the start-of-step adjoint.
-    pub share: ParticleShare<D>,
     /// `∂L/∂K`, `∂L/∂γ`, `∂L/∂η` of this particle's step (zero unless asked for).
     pub params: [f64; 3],
 }
 
 /// The closed-form reverse of one particle's USL MLS-MPM end of step with the fluid (see the
 /// module docs); `y_x, y_v, y_c, y_f, y_s` are the adjoints of the end-of-step `x, v, C, F, σ`.
-/// The parameters' shares are formed when `with_params`.
+/// Writes every field of the particle's `share` of the start-of-step adjoint (`x̄` and `F̄`,
+/// the others zero) in place. The parameters' shares are formed when `with_params`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn reverse<const D: usize>(
     with_params: bool,
@@ -54,6 +54,7 @@ pub(super) fn reverse<const D: usize>(
     x: &Vector<f64, D>,
     f: &Tensor<f64, D>,
     (y_x, y_v, y_c, y_f, y_s): EndAdjoint<'_, D>,
+    share: &mut ParticleShare<D>,
 ) -> FluidEnd<D> {
     let (k, gamma, eta) = (fluid.bulk_modulus, fluid.gamma, fluid.viscosity);
     let l = g.affine;
@@ -100,17 +101,19 @@ pub(super) fn reverse<const D: usize>(
     } else {
         [0.0; 3]
     };
+    share.x = x_bar;
+    share.v = Vector::zeros();
+    share.f = delta_f.transpose() * f1_bar;
+    share.stress = Matrix3::zeros();
+    share.plastic_strain = 0.0;
+    share.tensor = Matrix3::zeros();
+    share.mass = 0.0;
     FluidEnd {
         g_bar: Gathered {
             v: v_bar + x_bar * dt,
             dv: Vector::zeros(),
             grad_v: Tensor::zeros(),
             affine: y_c + l_bar,
-        },
-        share: ParticleShare {
-            x: x_bar,
-            f: delta_f.transpose() * f1_bar,
-            ..ParticleShare::zero()
         },
         params,
     }

@@ -105,8 +105,17 @@ impl<const D: usize> ReverseStep<D> {
                         );
                         let with_params = self.particle_params.iter().any(|(_, m, _)| *m == mat);
                         let (x, f) = (&p.x[i], &p.f[i]);
-                        let r = fluid_mls::reverse(with_params, fluid, &end_f64, dt, &g, x, f, y);
-                        *share = r.share;
+                        let r = fluid_mls::reverse(
+                            with_params,
+                            fluid,
+                            &end_f64,
+                            dt,
+                            &g,
+                            x,
+                            f,
+                            y,
+                            share,
+                        );
                         for (index, m, seeded) in &self.particle_params {
                             if let (true, Model::Fluid(s)) = (*m == mat, &seeded.model) {
                                 let [k_bar, gamma_bar, eta_bar] = r.params;
