@@ -15,10 +15,10 @@
 //! `J^{−γ} = 1 + γ p(J)/K` is taken from the forward's own pressure ([`Fluid::pressure`]: by
 //! repeated multiplication for a whole `γ`), so `ln J` is formed only for the parameters.
 
-use super::ParticleShare;
+use super::{ParticleShare, cofactor};
 use loam_core::constitutive::Fluid;
 use loam_core::step::EndOfStep;
-use loam_core::tensor::{Tensor, Vector, det, inverse, to3};
+use loam_core::tensor::{Tensor, Vector, det, to3};
 use loam_core::transfer::Gathered;
 use nalgebra::Matrix3;
 
@@ -31,19 +31,19 @@ pub(super) type EndAdjoint<'a, const D: usize> = (
     &'a Matrix3<f64>,
 );
 
-/// The adjoints a particle's end of step hands on.
+/// The adjoints a particle's end of step hands on besides its share of the start-of-step
+/// adjoint.
 pub(super) struct FluidEnd<const D: usize> {
     /// Adjoint of the gathered sums (`v` and `affine`; the others are not read).
     pub g_bar: Gathered<f64, D>,
-    /// The particle's share of the start-of-step adjoint.
-    pub share: ParticleShare<D>,
     /// `∂L/∂K`, `∂L/∂γ`, `∂L/∂η` of this particle's step (zero unless asked for).
     pub params: [f64; 3],
 }
 
 /// The closed-form reverse of one particle's USL MLS-MPM end of step with the fluid (see the
 /// module docs); `y_x, y_v, y_c, y_f, y_s` are the adjoints of the end-of-step `x, v, C, F, σ`.
-/// The parameters' shares are formed when `with_params`.
+/// Writes every field of the particle's `share` of the start-of-step adjoint (`x̄` and `F̄`,
+/// the others zero) in place. The parameters' shares are formed when `with_params`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn reverse<const D: usize>(
     with_params: bool,
@@ -54,6 +54,7 @@ pub(super) fn reverse<const D: usize>(
     x: &Vector<f64, D>,
     f: &Tensor<f64, D>,
     (y_x, y_v, y_c, y_f, y_s): EndAdjoint<'_, D>,
+    share: &mut ParticleShare<D>,
 ) -> FluidEnd<D> {
     let (k, gamma, eta) = (fluid.bulk_modulus, fluid.gamma, fluid.viscosity);
     let l = g.affine;
@@ -80,11 +81,13 @@ pub(super) fn reverse<const D: usize>(
     let power = 1.0 + excess;
     // J̄ = −p'(J) tr σ̄ with p'(J) = −K J^{−γ−1}.
     let j_bar = k * power / j * tr;
-    let cof = inverse(&f1).map_or_else(Tensor::zeros, |inv| inv.transpose() * j);
-    let f1_bar = y_f + cof * j_bar;
-    let sym_bar = (y_s + y_s.transpose()) * 0.5;
-    let s_bar = (sym_bar - Matrix3::identity() * (tr / 3.0)) * (2.0 * eta);
-    let l_bar = Tensor::<f64, D>::from_fn(|r, c| s_bar[(r, c)]) + f1_bar * f.transpose() * dt;
+    let f1_bar = y_f + cofactor(&f1) * j_bar;
+    // The in-plane block of 2η (sym σ̄' − ⅓ tr σ̄' I): L has no out-of-plane components.
+    let s_bar = Tensor::<f64, D>::from_fn(|r, c| {
+        let diagonal = if r == c { tr / 3.0 } else { 0.0 };
+        (0.5 * (y_s[(r, c)] + y_s[(c, r)]) - diagonal) * (2.0 * eta)
+    });
+    let l_bar = s_bar + f1_bar * f.transpose() * dt;
     let params = if with_params {
         let l3 = to3(&l, 0.0);
         let s = (l3 + l3.transpose()) * 0.5;
@@ -98,17 +101,19 @@ pub(super) fn reverse<const D: usize>(
     } else {
         [0.0; 3]
     };
+    share.x = x_bar;
+    share.v = Vector::zeros();
+    share.f = delta_f.transpose() * f1_bar;
+    share.stress = Matrix3::zeros();
+    share.plastic_strain = 0.0;
+    share.tensor = Matrix3::zeros();
+    share.mass = 0.0;
     FluidEnd {
         g_bar: Gathered {
             v: v_bar + x_bar * dt,
             dv: Vector::zeros(),
             grad_v: Tensor::zeros(),
             affine: y_c + l_bar,
-        },
-        share: ParticleShare {
-            x: x_bar,
-            f: delta_f.transpose() * f1_bar,
-            ..ParticleShare::zero()
         },
         params,
     }

@@ -49,7 +49,7 @@ use kernels::node_update;
 use loam_core::constitutive::Material;
 use loam_core::stencil::{Frame, particle_half_width};
 use loam_core::step::{NodeLaw, NodeState, NodeSums, on_a_face};
-use loam_core::tensor::{Tensor, Vector, det, from3, inverse};
+use loam_core::tensor::{Tensor, Vector, det, from3};
 use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
 use loam_explicit::{Config, GridFields, StepTrace};
 use nalgebra::Matrix3;
@@ -80,6 +80,9 @@ pub struct ReverseStep<const D: usize> {
     /// The G2P adjoint's scatter before its sum, kept from step to step (every entry is
     /// written before it is read).
     scatter: Scatter<D>,
+    /// Each particle's [`ParticleShare`], kept from step to step (every field of every entry
+    /// is written before it is read).
+    shares: Vec<ParticleShare<D>>,
 }
 
 /// The grid of one step, from its trace, and the adjoints of its fields.
@@ -158,6 +161,23 @@ fn pack_end_adjoint<const D: usize>(a: &ParticleAdjoint<D>, i: usize, out: &mut 
     out.matrix3(&a.tensor[i]);
 }
 
+/// The cofactor matrix `cof F = ∂(det F)/∂F` (`det F F⁻ᵀ` where `F` is invertible), formed
+/// directly from the entries: `[[F₁₁, −F₁₀], [−F₀₁, F₀₀]]` in 2D, `cof_ij = F_{i+1,j+1} F_{i+2,j+2}
+/// − F_{i+1,j+2} F_{i+2,j+1}` (indices mod 3) in 3D.
+pub(super) fn cofactor<const D: usize>(f: &Tensor<f64, D>) -> Tensor<f64, D> {
+    Tensor::from_fn(|i, j| match D {
+        2 => {
+            let sign = if i == j { 1.0 } else { -1.0 };
+            sign * f[(1 - i, 1 - j)]
+        }
+        _ => {
+            let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+            let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+            f[(r0, c0)] * f[(r1, c1)] - f[(r0, c1)] * f[(r1, c0)]
+        }
+    })
+}
+
 /// Adds per-chunk parameter shares to the gradient, in chunk order.
 fn add_parts(gradient: &mut [f64], parts: Vec<Vec<f64>>) {
     for part in parts {
@@ -210,6 +230,7 @@ impl<const D: usize> ReverseStep<D> {
             },
             stencils: Vec::new(),
             scatter: Vec::new(),
+            shares: Vec::new(),
             config: config.clone(),
         })
     }
@@ -243,6 +264,15 @@ impl<const D: usize> ReverseStep<D> {
         };
         self.reverse_nodes(time, dt, extra_mass.as_deref(), gradient);
         self.reverse_p2g(start, dt, &shares, adjoint);
+        self.shares = shares;
+    }
+
+    /// The shares' buffer for `n` particles, taken from the previous step (its entries are
+    /// stale: the caller writes every field of each).
+    fn take_shares(&mut self, n: usize) -> Vec<ParticleShare<D>> {
+        let mut shares = std::mem::take(&mut self.shares);
+        shares.resize(n, ParticleShare::zero());
+        shares
     }
 
     /// The local VJP of a particle kernel `f(material, inputs, outputs)` at `input` for a
@@ -570,8 +600,7 @@ impl<const D: usize> ReverseStep<D> {
                     }
                     *stress = s_bar;
                     // V = V⁰ det F: ∂V/∂F = V⁰ det F F⁻ᵀ.
-                    let cof = inverse(&fp).map_or_else(Tensor::zeros, |inv| inv.transpose() * j);
-                    *f = share.f + cof * (p.volume0[i] * vol_bar);
+                    *f = share.f + cofactor(&fp) * (p.volume0[i] * vol_bar);
                     *ps = share.plastic_strain;
                     *tensor = share.tensor;
                     let affine_part = if affine {

@@ -31,6 +31,7 @@ impl<const D: usize> ReverseStep<D> {
         adjoint: &ParticleAdjoint<D>,
         gradient: &mut [f64],
     ) -> (Vec<ParticleShare<D>>, Vec<f64>) {
+        let mut shares = self.take_shares(p.len());
         let cfg = &self.config;
         let (grid, transfer, shape) = (&cfg.grid, cfg.transfer, cfg.shape);
         let n_nodes = grid.num_nodes();
@@ -97,7 +98,6 @@ impl<const D: usize> ReverseStep<D> {
                 l
             })
             .collect();
-        let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut moved_bar = vec![(Vector::zeros(), Vector::zeros()); p.len()];
         let mut scatter = std::mem::take(&mut self.scatter);
         scatter.resize(p.len() * stencil_len, (0, Vector::zeros(), Vector::zeros()));

@@ -31,6 +31,7 @@ impl<const D: usize> ReverseStep<D> {
         adjoint: &ParticleAdjoint<D>,
         gradient: &mut [f64],
     ) -> Vec<ParticleShare<D>> {
+        let mut shares = self.take_shares(p.len());
         let cfg = &self.config;
         let end = EndOfStep::new(&cfg.grid, &cfg.boundary, &self.base.contact, time + dt);
         let end_f64 = EndOfStep::new(&cfg.grid, &cfg.boundary, &cfg.contact, time + dt);
@@ -58,7 +59,6 @@ impl<const D: usize> ReverseStep<D> {
         // from it instead of gathered again (a particle on a face is gathered again).
         let (lo, hi) = (grid.lo, grid.hi());
         let on_the_box = |x: &Vector<f64, D>| (0..D).any(|a| x[a] == lo[a] || x[a] == hi[a]);
-        let mut shares = vec![ParticleShare::zero(); p.len()];
         let mut scatter = std::mem::take(&mut self.scatter);
         scatter.resize(p.len() * stencil_len, (0, Vector::zeros(), Vector::zeros()));
         let nparams = gradient.len();
@@ -105,8 +105,17 @@ impl<const D: usize> ReverseStep<D> {
                         );
                         let with_params = self.particle_params.iter().any(|(_, m, _)| *m == mat);
                         let (x, f) = (&p.x[i], &p.f[i]);
-                        let r = fluid_mls::reverse(with_params, fluid, &end_f64, dt, &g, x, f, y);
-                        *share = r.share;
+                        let r = fluid_mls::reverse(
+                            with_params,
+                            fluid,
+                            &end_f64,
+                            dt,
+                            &g,
+                            x,
+                            f,
+                            y,
+                            share,
+                        );
                         for (index, m, seeded) in &self.particle_params {
                             if let (true, Model::Fluid(s)) = (*m == mat, &seeded.model) {
                                 let [k_bar, gamma_bar, eta_bar] = r.params;
@@ -149,6 +158,7 @@ impl<const D: usize> ReverseStep<D> {
                         share.x = u.vector::<D>();
                         share.v = u.vector::<D>();
                         share.read_end(&mut u);
+                        share.mass = 0.0;
                         g_bar
                     };
                     let out = &mut scatter[k * stencil_len..(k + 1) * stencil_len];
