@@ -26,6 +26,25 @@ pub fn det<T: Scalar, const D: usize>(m: &Tensor<T, D>) -> T {
     }
 }
 
+/// The cofactor matrix, `cof(A)_ij = (−1)^(i+j) M_ij` (`M_ij` the minor of entry `(i, j)`),
+/// so that `cof(A) = det(A) A⁻ᵀ` where `A` is invertible; it is also `∂ det A / ∂A`, and is
+/// defined (and smooth) for singular `A` too.
+#[inline]
+pub fn cofactor<T: Scalar, const D: usize>(m: &Tensor<T, D>) -> Tensor<T, D> {
+    Tensor::from_fn(|i, j| match D {
+        2 => {
+            let minor = m[(1 - i, 1 - j)];
+            if i == j { minor } else { -minor }
+        }
+        3 => {
+            let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+            let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+            m[(r0, c0)] * m[(r1, c1)] - m[(r0, c1)] * m[(r1, c0)]
+        }
+        _ => panic!("loam supports D = 2 and D = 3 only"),
+    })
+}
+
 /// Inverse of a 2×2 or 3×3 matrix by the adjugate, `A⁻¹ = adj(A) / det(A)`.
 /// Returns `None` when the real part of the determinant is zero.
 #[inline]
@@ -34,27 +53,7 @@ pub fn inverse<T: Scalar, const D: usize>(m: &Tensor<T, D>) -> Option<Tensor<T, 
     if d.re() == 0.0 {
         return None;
     }
-    let mut adj = Tensor::<T, D>::zeros();
-    match D {
-        2 => {
-            adj[(0, 0)] = m[(1, 1)];
-            adj[(0, 1)] = -m[(0, 1)];
-            adj[(1, 0)] = -m[(1, 0)];
-            adj[(1, 1)] = m[(0, 0)];
-        }
-        3 => {
-            for i in 0..3 {
-                for j in 0..3 {
-                    // adj(A)_ij = cofactor C_ji
-                    let (r0, r1) = ((j + 1) % 3, (j + 2) % 3);
-                    let (c0, c1) = ((i + 1) % 3, (i + 2) % 3);
-                    adj[(i, j)] = m[(r0, c0)] * m[(r1, c1)] - m[(r0, c1)] * m[(r1, c0)];
-                }
-            }
-        }
-        _ => panic!("loam supports D = 2 and D = 3 only"),
-    }
-    Some(adj / d)
+    Some(cofactor(m).transpose() / d)
 }
 
 /// Embeds a `D × D` tensor in 3×3: the plane-strain deformation gradient has `F_zz = 1`,
@@ -95,6 +94,34 @@ pub fn lift<T: Scalar, const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -
 mod tests {
     use super::*;
     use nalgebra::{Matrix2, matrix};
+
+    /// cof A = det(A) A⁻ᵀ for invertible A (to round-off, 1e-14 on entries of order 1), and
+    /// cof A = ∂ det A / ∂A entry by entry (det is linear in each entry, so a central
+    /// difference is exact up to round-off: 1e-12 with step 1e-3); a singular A of rank
+    /// D − 1 keeps a non-zero cofactor.
+    #[test]
+    fn cofactor_is_the_derivative_of_the_determinant() {
+        let a = matrix![2.0, 0.3, -0.1; 0.2, 1.5, 0.4; 0.0, -0.7, 3.0];
+        let c = cofactor::<f64, 3>(&a);
+        let ai = inverse::<f64, 3>(&a).unwrap();
+        assert!((c - ai.transpose() * det::<f64, 3>(&a)).norm() < 1e-14);
+        let h = 1e-3;
+        for i in 0..3 {
+            for j in 0..3 {
+                let (mut up, mut down) = (a, a);
+                up[(i, j)] += h;
+                down[(i, j)] -= h;
+                let fd = (det::<f64, 3>(&up) - det::<f64, 3>(&down)) / (2.0 * h);
+                assert!((fd - c[(i, j)]).abs() < 1e-12, "({i}, {j})");
+            }
+        }
+        let b = Matrix2::new(1.0, 2.0, 3.0, 4.5);
+        let cb = cofactor::<f64, 2>(&b);
+        assert_eq!(cb, Matrix2::new(4.5, -3.0, -2.0, 1.0));
+        let singular = matrix![1.0, 2.0, 3.0; 2.0, 4.0, 6.0; 0.0, 1.0, 1.0];
+        assert_eq!(det::<f64, 3>(&singular), 0.0);
+        assert!(cofactor::<f64, 3>(&singular).norm() > 1.0);
+    }
 
     #[test]
     fn inverse_times_matrix_is_identity() {

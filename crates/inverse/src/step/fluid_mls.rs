@@ -15,10 +15,10 @@
 //! `J^{−γ} = 1 + γ p(J)/K` is taken from the forward's own pressure ([`Fluid::pressure`]: by
 //! repeated multiplication for a whole `γ`), so `ln J` is formed only for the parameters.
 
-use super::{ParticleShare, cofactor};
+use super::ParticleShare;
 use loam_core::constitutive::Fluid;
 use loam_core::step::EndOfStep;
-use loam_core::tensor::{Tensor, Vector, det, to3};
+use loam_core::tensor::{Tensor, Vector, cofactor, det, to3};
 use loam_core::transfer::Gathered;
 use nalgebra::Matrix3;
 

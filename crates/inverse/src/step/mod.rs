@@ -49,7 +49,7 @@ use kernels::node_update;
 use loam_core::constitutive::Material;
 use loam_core::stencil::{Frame, particle_half_width};
 use loam_core::step::{NodeLaw, NodeState, NodeSums, on_a_face};
-use loam_core::tensor::{Tensor, Vector, det, from3};
+use loam_core::tensor::{Tensor, Vector, cofactor, det, from3};
 use loam_core::{Particles, Scheme, Shape, Stencil, Transfer};
 use loam_explicit::{Config, GridFields, StepTrace};
 use nalgebra::Matrix3;
@@ -159,23 +159,6 @@ fn pack_end_adjoint<const D: usize>(a: &ParticleAdjoint<D>, i: usize, out: &mut 
     out.matrix3(&a.stress[i]);
     out.push(a.plastic_strain[i]);
     out.matrix3(&a.tensor[i]);
-}
-
-/// The cofactor matrix `cof F = ∂(det F)/∂F` (`det F F⁻ᵀ` where `F` is invertible), formed
-/// directly from the entries: `[[F₁₁, −F₁₀], [−F₀₁, F₀₀]]` in 2D, `cof_ij = F_{i+1,j+1} F_{i+2,j+2}
-/// − F_{i+1,j+2} F_{i+2,j+1}` (indices mod 3) in 3D.
-pub(super) fn cofactor<const D: usize>(f: &Tensor<f64, D>) -> Tensor<f64, D> {
-    Tensor::from_fn(|i, j| match D {
-        2 => {
-            let sign = if i == j { 1.0 } else { -1.0 };
-            sign * f[(1 - i, 1 - j)]
-        }
-        _ => {
-            let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
-            let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
-            f[(r0, c0)] * f[(r1, c1)] - f[(r0, c1)] * f[(r1, c0)]
-        }
-    })
 }
 
 /// Adds per-chunk parameter shares to the gradient, in chunk order.
