@@ -1,5 +1,5 @@
-//! `implicit-adjoint-fd`: the adjoint of quasi-static implicit runs against forward-mode duals,
-//! central finite differences and the Taylor test.
+//! `implicit-adjoint-fd`: the adjoint of implicit runs (quasi-static and Newmark) against
+//! forward-mode duals, central finite differences and the Taylor test.
 //!
 //! Scenes (`verification/scenes/implicit_*.toml`):
 //!
@@ -9,11 +9,16 @@
 //! - `implicit_footing`: half a strip footing pushed into J2 clay by a prescribed settlement,
 //!   with plasticity from the first steps and a load step cut in half (Newton may take 5
 //!   iterations); unknowns σ_y, E, the hardening and the settlement; the loss is the footing
-//!   load after every load step and the settlement of a surface point beside it.
+//!   load after every load step and the settlement of a surface point beside it;
+//! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
+//!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
+//!   density (which now also sets the inertia); the loss tracks the tip's deflection and
+//!   velocity after every time step and the clamp's vertical reaction after the last.
 //!
 //! Observations are recorded from a run at the scene's values and the gradient is taken 5 %
 //! away from them (alternating signs), so the loss and its gradient are not zero. Full size
-//! doubles the load steps (8 instead of 4). Metrics per scene:
+//! doubles the load steps (8 instead of 4; the Newmark cantilever halves its time step, 10
+//! steps of 0.02 s instead of 5 of 0.04 s over the same 0.2 s). Metrics per scene:
 //!
 //! - max relative |adjoint − dual| **≤ 1e-10**: both are exact derivatives of the same
 //!   discrete map at the same converged Newton solutions; they differ by summation order and
@@ -191,16 +196,62 @@ fn footing(load_steps: usize) -> Result<Outcome, VerifyError> {
     check_problem("footing", &problem)
 }
 
+/// The cantilever in Newmark dynamics over the scene's 0.2 s in `steps` time steps: E, ν, the
+/// tip load, the density.
+fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
+    let (mut config, initial) = setup("implicit_cantilever_newmark", steps);
+    config.dynamics = Some(NEWMARK_DURATION / steps as f64);
+    let tip = config.point_loads[0].particle;
+    let mut quantities = Vec::new();
+    for step in 1..=steps {
+        let deflection = Quantity::Displacement {
+            particle: tip,
+            component: 1,
+        };
+        let velocity = Quantity::Velocity {
+            particle: tip,
+            component: 1,
+        };
+        quantities.push((step, deflection, 0.01));
+        quantities.push((step, velocity, 0.1));
+    }
+    let reaction = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    quantities.push((steps, reaction, 100.0));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Poisson),
+            ImplicitParam::PointLoad(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem("newmark cantilever", &problem)
+}
+
+/// The simulated time of the Newmark cantilever (s): the scene's 5 time steps of 0.04 s.
+const NEWMARK_DURATION: f64 = 0.2;
+
 /// Runs the case.
 ///
 /// # Errors
 /// A run or a gradient that fails, or the table that cannot be written.
 pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
-    let load_steps = match size {
-        Size::Reduced => 4,
-        Size::Full => 8,
+    let (load_steps, newmark_steps) = match size {
+        Size::Reduced => (4, 5),
+        Size::Full => (8, 10),
     };
-    let outcomes = [cantilever(load_steps)?, footing(load_steps)?];
+    let outcomes = [
+        cantilever(load_steps)?,
+        footing(load_steps)?,
+        newmark(newmark_steps)?,
+    ];
     let mut metrics = Vec::new();
     let mut md = String::from(
         "| scene | unknown | adjoint | dual | central difference |\n|---|---|---|---|---|\n",

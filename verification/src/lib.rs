@@ -304,7 +304,7 @@ pub fn cases() -> Vec<Case> {
         },
         Case {
             name: "implicit-adjoint-fd",
-            description: "adjoint of quasi-static implicit runs vs forward-mode duals (1e-10) vs central differences on the reference's sub-steps (1e-6), Taylor test: Hencky cantilever (E, ν, tip load, ρ₀), J2 footing with a cut load step (σ_y, E, H, settlement)",
+            description: "adjoint of implicit runs vs forward-mode duals (1e-10) vs central differences on the reference's sub-steps (1e-6), Taylor test: Hencky cantilever (E, ν, tip load, ρ₀), J2 footing with a cut load step (σ_y, E, H, settlement), the cantilever in Newmark dynamics under a sudden tip load (E, ν, tip load, ρ₀; tip deflection and velocity)",
             run: implicit_adjoint_fd::run,
         },
         Case {

@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 21] = [
+pub const SCENES: [CaseScene; 22] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -61,6 +61,7 @@ pub const SCENES: [CaseScene; 21] = [
     case_scene!("inverse_mlp"),
     case_scene!("implicit_cantilever"),
     case_scene!("implicit_footing"),
+    case_scene!("implicit_cantilever_newmark"),
 ];
 
 /// The reference scene `name` (a stem of [`SCENES`]), parsed and validated.

@@ -1,5 +1,5 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files
-//! whose scene is implicit (quasi-static load steps).
+//! whose scene is implicit (quasi-static load steps, and Newmark time steps).
 
 mod common;
 
@@ -49,6 +49,25 @@ fn gradient_check_on_an_implicit_scene_agrees_with_the_dual_run() {
         "central diff.",
         "last load step only",
         "condition number",
+    ] {
+        assert!(all.contains(p), "{p} missing in {all}");
+    }
+}
+
+/// `--check` on the Newmark example (E and ρ of the cantilever from its tip's motion under a
+/// sudden load): the adjoint through the mass matrix and the particle velocities agrees with
+/// the forward-mode dual derivative to 1e-8 (the command fails otherwise).
+#[test]
+fn gradient_check_on_a_newmark_scene_agrees_with_the_dual_run() {
+    let file = repo("examples/inverse/cantilever_newmark.toml");
+    let out = loam(&["gradient", file.to_str().unwrap(), "--check"]);
+    let all = text(&out);
+    assert!(out.status.success(), "{all}");
+    for p in [
+        "over 5 load steps",
+        "materials[0].young",
+        "materials[0].density",
+        "central diff.",
     ] {
         assert!(all.contains(p), "{p} missing in {all}");
     }

@@ -144,6 +144,15 @@ impl Inertia {
             .collect()
     }
 
+    /// The matrix of the end-of-step solves, `M + ε diag M` with `ε` = [`MASS_REGULARISATION`].
+    pub fn regularised_mass(&self) -> SparseMatrix {
+        let mut m = self.mass.clone();
+        for (d, md) in self.mass.diagonal().into_iter().enumerate() {
+            m.add(d, d, MASS_REGULARISATION * md);
+        }
+        m
+    }
+
     /// The grid velocity increment and end-of-step acceleration of the converged `Δu = x`,
     /// from `(M + ε diag M) Δv = (2/Δt) M Δu − 2 pₙ` and `(M + ε diag M) aₙ₊₁ = (2/Δt) M Δv − rₙ`.
     pub fn grid_motion(
@@ -152,10 +161,7 @@ impl Inertia {
         solver: &mut LinearSolver,
     ) -> Result<GridMotion, LinearError> {
         let n = x.len();
-        let mut m = self.mass.clone();
-        for (d, md) in self.mass.diagonal().into_iter().enumerate() {
-            m.add(d, d, MASS_REGULARISATION * md);
-        }
+        let m = self.regularised_mass();
         let mut mx = vec![0.0; n];
         self.mass.mul_vec(x, &mut mx);
         let rhs: Vec<f64> = mx

@@ -20,8 +20,8 @@
 //!   by a forward-mode dual run; [`Variable`] reparameterises an unknown for an optimiser
 //!   (softplus, bounds); [`Optimiser`] is Adam with a decaying rate or L-BFGS.
 //!
-//! - [`implicit`]: the same for a quasi-static implicit run, by the adjoint of its load
-//!   steps (one transposed solve with each accepted sub-step's tangent).
+//! - [`implicit`]: the same for an implicit run, quasi-static or Newmark, by the adjoint of
+//!   its load steps (one transposed solve with each accepted sub-step's tangent).
 //!
 //! - [`check`] compares a gradient with branch-aware central differences and runs the
 //!   Taylor test; [`choose`] picks tracked particles reproducibly.

@@ -1,9 +1,13 @@
-//! The adjoint of quasi-static implicit runs against the forward-mode dual derivative, central
-//! finite differences and the Taylor test: a Hencky cantilever (E, ν, the tip load, the
-//! density under gravity) and a J2 footing pushed by a prescribed settlement (σ_y, E, the
-//! hardening, the settlement), over several load steps with active plasticity and a cut step.
+//! The adjoint of implicit runs against the forward-mode dual derivative, central finite
+//! differences and the Taylor test: a Hencky cantilever (E, ν, the tip load, the density under
+//! gravity) and a J2 footing pushed by a prescribed settlement (σ_y, E, the hardening, the
+//! settlement), over several load steps with active plasticity and a cut step; and the
+//! cantilever under a sudden tip load in Newmark dynamics, Hencky (E, ν, the tip load, the
+//! density) and J2 with plastic hinging at the clamp (σ_y, E, the hardening, the density),
+//! observed through the tip's displacement and velocity.
 
 use loam_core::Particles;
+use loam_core::constitutive::{J2, Lame, Model};
 use loam_implicit::ImplicitConfig;
 use loam_inverse::MaterialField;
 use loam_inverse::implicit::{
@@ -14,6 +18,10 @@ use loam_scene::Scene;
 
 /// The scene of `verification/scenes/implicit_cantilever.toml` (described there).
 const CANTILEVER: &str = include_str!("../../../verification/scenes/implicit_cantilever.toml");
+
+/// The scene of `verification/scenes/implicit_cantilever_newmark.toml` (described there).
+const CANTILEVER_NEWMARK: &str =
+    include_str!("../../../verification/scenes/implicit_cantilever_newmark.toml");
 
 /// The scene of `verification/scenes/implicit_footing.toml` (described there).
 const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footing.toml");
@@ -213,4 +221,178 @@ fn footing_adjoint_matches_dual_and_differences() {
         run.cuts
     );
     check("footing", &problem);
+}
+
+/// The cantilever under its sudden tip load in Newmark dynamics
+/// (`implicit_cantilever_newmark.toml`: 5 time steps of 0.04 s, together less than half its
+/// first period of ≈ 0.49 s, so the tip is still moving down), and a loss over the tip's
+/// deflection after steps 2 to 5, its velocity after steps 3 and 5, and the clamp's reaction.
+fn newmark_cantilever() -> (ImplicitConfig<2>, Particles<f64, 2>, Vec<Observation>) {
+    let (config, initial) = scene(CANTILEVER_NEWMARK);
+    let tip = config.point_loads[0].particle;
+    let observe = |step, quantity, value, sigma| Observation {
+        step,
+        quantity,
+        value,
+        sigma,
+    };
+    let deflection = Quantity::Displacement {
+        particle: tip,
+        component: 1,
+    };
+    let velocity = Quantity::Velocity {
+        particle: tip,
+        component: 1,
+    };
+    let reaction = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    let mut items: Vec<Observation> = (2..=5)
+        .map(|step| observe(step, deflection, -0.02 * step as f64, 0.01))
+        .collect();
+    items.push(observe(3, velocity, -0.5, 0.1));
+    items.push(observe(5, velocity, -1.0, 0.1));
+    items.push(observe(5, reaction, 1500.0, 100.0));
+    (config, initial, items)
+}
+
+/// The run of a Newmark scene, after checking that its tip moves down faster over the first
+/// steps (the dynamics is exercised, not a quasi-static balance).
+fn dynamic_run(
+    config: &ImplicitConfig<2>,
+    initial: &Particles<f64, 2>,
+) -> loam_inverse::implicit::Trajectory<2> {
+    let run = run_recorded(config, initial, None).expect("runs");
+    let tip = config.point_loads[0].particle;
+    let v: Vec<f64> = run.velocities.iter().map(|v| v[tip][1]).collect();
+    println!(
+        "{} sub-steps for {} time steps ({} cut), tip velocity per step {v:?}",
+        run.substeps.len(),
+        config.load_steps,
+        run.cuts
+    );
+    assert!(
+        v[0] == 0.0 && v[1] < 0.0 && v[2] < v[1],
+        "tip velocities {v:?}"
+    );
+    run
+}
+
+#[test]
+fn newmark_cantilever_adjoint_matches_dual_and_differences() {
+    let (config, initial, items) = newmark_cantilever();
+    dynamic_run(&config, &initial);
+    let problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Poisson),
+            ImplicitParam::PointLoad(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations { items },
+    };
+    check("newmark cantilever", &problem);
+}
+
+#[test]
+fn newmark_j2_cantilever_adjoint_matches_dual_and_differences() {
+    let (mut config, initial, items) = newmark_cantilever();
+    // The bending stress at the clamp reaches ~6PL/h² ≈ 48 kPa: it yields at 20 kPa.
+    let lame = Lame::from_young_poisson(1.0e6, 0.25);
+    config.materials[0].model = Model::J2(J2 {
+        lame,
+        yield_stress: 2.0e4,
+        hardening: 1.0e5,
+    });
+    // A time step whose Newton fails is cut into shorter ones, which the reverse pass and
+    // the replays take as recorded.
+    let run = dynamic_run(&config, &initial);
+    assert!(run.cuts >= 1, "no cut step");
+    let last = run.substeps.last().expect("sub-steps");
+    let peak = last
+        .history
+        .iter()
+        .map(|h| h.plastic_strain)
+        .fold(0.0, f64::max);
+    println!("newmark J2: peak plastic strain at the last step's start {peak:.3e}");
+    assert!(peak > 1e-3, "no plasticity: {peak:.3e}");
+    let problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Hardening),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations { items },
+    };
+    check("newmark J2 cantilever", &problem);
+}
+
+/// The J2 footing of `implicit_footing.toml` in Newmark dynamics: 4 time steps of 0.01 s
+/// (half the time a pressure wave takes through the 1 m layer), the soil's weight applied
+/// suddenly and the footing pushed down by its prescribed settlement. The slip walls make
+/// ghost nodes mirror images (signed entries of the mass matrix), and the settlement enters
+/// the start force `f_int(0)` of every step.
+#[test]
+fn newmark_footing_adjoint_matches_dual_and_differences() {
+    let (mut config, initial) = scene(FOOTING);
+    config.dynamics = Some(0.01);
+    config.newton.max_iterations = 25;
+    let side = (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - 0.8).abs() + (initial.x[p][1] - 1.0).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles");
+    let run = run_recorded(&config, &initial, None).expect("runs");
+    let v: Vec<f64> = run.velocities.iter().map(|v| v[side][1]).collect();
+    let peak = (run.substeps.last().expect("sub-steps").history.iter())
+        .map(|h| h.plastic_strain)
+        .fold(0.0, f64::max);
+    println!("newmark footing: side velocity per step {v:?}, peak plastic strain {peak:.3e}");
+    assert!(
+        v[1..].iter().all(|v| v.abs() > 1e-3),
+        "side velocities {v:?}"
+    );
+    let observe = |step, quantity, value, sigma| Observation {
+        step,
+        quantity,
+        value,
+        sigma,
+    };
+    let load = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    let mut items: Vec<Observation> = (1..=4)
+        .map(|step| observe(step, load, -30e3 - 5e3 * step as f64, 1e3))
+        .collect();
+    let beside = Quantity::Displacement {
+        particle: side,
+        component: 1,
+    };
+    let velocity = Quantity::Velocity {
+        particle: side,
+        component: 1,
+    };
+    items.push(observe(4, beside, 0.0, 1e-3));
+    items.push(observe(2, velocity, 0.0, 0.01));
+    items.push(observe(4, velocity, 0.0, 0.01));
+    let problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Displacement(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations { items },
+    };
+    check("newmark footing", &problem);
 }

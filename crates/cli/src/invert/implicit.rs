@@ -441,6 +441,8 @@ pub fn targets<const D: usize>(
                     row.1[component] = o.value;
                 }
             }
+            // An inversion file observes displacements and reactions only.
+            Quantity::Velocity { .. } => {}
             Quantity::Reaction {
                 constraint,
                 component,

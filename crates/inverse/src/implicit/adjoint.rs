@@ -1,4 +1,4 @@
-//! The reverse pass over the accepted sub-steps of a quasi-static run.
+//! The reverse pass over the accepted sub-steps of an implicit run (quasi-static or Newmark).
 //!
 //! A sub-step maps the particle state `s` to `s' = Φ(s, Δu, θ)` where `Δu` solves
 //! `R(Δu; s, θ) = 0`; a reaction `r(s, Δu, θ)` may be observed after it. With `s̄'` the
@@ -16,8 +16,17 @@
 //! side is `∂ψₚ/∂Δu` with `λ = 0`; the state's adjoint `∂ψₚ/∂sₚ` and each parameter's share
 //! `∂ψₚ/∂θ` follow from the same linearisation of the particle's step, whose `∂S/∂ΔF` also
 //! gives the tangent `J`.
+//!
+//! A Newmark sub-step also maps the velocities, through the mass solve of its grid velocity
+//! increment `Δv`: that solve is reversed first (`B μ = Δv̄`), `(2/Δt) M μ` joins the
+//! right-hand side, `J` includes `(4/Δt²) M`, the external force's weight is `c = 2λ` (it enters
+//! the residual once directly and once through the start force `rₙ`), the start force's
+//! `f_int(0)` is a second linearisation per particle (at the increments with the unknowns at
+//! zero) weighted by `−λ`, and the mass and momentum terms add to `ψₚ`
+//! ([`super::inertia`]).
 
-use super::kernel::state_len;
+use super::inertia::{InertiaWeights, gather};
+use super::kernel::{mass_index, state_len, velocity_index};
 use super::observe::ImplicitObservations;
 use super::params::ImplicitParam;
 use super::pullback::{Cotangent, LaneMaterials, Linearisation};
@@ -27,7 +36,7 @@ use crate::error::AdjointError;
 use crate::params::MaterialField;
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
-use loam_implicit::linear::LinearSolver;
+use loam_implicit::linear::{LinearSolver, LinearSolverKind};
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
 use num_dual::Dual64;
 use rayon::prelude::*;
@@ -92,13 +101,16 @@ fn reverse_from<const D: usize>(
         .collect();
     let zeros = vec![Vector::<f64, D>::zeros(); nodes];
     let mut linear = LinearSolver::new(config.newton.linear);
+    let mut mass_solver = LinearSolver::new(LinearSolverKind::Cholesky);
+    let vi = velocity_index(D);
+    let no_end = vec![0.0; state_len(D)];
     let mut sbar = vec![vec![0.0; state_len(D)]; n];
     let mut grad = vec![0.0; params.len()];
     for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
         let seeds = SubStep::ends_step(&run.substeps, i)
             .then(|| StepSeeds::new(config, observations, &weights, sub.step));
-        for &(p, a, w) in seeds.iter().flat_map(|s| &s.displacements) {
-            sbar[p][a] += w;
+        for &(p, k, w) in seeds.iter().flat_map(|s| &s.states) {
+            sbar[p][k] += w;
         }
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
@@ -123,6 +135,53 @@ fn reverse_from<const D: usize>(
         let linearised: Vec<Linearisation<D>> = (linearised.into_iter().enumerate())
             .map(|(p, l)| l.ok_or_else(|| inverted(p)))
             .collect::<Result<_, _>>()?;
+        // A Newmark sub-step: the start force's linearisation, the grid motion and the
+        // reverse of its mass solve, `B μ = Δv̄`.
+        let dynamic = match &system.inertia {
+            Some(inertia) => {
+                let start: Vec<Option<Linearisation<D>>> = (0..n)
+                    .into_par_iter()
+                    .map(|p| {
+                        let (setting, state) = (replay.setting(p), replay.state(p));
+                        let du = |f: usize, a: usize| replay.du_start(f, a);
+                        Linearisation::new(
+                            &setting,
+                            &lanes,
+                            material(p),
+                            &state,
+                            &replay.loads(p),
+                            du,
+                        )
+                    })
+                    .collect();
+                let start: Vec<Linearisation<D>> = (start.into_iter().enumerate())
+                    .map(|(p, l)| l.ok_or_else(|| inverted(p)))
+                    .collect::<Result<_, _>>()?;
+                let singular = |source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "mass",
+                    source,
+                };
+                let motion = inertia
+                    .grid_motion(&sub.solution, &mut mass_solver)
+                    .map_err(singular)?;
+                let stencils: Vec<Vec<(usize, f64)>> =
+                    linearised.iter().map(Linearisation::weights).collect();
+                let v_end = |p: usize| Vector::<f64, D>::from_fn(|a, _| sbar[p][vi + a]);
+                let dv_bar = gather(
+                    &system.dofs,
+                    (stencils.iter().enumerate()).map(|(p, s)| (s.as_slice(), v_end(p))),
+                );
+                let mut mu = vec![0.0; system.len()];
+                if dv_bar.iter().any(|v| *v != 0.0) {
+                    mass_solver
+                        .solve(&inertia.regularised_mass(), &dv_bar, &mut mu)
+                        .map_err(singular)?;
+                }
+                Some((inertia, start, motion.velocity_increment, mu))
+            }
+            None => None,
+        };
         // Right-hand side: ∂ψ/∂Δu with λ = 0.
         let by_increments: Vec<Vec<(usize, Vector<f64, D>)>> = (linearised.par_iter())
             .zip(&sbar)
@@ -131,10 +190,15 @@ fn reverse_from<const D: usize>(
                     internal: a_r,
                     external: &zeros,
                     end,
+                    inertia: None,
                 })
             })
             .collect();
         let mut rhs = vec![0.0; system.len()];
+        if let Some((inertia, _, _, mu)) = &dynamic {
+            inertia.mass.mul_vec(mu, &mut rhs);
+            rhs.iter_mut().for_each(|r| *r *= 2.0 / inertia.dt);
+        }
         for (flat, g) in by_increments.iter().flatten() {
             for a in 0..D {
                 if let NodeDof::Free { dof, sign } = system.dofs.get(*flat, a) {
@@ -155,17 +219,30 @@ fn reverse_from<const D: usize>(
                     source,
                 })?;
         }
-        // Nodal weights of ψ: a = r̄ − λ on the internal force, c = λ on the external one.
+        // Nodal weights of ψ: a = r̄ − λ on the internal force, c = λ (Newmark: 2λ) on the
+        // external one, −λ on the start force's f_int(0).
+        let c = if dynamic.is_some() { 2.0 } else { 1.0 };
         let mut internal = a_r.to_vec();
         let mut external = zeros.clone();
+        let mut start_internal = zeros.clone();
         for node in 0..nodes {
             for a in 0..D {
                 if let NodeDof::Free { dof, sign } = system.dofs.get(node, a) {
                     internal[node][a] -= sign * lambda[dof];
-                    external[node][a] += sign * lambda[dof];
+                    external[node][a] += c * sign * lambda[dof];
+                    start_internal[node][a] -= sign * lambda[dof];
                 }
             }
         }
+        let weights = (dynamic.as_ref()).map(|(inertia, _, dv, mu)| {
+            InertiaWeights::new(&system.dofs, inertia, &sub.solution, dv, &lambda, mu)
+        });
+        let start_cot = Cotangent {
+            internal: &start_internal,
+            external: &zeros,
+            end: &no_end,
+            inertia: None,
+        };
         let rates: Vec<Option<Vec<Vector<f64, D>>>> = params
             .iter()
             .map(|q| match *q {
@@ -181,14 +258,22 @@ fn reverse_from<const D: usize>(
                     internal: &internal,
                     external: &external,
                     end: &sbar[p],
+                    inertia: weights.as_ref(),
                 };
+                let start = dynamic.as_ref().map(|d| &d.1[p]);
                 let mut shares = vec![0.0; params.len()];
                 for (j, q) in params.iter().enumerate() {
                     shares[j] = match *q {
                         // Through the masses, below.
                         ImplicitParam::Material(_, MaterialField::Density) => continue,
                         ImplicitParam::Material(..) => match &seeded[j][material(p)] {
-                            Some(m) => lin.material_share(m, &cot)?,
+                            Some(m) => {
+                                lin.material_share(m, &cot)?
+                                    + match start {
+                                        Some(s) => s.material_share(m, &start_cot)?,
+                                        None => 0.0,
+                                    }
+                            }
                             None => continue,
                         },
                         ImplicitParam::Gravity(a) => lin.load_share(&cot)[a] * initial.mass[p],
@@ -198,13 +283,21 @@ fn reverse_from<const D: usize>(
                         ImplicitParam::PointLoad(..) => continue,
                         ImplicitParam::Displacement(..) => {
                             let rate = rates[j].as_ref().expect("rates of displacements");
-                            (lin.increments(&cot).iter())
-                                .map(|(f, g)| rate[*f].dot(g))
-                                .sum()
+                            let through = |l: &Linearisation<D>, cot: &Cotangent<'_, D>| {
+                                (l.increments(cot).iter())
+                                    .map(|(f, g)| rate[*f].dot(g))
+                                    .sum::<f64>()
+                            };
+                            through(lin, &cot) + start.map_or(0.0, |s| through(s, &start_cot))
                         }
                     };
                 }
-                Some((lin.state_adjoint(&cot), shares))
+                let mut state = lin.state_adjoint(&cot);
+                if let Some(s) = start {
+                    let from_start = s.state_adjoint(&start_cot);
+                    state.iter_mut().zip(&from_start).for_each(|(a, b)| *a += b);
+                }
+                Some((state, shares))
             })
             .collect();
         for (p, r) in per_particle.into_iter().enumerate() {
@@ -214,7 +307,7 @@ fn reverse_from<const D: usize>(
         }
     }
     // The density acts through the masses m_p = ρ₀ V⁰_p.
-    let mass = state_len(D) - 1;
+    let mass = mass_index(D);
     for (j, q) in params.iter().enumerate() {
         if let ImplicitParam::Material(k, MaterialField::Density) = *q {
             grad[j] = (0..n)

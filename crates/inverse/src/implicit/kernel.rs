@@ -1,6 +1,6 @@
 //! One particle's part of a converged implicit (sub-)step, generic over the scalar.
 //!
-//! For particle `p` with start-of-step state `sₚ = (xₚ, Fₚ, historyₚ, mₚ)` and the nodal
+//! For particle `p` with start-of-step state `sₚ = (xₚ, Fₚ, historyₚ, vₚ, mₚ)` and the nodal
 //! increments `Δu_i` on its stencil, the step computes
 //!
 //! ```text
@@ -12,7 +12,9 @@
 //!
 //! which is everything the step's residual `R = Σₚ (f_int − f_ext)`, its reactions and the
 //! next step read of the particle. Each particle depends only on its own state and on the
-//! increments of its own stencil. The forward-mode pass ([`super::tangent`]) evaluates
+//! increments of its own stencil. A Newmark step also reads the particle's mass and velocity
+//! through the grid's mass matrix and momentum, and adds the grid's velocity increment to
+//! `vₚ` (`super::inertia`); here `vₚ` passes through unchanged. The forward-mode pass ([`super::tangent`]) evaluates
 //! [`particle_step`] with `Dual64` inputs; the reverse pass takes the same derivatives by the
 //! chain rule through the step's linearisation ([`super::pullback`]).
 
@@ -33,24 +35,37 @@ pub struct ParticleState<T, const D: usize> {
     /// Constitutive history (J2: equivalent plastic strain and elastic left Cauchy–Green
     /// tensor `bₑ`).
     pub history: MaterialState<T>,
+    /// Velocity `vₚ` (read and updated by Newmark steps only).
+    pub v: Vector<T, D>,
     /// Mass `mₚ` (a constant of the run; its adjoint carries the density's gradient).
     pub mass: T,
 }
 
-/// Number of scalar components of a [`ParticleState`]: `D + D² + 10 + 1`.
+/// Number of scalar components of a [`ParticleState`]: `D + D² + 10 + D + 1`.
 pub const fn state_len(d: usize) -> usize {
-    d + d * d + 11
+    2 * d + d * d + 11
+}
+
+/// Index of the velocity's first component in [`ParticleState::components`].
+pub const fn velocity_index(d: usize) -> usize {
+    d + d * d + 10
+}
+
+/// Index of the mass in [`ParticleState::components`] (the last one).
+pub const fn mass_index(d: usize) -> usize {
+    state_len(d) - 1
 }
 
 impl<const D: usize> ParticleState<f64, D> {
     /// All components ([`state_len`] in all): x, F row by row, plastic strain, `bₑ` row by
-    /// row, mass.
+    /// row, velocity, mass.
     pub fn components(&self) -> Vec<f64> {
         let mut out = Vec::with_capacity(state_len(D));
         out.extend(self.x.iter());
         out.extend(self.f.transpose().iter());
         out.push(self.history.plastic_strain);
         out.extend(self.history.tensor.transpose().iter());
+        out.extend(self.v.iter());
         out.push(self.mass);
         out
     }
@@ -67,7 +82,8 @@ impl<const D: usize> ParticleState<f64, D> {
                 plastic_strain: d(h0),
                 tensor: nalgebra::Matrix3::<Dual64>::from_fn(|r, c| d(h0 + 1 + r * 3 + c)),
             },
-            mass: d(h0 + 10),
+            v: Vector::<Dual64, D>::from_fn(|a, _| d(h0 + 10 + a)),
+            mass: d(h0 + 10 + D),
         }
     }
 }
@@ -80,6 +96,7 @@ impl<const D: usize> ParticleState<Dual64, D> {
         out.extend(self.f.transpose().iter().map(|v| v.eps));
         out.push(self.history.plastic_strain.eps);
         out.extend(self.history.tensor.transpose().iter().map(|v| v.eps));
+        out.extend(self.v.iter().map(|v| v.eps));
         out.push(self.mass.eps);
         out
     }
@@ -96,7 +113,8 @@ pub struct Setting<'a, const D: usize> {
     pub half_width0: Vector<f64, D>,
     /// Reference volume `V⁰`.
     pub volume0: f64,
-    /// Load factor `λ` at the end of the (sub-)step.
+    /// Load factor `λ` at the end of the (sub-)step (1 in a Newmark step: its loads act in
+    /// full).
     pub load_factor: f64,
 }
 
@@ -118,7 +136,7 @@ pub struct NodeShare<T, const D: usize> {
 pub struct ParticleStep<T, const D: usize> {
     /// Per stencil node.
     pub nodes: Vec<NodeShare<T, D>>,
-    /// End state (the mass unchanged).
+    /// End state (the mass unchanged, the velocity before the grid motion of a Newmark step).
     pub end: ParticleState<T, D>,
 }
 
@@ -177,6 +195,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
             x,
             f: g * state.f,
             history,
+            v: state.v,
             mass: state.mass,
         },
     })

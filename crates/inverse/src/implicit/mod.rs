@@ -1,6 +1,6 @@
 //! Back-analysis through the implicit path: the exact gradient of a loss over a quasi-static
-//! load-stepped run (`loam_implicit::ImplicitSolver`) by the discrete adjoint of its accepted
-//! sub-steps, with plastic history.
+//! load-stepped or a Newmark run (`loam_implicit::ImplicitSolver`) by the discrete adjoint of
+//! its accepted sub-steps, with plastic history.
 //!
 //! - [`record`]: the forward pass, keeping per accepted sub-step the particle state at its
 //!   start, its load factors and its converged unknowns (a cut load step is the sequence of
@@ -11,6 +11,8 @@
 //!   products by the chain rule.
 //! - [`adjoint`]: backwards over the sub-steps, one transposed solve `Jᵀλ = …` with the
 //!   sub-step's tangent, then the state's adjoint and the parameters' shares per particle.
+//! - [`inertia`]: the grid terms of a Newmark sub-step (mass matrix, momentum, the mass
+//!   solve of the velocity update) in both passes.
 //! - [`tangent`]: the forward-mode dual derivative (the oracle); [`check`]: central
 //!   differences and the Taylor test on the reference run's sub-steps.
 //! - [`ImplicitParam`], [`ImplicitObservations`]: what is differentiated and observed;
@@ -19,6 +21,7 @@
 pub mod adjoint;
 pub mod check;
 mod identify;
+pub mod inertia;
 pub mod kernel;
 mod observe;
 mod params;
@@ -37,7 +40,7 @@ use loam_core::Particles;
 use loam_implicit::ImplicitConfig;
 use std::time::Instant;
 
-/// A least-squares loss over a quasi-static implicit run as a function of parameters `θ`.
+/// A least-squares loss over an implicit run (quasi-static or Newmark) as a function of parameters `θ`.
 #[derive(Clone, Debug)]
 pub struct ImplicitProblem<const D: usize> {
     /// The solver configuration at the scene's values.

@@ -15,6 +15,14 @@ pub enum Quantity {
         /// Axis.
         component: usize,
     },
+    /// Component `component` of the velocity `v_p` of particle `particle` (changes in a
+    /// Newmark run only).
+    Velocity {
+        /// Particle id.
+        particle: usize,
+        /// Axis.
+        component: usize,
+    },
     /// Component `component` of the reaction of constraint `constraint` (the force the
     /// prescribed node components exert on the material, `StepReport::constraint_forces`).
     Reaction {
@@ -107,6 +115,10 @@ impl ImplicitObservations {
                 Quantity::Displacement {
                     particle,
                     component,
+                }
+                | Quantity::Velocity {
+                    particle,
+                    component,
                 } => {
                     if particle >= particles.len() {
                         return Err(bad(
@@ -161,6 +173,10 @@ impl ImplicitObservations {
                 particle,
                 component,
             } => run.positions[o.step][particle][component] - run.positions[0][particle][component],
+            Quantity::Velocity {
+                particle,
+                component,
+            } => run.velocities[o.step][particle][component],
             Quantity::Reaction {
                 constraint,
                 component,

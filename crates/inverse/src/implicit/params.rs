@@ -8,7 +8,7 @@ use num_dual::Dual64;
 use std::fmt;
 use std::str::FromStr;
 
-/// One scalar parameter of a quasi-static implicit run.
+/// One scalar parameter of an implicit run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ImplicitParam {
     /// A constant of material `k` (`ImplicitConfig::materials[k]`): `young`, `poisson`,

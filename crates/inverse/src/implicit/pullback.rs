@@ -22,14 +22,20 @@
 //! N̄_i = c_i·q + x̄'·Δu_i,     ∇N̄_i = Sᵀ a_i + Ḡᵀ Δu_i
 //! x̄ = x̄' + Σ_i (N̄_i ∂N_i/∂x + ∇N̄_i·∂∇N_i/∂x)
 //! F̄ = F̄_C + ΔFᵀ F̄' + Σ_i (N̄_i ∂N_i/∂F + ∇N̄_i·∂∇N_i/∂F)
-//! h̄ = h̄_C (h̄' for a model without history),     m̄ = m̄' + λ Σ_i N_i c_i·g
+//! h̄ = h̄_C (h̄' for a model without history),     m̄ = m̄' + λ Σ_i N_i c_i·g,     v̄ = v̄'
 //! ```
+//!
+//! A Newmark sub-step adds its grid terms to `ψₚ` ([`super::inertia`]): their `N̄_i` join the
+//! ones above, and they give `v̄` and a share of `m̄`.
 //!
 //! and the step's tangent is assembled from `A = ∂S/∂ΔF`, a block of `J_C`. A sub-step's
 //! right-hand side, tangent, state adjoint and parameter shares all come from the one
 //! linearisation per particle.
 
-use super::kernel::{Loads, ParticleState, Setting, carries_history, state_len};
+use super::inertia::InertiaWeights;
+use super::kernel::{
+    Loads, ParticleState, Setting, carries_history, mass_index, state_len, velocity_index,
+};
 use loam_core::Scalar;
 use loam_core::constitutive::{MaterialState, Model};
 use loam_core::stencil::particle_half_width;
@@ -46,8 +52,11 @@ pub struct Cotangent<'a, const D: usize> {
     pub internal: &'a [Vector<f64, D>],
     /// `c_i` per grid node.
     pub external: &'a [Vector<f64, D>],
-    /// `(x̄', F̄', h̄', m̄')` of the end state, in the order of [`ParticleState::components`].
+    /// `(x̄', F̄', h̄', v̄', m̄')` of the end state, in the order of
+    /// [`ParticleState::components`].
     pub end: &'a [f64],
+    /// The weights of a Newmark sub-step's grid terms (`None`: quasi-static).
+    pub inertia: Option<&'a InertiaWeights<'a, D>>,
 }
 
 /// The material table lifted to the multi-lane duals of the stress update's Jacobian.
@@ -114,6 +123,7 @@ pub struct Linearisation<const D: usize> {
     jacobian: Vec<f64>,
     carries: bool,
     mass: f64,
+    velocity: Vector<f64, D>,
     load_factor: f64,
     loads: Loads<f64, D>,
 }
@@ -176,9 +186,15 @@ impl<const D: usize> Linearisation<D> {
             jacobian,
             carries,
             mass: state.mass,
+            velocity: state.v,
             load_factor: setting.load_factor,
             loads: *loads,
         })
+    }
+
+    /// The stencil: `(flat index, N_i)` per node.
+    pub fn weights(&self) -> Vec<(usize, f64)> {
+        self.nodes.iter().map(|n| (n.flat, n.weight)).collect()
     }
 
     /// `A[c][d] = ∂S/∂ΔF_cd`, the particle's share of the step's tangent.
@@ -258,15 +274,20 @@ impl<const D: usize> Linearisation<D> {
         let h0 = D + D * D;
         let x_end = Vector::<f64, D>::from_fn(|a, _| cot.end[a]);
         let q = (self.loads.gravity * self.mass + self.loads.point) * self.load_factor;
+        let (vi, mi) = (velocity_index(D), mass_index(D));
+        let v_end = Vector::<f64, D>::from_fn(|a, _| cot.end[vi + a]);
+        let inertia =
+            (cot.inertia).map(|w| w.pull(&self.weights(), self.mass, &self.velocity, &v_end));
         let mut out = vec![0.0; state_len(D)];
         out[..D].copy_from_slice(&cot.end[..D]);
-        for (n, dn) in self
-            .nodes
-            .iter()
+        for (k, (n, dn)) in (self.nodes.iter())
             .zip(self.geometry.chunks_exact(geo * (1 + D)))
+            .enumerate()
         {
             let a = cot.internal[n.flat];
-            let n_bar = cot.external[n.flat].dot(&q) + x_end.dot(&n.du);
+            let n_bar = cot.external[n.flat].dot(&q)
+                + x_end.dot(&n.du)
+                + inertia.as_ref().map_or(0.0, |i| i.weights[k]);
             let grad_bar = self.stress.transpose() * a + g_bar.transpose() * n.du;
             for (k, o) in out[..geo].iter_mut().enumerate() {
                 *o += n_bar * dn[k]
@@ -281,7 +302,9 @@ impl<const D: usize> Linearisation<D> {
             }
         }
         out[h0..h0 + 10].copy_from_slice(&h_bar);
-        out[h0 + 10] = cot.end[h0 + 10] + self.load_share(cot).dot(&self.loads.gravity);
+        let (v_bar, m_dyn) = inertia.map_or((v_end, 0.0), |i| (i.velocity, i.mass));
+        out[vi..vi + D].copy_from_slice(v_bar.as_slice());
+        out[mi] = cot.end[mi] + self.load_share(cot).dot(&self.loads.gravity) + m_dyn;
         out
     }
 
@@ -517,6 +540,7 @@ mod tests {
             .chain(f.iter().copied())
             .chain(std::iter::once(e.history.plastic_strain))
             .chain(b.iter().copied())
+            .chain(e.v.iter().copied())
             .chain(std::iter::once(e.mass));
         for (v, w) in values.zip(cot.end) {
             psi += v * T::cst(*w);
@@ -601,6 +625,7 @@ mod tests {
                 plastic_strain: 0.01,
                 tensor: Matrix3::new(1.01, 0.005, 0.0, 0.005, 0.99, 0.0, 0.0, 0.0, 1.0),
             },
+            v: Vector::<f64, 2>::new(0.3, -1.2),
             mass: 7.8,
         };
         let loads = Loads {
@@ -622,6 +647,7 @@ mod tests {
             internal: &internal,
             external: &external,
             end: &end,
+            inertia: None,
         };
         let step = particle_step(&setting, &real, &state, &loads, du).expect("not inverted");
         if matches!(real.model, Model::J2(_)) {

@@ -24,11 +24,13 @@ pub struct SubStep<const D: usize> {
     pub f: Vec<Tensor<f64, D>>,
     /// Histories at its start.
     pub history: Vec<MaterialState<f64>>,
+    /// Velocities at its start (constant in a quasi-static run).
+    pub v: Vec<Vector<f64, D>>,
     /// Converged unknowns `Δu`.
     pub solution: Vec<f64>,
 }
 
-/// A recorded quasi-static run: per accepted sub-step what its reverse needs, and the
+/// A recorded implicit run (quasi-static or Newmark): per accepted sub-step what its reverse needs, and the
 /// quantities observations read.
 #[derive(Clone, Debug)]
 pub struct Trajectory<const D: usize> {
@@ -36,6 +38,8 @@ pub struct Trajectory<const D: usize> {
     pub substeps: Vec<SubStep<D>>,
     /// Particle positions after each load step (entry 0: the initial positions).
     pub positions: Vec<Vec<Vector<f64, D>>>,
+    /// Particle velocities after each load step (entry 0: the initial velocities).
+    pub velocities: Vec<Vec<Vector<f64, D>>>,
     /// Per load step (entry `k − 1` for step `k`), the reaction of every constraint.
     pub reactions: Vec<Vec<Vector<f64, D>>>,
     /// Cut sub-steps taken (accepted sub-steps minus load steps).
@@ -46,12 +50,13 @@ pub struct Trajectory<const D: usize> {
 
 impl<const D: usize> SubStep<D> {
     /// The particles at the start of the sub-step: `initial` with this sub-step's positions,
-    /// deformation gradients and histories.
+    /// deformation gradients, histories and velocities.
     pub fn particles(&self, initial: &Particles<f64, D>) -> Particles<f64, D> {
         let mut p = initial.clone();
         p.x.clone_from(&self.x);
         p.f.clone_from(&self.f);
         p.state.clone_from(&self.history);
+        p.v.clone_from(&self.v);
         p
     }
 
@@ -61,6 +66,7 @@ impl<const D: usize> SubStep<D> {
             x: self.x[p],
             f: self.f[p],
             history: self.history[p],
+            v: self.v[p],
             mass,
         }
     }
@@ -96,7 +102,7 @@ impl<const D: usize> Trajectory<D> {
 /// Newton iterations a replayed sub-step may take (at least).
 pub const REPLAY_ITERATIONS: usize = 100;
 
-/// Runs the quasi-static loading of `config` from `initial`, recording every accepted
+/// Runs the loading (quasi-static or Newmark) of `config` from `initial`, recording every accepted
 /// sub-step. With a `schedule` the load steps are taken as its sub-steps, without cutting
 /// (`ImplicitSolver::step_planned`): the gradient is that of the run with the step sizes
 /// taken, so finite differences and Taylor tests compare runs with the same sub-steps (a
@@ -104,19 +110,12 @@ pub const REPLAY_ITERATIONS: usize = 100;
 /// reference run did not, a different discrete map).
 ///
 /// # Errors
-/// A dynamic configuration (not covered yet), a schedule for another number of load steps,
-/// or a run that is refused or stops.
+/// A schedule for another number of load steps, or a run that is refused or stops.
 pub fn run_recorded<const D: usize>(
     config: &ImplicitConfig<D>,
     initial: &Particles<f64, D>,
     schedule: Option<&Schedule>,
 ) -> Result<Trajectory<D>, AdjointError> {
-    if config.dynamics.is_some() {
-        return Err(AdjointError::Unsupported {
-            what: "solver.dynamics (Newmark steps) in the implicit adjoint".into(),
-            why: "the reverse pass covers quasi-static load steps; use a quasi-static scene".into(),
-        });
-    }
     if let Some(s) = schedule.filter(|s| s.len() != config.load_steps) {
         return Err(AdjointError::Unsupported {
             what: format!("a schedule of {} load steps", s.len()),
@@ -134,6 +133,7 @@ pub fn run_recorded<const D: usize>(
     let mut out = Trajectory {
         substeps: Vec::new(),
         positions: vec![initial.x.clone()],
+        velocities: vec![initial.v.clone()],
         reactions: Vec::new(),
         cuts: 0,
         iterations: 0,
@@ -148,6 +148,7 @@ pub fn run_recorded<const D: usize>(
                 x: a.start.x.clone(),
                 f: a.start.f.clone(),
                 history: a.start.state.clone(),
+                v: a.start.v.clone(),
                 solution: a.solution.to_vec(),
             });
         };
@@ -157,6 +158,7 @@ pub fn run_recorded<const D: usize>(
         };
         out.iterations += report.iterations();
         out.positions.push(particles.x.clone());
+        out.velocities.push(particles.v.clone());
         out.reactions.push(report.constraint_forces);
     }
     out.cuts = out.substeps.len() - solver.config().load_steps;
@@ -208,7 +210,11 @@ impl<'a, const D: usize> Replay<'a, D> {
             shape: self.config.shape,
             half_width0: self.initial.half_width0[p],
             volume0: self.initial.volume0[p],
-            load_factor: self.sub.to,
+            load_factor: if self.config.dynamics.is_some() {
+                1.0
+            } else {
+                self.sub.to
+            },
         }
     }
 
@@ -228,6 +234,16 @@ impl<'a, const D: usize> Replay<'a, D> {
     /// The converged `Δu` of node component `(flat, a)`.
     pub fn du(&self, flat: usize, a: usize) -> f64 {
         self.system.dofs.value(flat, a, &self.sub.solution)
+    }
+
+    /// `Δu` of node component `(flat, a)` with the unknowns at zero: the prescribed increment
+    /// or zero, the state at which a Newmark step evaluates its start force
+    /// `rₙ = f_ext − f_int(0)`.
+    pub fn du_start(&self, flat: usize, a: usize) -> f64 {
+        match self.system.dofs.get(flat, a) {
+            loam_implicit::NodeDof::Prescribed { value } => value,
+            _ => 0.0,
+        }
     }
 
     /// Per grid node and component, `d(prescribed Δu)/dθ` for `θ` the displacement of

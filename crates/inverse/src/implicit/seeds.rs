@@ -1,16 +1,19 @@
 //! How the observations of one load step enter the reverse and the tangent pass.
 
+use super::kernel::velocity_index;
 use super::observe::{ImplicitObservations, Quantity};
 use loam_core::tensor::Vector;
 use loam_implicit::ImplicitConfig;
 
-/// `∂L/∂(quantity)` of the observations after one load step: per observed particle
-/// displacement component, and per grid node the weight of its internal force that the
+/// `∂L/∂(quantity)` of the observations after one load step: per observed component of a
+/// particle's state (displacement, velocity), and per grid node the weight of its internal force that the
 /// observed reactions read.
 #[derive(Clone, Debug)]
 pub struct StepSeeds<const D: usize> {
-    /// `(particle, axis, ∂L/∂u_p,a)`.
-    pub displacements: Vec<(usize, usize, f64)>,
+    /// `(particle, k, ∂L/∂s_p,k)` with `k` the index of the observed component in
+    /// `ParticleState::components` (`a` for the displacement along axis `a`: `x_p − x_p⁰`
+    /// moves with `x_p`).
+    pub states: Vec<(usize, usize, f64)>,
     /// Per grid node (flat index), `r̄_a` summed over the observed reactions whose constraint
     /// prescribes component `a` of that node: a reaction is `Σ` of the internal force
     /// `f_int,i,a` over the nodes `i` of its box, before any folding of ghost nodes.
@@ -25,7 +28,7 @@ impl<const D: usize> StepSeeds<D> {
         weights: &[f64],
         step: usize,
     ) -> Self {
-        let mut displacements = Vec::new();
+        let mut states = Vec::new();
         let mut reactions = vec![Vector::<f64, D>::zeros(); config.constraints.len()];
         let mut any_reaction = false;
         for (o, &w) in observations.items.iter().zip(weights) {
@@ -36,7 +39,11 @@ impl<const D: usize> StepSeeds<D> {
                 Quantity::Displacement {
                     particle,
                     component,
-                } => displacements.push((particle, component, w)),
+                } => states.push((particle, component, w)),
+                Quantity::Velocity {
+                    particle,
+                    component,
+                } => states.push((particle, velocity_index(D) + component, w)),
                 Quantity::Reaction {
                     constraint,
                     component,
@@ -48,7 +55,7 @@ impl<const D: usize> StepSeeds<D> {
         }
         let reaction_weights = any_reaction.then(|| Self::node_weights(config, &reactions));
         Self {
-            displacements,
+            states,
             reaction_weights,
         }
     }

@@ -1,4 +1,4 @@
-//! The forward-mode dual derivative of a quasi-static run: the oracle of the reverse pass.
+//! The forward-mode dual derivative of an implicit run: the oracle of the reverse pass.
 //!
 //! The implicit solver runs in `f64` (faer's sparse factorisations are real), so the run is
 //! not re-executed with a dual scalar. What such a run would compute is this: with every
@@ -9,8 +9,14 @@
 //! that, sub-step by sub-step in the forward order: one `Dual64` evaluation of every
 //! particle's kernel for `Ṙ`, one solve with `J`, one evaluation for the end state
 //! `ṡ' = Φ̇`. It shares the kernel with the reverse pass but none of its transposition.
+//!
+//! A Newmark sub-step (`super::inertia`) adds to `Ṙ` the derivative parts of
+//! `f_int(0) − f_ext + (4/Δt²) M Δu − (4/Δt) pₙ` with `Δu` held, and its velocities take
+//! `v̇' = v̇ + Σ_i (Ṅ_i Δv_i + N_i Δv̇_i)` with `B Δv̇ = (2/Δt)(Ṁ Δu + M Δu̇) − 2ṗₙ − Ḃ Δv`
+//! (`Ḃ = Ṁ + ε diag Ṁ`).
 
-use super::kernel::{ParticleStep, particle_step, state_len};
+use super::inertia::rates;
+use super::kernel::{ParticleStep, mass_index, particle_step, state_len, velocity_index};
 use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
 use super::record::{Replay, SubStep, Trajectory};
@@ -19,7 +25,8 @@ use crate::error::AdjointError;
 use crate::params::MaterialField;
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
-use loam_implicit::linear::LinearSolver;
+use loam_implicit::linear::{LinearSolver, LinearSolverKind};
+use loam_implicit::system::MASS_REGULARISATION;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
 use num_dual::Dual64;
 use rayon::prelude::*;
@@ -63,10 +70,12 @@ pub fn model_tangents<const D: usize>(
     let mut sdot = vec![vec![0.0; state_len(D)]; n];
     if let ImplicitParam::Material(k, MaterialField::Density) = param {
         for p in (0..n).filter(|&p| initial.material[p] as usize == k) {
-            sdot[p][state_len(D) - 1] = initial.volume0[p];
+            sdot[p][mass_index(D)] = initial.volume0[p];
         }
     }
     let mut linear = LinearSolver::new(config.newton.linear);
+    let mut mass_solver = LinearSolver::new(LinearSolverKind::Cholesky);
+    let vi = velocity_index(D);
     let mut tangents = vec![0.0; observations.items.len()];
     for (i, sub) in run.substeps.iter().enumerate() {
         let replay = Replay::new(&solver, initial, sub)?;
@@ -81,8 +90,11 @@ pub fn model_tangents<const D: usize>(
             ImplicitParam::Displacement(k, a) => Some(replay.prescribed_rate(k, a)?),
             _ => None,
         };
-        // Every particle's step with the unknowns' derivative parts `free` (per unknown).
-        let evaluate = |free: &[f64]| -> Result<Vec<ParticleStep<Dual64, D>>, AdjointError> {
+        // Every particle's step with the unknowns' derivative parts `free` (per unknown), at
+        // the converged increments or (`start`) with the unknowns at zero.
+        let evaluate = |free: &[f64],
+                        start: bool|
+         -> Result<Vec<ParticleStep<Dual64, D>>, AdjointError> {
             let steps: Vec<Option<ParticleStep<Dual64, D>>> = (0..n)
                 .into_par_iter()
                 .map(|p| {
@@ -99,7 +111,12 @@ pub fn model_tangents<const D: usize>(
                             NodeDof::Free { dof, sign } => sign * free[dof],
                             _ => rate.as_ref().map_or(0.0, |r| r[f][a]),
                         };
-                        Dual64::new(replay.du(f, a), eps)
+                        let re = if start {
+                            replay.du_start(f, a)
+                        } else {
+                            replay.du(f, a)
+                        };
+                        Dual64::new(re, eps)
                     };
                     particle_step(
                         &replay.setting(p),
@@ -115,17 +132,46 @@ pub fn model_tangents<const D: usize>(
                 .collect()
         };
         // Ṙ with the unknowns held, then J Δu̇ = −Ṙ.
-        let held = evaluate(&vec![0.0; system.len()])?;
+        let held = evaluate(&vec![0.0; system.len()], false)?;
         let mut r_dot = vec![0.0; system.len()];
-        for s in &held {
-            for node in &s.nodes {
-                for a in 0..D {
-                    if let NodeDof::Free { dof, sign } = system.dofs.get(node.flat, a) {
-                        r_dot[dof] -= sign * (node.internal[a].eps - node.external[a].eps);
+        let mut subtract = |steps: &[ParticleStep<Dual64, D>]| {
+            for s in steps {
+                for node in &s.nodes {
+                    for a in 0..D {
+                        if let NodeDof::Free { dof, sign } = system.dofs.get(node.flat, a) {
+                            r_dot[dof] -= sign * (node.internal[a].eps - node.external[a].eps);
+                        }
                     }
                 }
             }
-        }
+        };
+        subtract(&held);
+        // A Newmark step: the start force, the mass and the momentum, with Δu held.
+        let stencils: Vec<Vec<(usize, Dual64)>> = (held.iter())
+            .map(|s| s.nodes.iter().map(|n| (n.flat, n.weight)).collect())
+            .collect();
+        let dynamic = match &system.inertia {
+            Some(inertia) => {
+                subtract(&evaluate(&vec![0.0; system.len()], true)?);
+                let motion = inertia
+                    .grid_motion(&sub.solution, &mut mass_solver)
+                    .map_err(|source| AdjointError::Linear {
+                        step: sub.step,
+                        what: "mass",
+                        source,
+                    })?;
+                let dv = motion.velocity_increment;
+                let particles = (stencils.iter().zip(&held))
+                    .map(|(nodes, s)| (nodes.clone(), s.end.mass, &s.end.v));
+                let r = rates(&system.dofs, particles, &[&sub.solution, &dv]);
+                let dt = inertia.dt;
+                for (d, rd) in r_dot.iter_mut().enumerate() {
+                    *rd -= 4.0 / (dt * dt) * r.mass_times[0][d] - 4.0 / dt * r.momentum[d];
+                }
+                Some((inertia, r, dv))
+            }
+            None => None,
+        };
         let mut u_dot = vec![0.0; system.len()];
         if !system.is_empty() {
             let k = system
@@ -139,9 +185,41 @@ pub fn model_tangents<const D: usize>(
                     source,
                 })?;
         }
-        let moved = evaluate(&u_dot)?;
+        let moved = evaluate(&u_dot, false)?;
         for (p, s) in moved.iter().enumerate() {
             sdot[p] = s.end.tangent();
+        }
+        // The Newmark velocity update: B Δv̇ = (2/Δt)(Ṁ Δu + M Δu̇) − 2ṗₙ − Ḃ Δv.
+        if let Some((inertia, r, dv)) = dynamic {
+            let mut m_u_dot = vec![0.0; system.len()];
+            inertia.mass.mul_vec(&u_dot, &mut m_u_dot);
+            let rhs: Vec<f64> = (0..system.len())
+                .map(|d| {
+                    2.0 / inertia.dt * (r.mass_times[0][d] + m_u_dot[d])
+                        - 2.0 * r.momentum[d]
+                        - r.mass_times[1][d]
+                        - MASS_REGULARISATION * r.diagonal[d] * dv[d]
+                })
+                .collect();
+            let mut dv_dot = vec![0.0; system.len()];
+            mass_solver
+                .solve(&inertia.regularised_mass(), &rhs, &mut dv_dot)
+                .map_err(|source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "mass",
+                    source,
+                })?;
+            for (p, nodes) in stencils.iter().enumerate() {
+                for &(flat, w) in nodes {
+                    for a in 0..D {
+                        let (v, v_dot) = (
+                            system.dofs.field(flat, a, &dv),
+                            system.dofs.field(flat, a, &dv_dot),
+                        );
+                        sdot[p][vi + a] += w.eps * v + w.re * v_dot;
+                    }
+                }
+            }
         }
         if SubStep::ends_step(&run.substeps, i) {
             let observed =
@@ -152,6 +230,10 @@ pub fn model_tangents<const D: usize>(
                         particle,
                         component,
                     } => sdot[particle][component],
+                    Quantity::Velocity {
+                        particle,
+                        component,
+                    } => sdot[particle][vi + component],
                     Quantity::Reaction {
                         constraint,
                         component,
