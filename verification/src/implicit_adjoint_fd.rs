@@ -17,8 +17,9 @@
 //!
 //! Observations are recorded from a run at the scene's values and the gradient is taken 5 %
 //! away from them (alternating signs), so the loss and its gradient are not zero. Full size
-//! doubles the load steps (8 instead of 4; the Newmark cantilever halves its time step, 10
-//! steps of 0.02 s instead of 5 of 0.04 s over the same 0.2 s). Metrics per scene:
+//! doubles the cantilever's load steps (8 instead of 4; the Newmark cantilever halves its
+//! time step, 10 steps of 0.02 s instead of 5 of 0.04 s over the same 0.2 s); the footing
+//! keeps its 4, whose cut the case exercises. Metrics per scene:
 //!
 //! - max relative |adjoint − dual| **≤ 1e-10**: both are exact derivatives of the same
 //!   discrete map at the same converged Newton solutions; they differ by summation order and
@@ -162,7 +163,13 @@ fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
 }
 
 /// The footing: σ_y, E, the hardening, the settlement.
-fn footing(load_steps: usize) -> Result<Outcome, VerifyError> {
+///
+/// It runs the scene's 4 load steps at both sizes: the cut that the case exercises comes
+/// from a load step too large for Newton's 5 iterations, and smaller steps (5 to 16 of them,
+/// with 3 to 6 iterations, were tried) either converge uncut or cut so deep that the run
+/// fails, depending on round-off at the 1e-12 tolerance.
+fn footing() -> Result<Outcome, VerifyError> {
+    let load_steps = 4;
     let (config, initial) = setup("implicit_footing", load_steps);
     let side = (0..initial.len())
         .min_by(|&a, &b| {
@@ -247,11 +254,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         Size::Reduced => (4, 5),
         Size::Full => (8, 10),
     };
-    let outcomes = [
-        cantilever(load_steps)?,
-        footing(load_steps)?,
-        newmark(newmark_steps)?,
-    ];
+    let outcomes = [cantilever(load_steps)?, footing()?, newmark(newmark_steps)?];
     let mut metrics = Vec::new();
     let mut md = String::from(
         "| scene | unknown | adjoint | dual | central difference |\n|---|---|---|---|---|\n",
