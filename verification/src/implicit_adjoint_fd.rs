@@ -122,6 +122,35 @@ fn check_problem(
     })
 }
 
+/// The cantilever's check (`name`): E, ν, the tip load and the density, for a loss over
+/// `quantities` and the clamp's vertical reaction after the last step.
+fn check_cantilever(
+    name: &'static str,
+    config: ImplicitConfig<2>,
+    initial: Particles<f64, 2>,
+    mut quantities: Vec<(usize, Quantity, f64)>,
+) -> Result<Outcome, VerifyError> {
+    let reaction = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    let last = config.load_steps;
+    quantities.push((last, reaction, 100.0));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Poisson),
+            ImplicitParam::PointLoad(0, 1),
+            ImplicitParam::Material(0, MaterialField::Density),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem(name, &problem)
+}
+
 /// The cantilever: E, ν, the tip load, the density.
 fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
     let (config, initial) = setup("implicit_cantilever", load_steps);
@@ -142,24 +171,7 @@ fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
             quantities.push((step, quantity, 0.01));
         }
     }
-    let reaction = Quantity::Reaction {
-        constraint: 0,
-        component: 1,
-    };
-    quantities.push((load_steps, reaction, 100.0));
-    let mut problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Poisson),
-            ImplicitParam::PointLoad(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations: ImplicitObservations::default(),
-    };
-    observe(&mut problem, &quantities)?;
-    check_problem("cantilever", &problem)
+    check_cantilever("cantilever", config, initial, quantities)
 }
 
 /// The footing: σ_y, E, the hardening, the settlement.
@@ -222,24 +234,7 @@ fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
         quantities.push((step, deflection, 0.01));
         quantities.push((step, velocity, 0.1));
     }
-    let reaction = Quantity::Reaction {
-        constraint: 0,
-        component: 1,
-    };
-    quantities.push((steps, reaction, 100.0));
-    let mut problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Poisson),
-            ImplicitParam::PointLoad(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations: ImplicitObservations::default(),
-    };
-    observe(&mut problem, &quantities)?;
-    check_problem("newmark cantilever", &problem)
+    check_cantilever("newmark cantilever", config, initial, quantities)
 }
 
 /// The simulated time of the Newmark cantilever (s): the scene's 5 time steps of 0.04 s.
