@@ -64,7 +64,7 @@ fn gradient_check_on_a_newmark_scene_agrees_with_the_dual_run() {
     let all = text(&out);
     assert!(out.status.success(), "{all}");
     for p in [
-        "over 5 load steps",
+        "over 5 time steps of 0.04 s",
         "materials[0].young",
         "materials[0].density",
         "central diff.",

@@ -75,8 +75,8 @@ pub fn check(path: &Path) -> Outcome {
                 let mut steps: Vec<usize> = items.iter().map(|o| o.step).collect();
                 steps.dedup();
                 format!(
-                    "implicit, {} load steps, {} observation(s) after {} load step(s)",
-                    problem.config.load_steps,
+                    "implicit, {}, {} observation(s) after {} step(s)",
+                    inv.problem.run_length(),
                     items.len(),
                     steps.len()
                 )

@@ -64,11 +64,15 @@ impl<const D: usize> Model<D> {
         }
     }
 
-    /// What a run is, for the reports: `600 steps`, `10 load steps`.
+    /// What a run is, for the reports: `600 steps`, `10 load steps`, or for Newmark dynamics
+    /// `5 time steps of 0.04 s`.
     pub fn run_length(&self) -> String {
         match self {
             Self::Explicit(p) => format!("{} steps", p.steps),
-            Self::Implicit { problem, .. } => format!("{} load steps", problem.config.load_steps),
+            Self::Implicit { problem, .. } => match problem.config.dynamics {
+                Some(dt) => format!("{} time steps of {dt} s", problem.config.load_steps),
+                None => format!("{} load steps", problem.config.load_steps),
+            },
         }
     }
 
