@@ -60,9 +60,21 @@ fn taylor_ratios(
     remainders.windows(2).map(|w| w[0] / w[1]).collect()
 }
 
-/// Checks the adjoint of `problem` against the dual derivative (1e-10), central differences
+/// Checks the adjoint of the problem of `config`, `initial`, `params` and `items` against the dual derivative (1e-10), central differences
 /// (1e-6) and the Taylor test (remainder ratios within [3.5, 4.5], second order).
-fn check(name: &str, problem: &ImplicitProblem<2>) {
+fn check(
+    name: &str,
+    config: ImplicitConfig<2>,
+    initial: Particles<f64, 2>,
+    params: &[ImplicitParam],
+    items: Vec<Observation>,
+) {
+    let problem = &ImplicitProblem {
+        config,
+        initial,
+        params: params.to_vec(),
+        observations: ImplicitObservations { items },
+    };
     let theta = problem.values().expect("values");
     let schedule = problem.schedule(&theta).expect("run");
     let adjoint = problem.gradient(&theta).expect("adjoint");
@@ -144,18 +156,13 @@ fn cantilever_adjoint_matches_dual_and_differences() {
             },
         ],
     };
-    let problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Poisson),
-            ImplicitParam::PointLoad(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations,
-    };
-    check("cantilever", &problem);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Poisson),
+        ImplicitParam::PointLoad(0, 1),
+        ImplicitParam::Material(0, MaterialField::Density),
+    ];
+    check("cantilever", config, initial, &params, observations.items);
 }
 
 #[test]
@@ -204,23 +211,18 @@ fn footing_adjoint_matches_dual_and_differences() {
         value: 0.0,
         sigma: 1e-3,
     });
-    let problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::YieldStress),
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Hardening),
-            ImplicitParam::Displacement(0, 1),
-        ],
-        observations: ImplicitObservations { items },
-    };
     println!(
         "footing: {} sub-steps for 4 load steps ({} cut)",
         run.substeps.len(),
         run.cuts
     );
-    check("footing", &problem);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::YieldStress),
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Hardening),
+        ImplicitParam::Displacement(0, 1),
+    ];
+    check("footing", config, initial, &params, items);
 }
 
 /// The cantilever under its sudden tip load in Newmark dynamics
@@ -283,18 +285,13 @@ fn dynamic_run(
 fn newmark_cantilever_adjoint_matches_dual_and_differences() {
     let (config, initial, items) = newmark_cantilever();
     dynamic_run(&config, &initial);
-    let problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Poisson),
-            ImplicitParam::PointLoad(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations: ImplicitObservations { items },
-    };
-    check("newmark cantilever", &problem);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Poisson),
+        ImplicitParam::PointLoad(0, 1),
+        ImplicitParam::Material(0, MaterialField::Density),
+    ];
+    check("newmark cantilever", config, initial, &params, items);
 }
 
 #[test]
@@ -319,18 +316,13 @@ fn newmark_j2_cantilever_adjoint_matches_dual_and_differences() {
         .fold(0.0, f64::max);
     println!("newmark J2: peak plastic strain at the last step's start {peak:.3e}");
     assert!(peak > 1e-3, "no plasticity: {peak:.3e}");
-    let problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::YieldStress),
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Hardening),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations: ImplicitObservations { items },
-    };
-    check("newmark J2 cantilever", &problem);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::YieldStress),
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Hardening),
+        ImplicitParam::Material(0, MaterialField::Density),
+    ];
+    check("newmark J2 cantilever", config, initial, &params, items);
 }
 
 /// The J2 footing of `implicit_footing.toml` in Newmark dynamics: 4 time steps of 0.01 s
@@ -383,16 +375,11 @@ fn newmark_footing_adjoint_matches_dual_and_differences() {
     items.push(observe(4, beside, 0.0, 1e-3));
     items.push(observe(2, velocity, 0.0, 0.01));
     items.push(observe(4, velocity, 0.0, 0.01));
-    let problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::YieldStress),
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Displacement(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
-        observations: ImplicitObservations { items },
-    };
-    check("newmark footing", &problem);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::YieldStress),
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Displacement(0, 1),
+        ImplicitParam::Material(0, MaterialField::Density),
+    ];
+    check("newmark footing", config, initial, &params, items);
 }
