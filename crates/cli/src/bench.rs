@@ -298,7 +298,12 @@ fn gpu_benches(
             return Outcome::Failed;
         }
     };
-    println!("{} (atomics: {:?})", device.name(), device.atomics());
+    println!(
+        "{} (atomics: {:?}, subgroup scatter: {})",
+        device.name(),
+        device.atomics(),
+        if device.subgroups() { "yes" } else { "no" }
+    );
     println!(
         "{:<27} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
         "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s", "device MiB"

@@ -20,6 +20,8 @@ pub struct Gpu {
     atomics: Atomics,
     /// Whether the device writes timestamps at the start and end of compute passes.
     timestamps: bool,
+    /// Whether the scatter uses subgroup operations (`Features::SUBGROUP`).
+    subgroups: bool,
 }
 
 impl Gpu {
@@ -61,6 +63,10 @@ impl Gpu {
         if timestamps {
             required_features |= wgpu::Features::TIMESTAMP_QUERY;
         }
+        let subgroups = adapter.features().contains(wgpu::Features::SUBGROUP);
+        if subgroups {
+            required_features |= wgpu::Features::SUBGROUP;
+        }
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("loam"),
@@ -78,6 +84,7 @@ impl Gpu {
             info: adapter.get_info(),
             atomics,
             timestamps,
+            subgroups,
         })
     }
 
@@ -93,6 +100,19 @@ impl Gpu {
     /// How the scatter adds floats on this device.
     pub fn atomics(&self) -> Atomics {
         self.atomics
+    }
+
+    /// Whether the scatter sums each subgroup's runs of particles that share a stencil
+    /// before it adds them to the grid (where the adapter has `Features::SUBGROUP`).
+    pub fn subgroups(&self) -> bool {
+        self.subgroups
+    }
+
+    /// The same device with the scatter adding every particle's entries itself, without
+    /// subgroup operations (as on an adapter without them).
+    pub fn without_subgroups(mut self) -> Self {
+        self.subgroups = false;
+        self
     }
 
     /// Whether the device can time compute passes (`Features::TIMESTAMP_QUERY`), which

@@ -140,6 +140,7 @@ impl<const D: usize> GpuSolver<D> {
             atomics: gpu.atomics(),
             transfer: params::transfer_code(config.transfer),
             musl: params::is_musl(config),
+            subgroups: gpu.subgroups(),
         };
         let mut kin = Vec::with_capacity(3 * D * n);
         flat_vectors(&particles.x, &mut kin);

@@ -22,7 +22,20 @@ fn gpu(compare_exchange: bool) -> Option<Gpu> {
     static NATIVE: OnceLock<Result<Gpu, String>> = OnceLock::new();
     static FALLBACK: OnceLock<Result<Gpu, String>> = OnceLock::new();
     let cell = if compare_exchange { &FALLBACK } else { &NATIVE };
-    match cell.get_or_init(|| Gpu::new(compare_exchange).map_err(|e| e.to_string())) {
+    // The fallback device also scatters without subgroup operations, so that both scatters
+    // are tested where the adapter has them.
+    let open = || {
+        Gpu::new(compare_exchange)
+            .map(|g| {
+                if compare_exchange {
+                    g.without_subgroups()
+                } else {
+                    g
+                }
+            })
+            .map_err(|e| e.to_string())
+    };
+    match cell.get_or_init(open) {
         Ok(gpu) => Some(gpu.clone()),
         Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
             panic!("CI needs a GPU adapter for the GPU tests: {e}")
@@ -128,9 +141,10 @@ fn parity_of<const D: usize>(
         let e32 = max_distance(&x32, &x64);
         let eg = max_distance(&xg, &x32);
         let what = format!(
-            "{D}D {scheme} {transfer} on {} ({:?}), {steps} steps",
+            "{D}D {scheme} {transfer} on {} ({:?} atomics, subgroups {}), {steps} steps",
             gpu.name(),
-            gpu.atomics()
+            gpu.atomics(),
+            gpu.subgroups()
         );
         eprintln!("{what}: |gpu − cpu32| = {eg:.3e}, |cpu32 − cpu64| = {e32:.3e}");
         assert!(

@@ -10,7 +10,8 @@
 //!
 //! One step, all on the device (each dispatch sees the writes of the one before):
 //!
-//! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force.
+//! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force (`p2g_subgroup`, which
+//!    sums runs of particles with one stencil in a subgroup first, where the adapter can).
 //! 2. `fold` per axis: ghost layers behind bilateral walls onto their mirrors.
 //! 3. `update`: the momentum update, contact and the wall law per node (FLIP keeps the
 //!    start-of-step velocity `v_iⁿ` beside `v_i`); `reflect` per axis (both velocities).
@@ -30,6 +31,7 @@ const MAX_GROUPS: u32 = 65_535;
 const COMMON: &str = include_str!("common.wgsl");
 const CONTACT: &str = include_str!("contact.wgsl");
 const P2G: &str = include_str!("p2g.wgsl");
+const P2G_SUBGROUP: &str = include_str!("p2g_subgroup.wgsl");
 const GRID: &str = include_str!("grid.wgsl");
 const G2P: &str = include_str!("g2p.wgsl");
 const CONSTITUTIVE: &str = include_str!("constitutive.wgsl");
@@ -42,6 +44,9 @@ pub(crate) struct Variant {
     /// `TRANSFER_*` of common.wgsl.
     pub transfer: u32,
     pub musl: bool,
+    /// Whether the scatter sums runs of particles with one stencil in their subgroup before
+    /// adding (`p2g_subgroup.wgsl`; needs `Features::SUBGROUP`).
+    pub subgroups: bool,
 }
 
 impl Variant {
@@ -136,7 +141,12 @@ impl Kernels {
                 cache: None,
             })
         };
-        let p2g = module(&format!("{CONSTITUTIVE}\n{P2G}"), 0, true);
+        let p2g_body = if variant.subgroups {
+            format!("{CONSTITUTIVE}\n{P2G}\n{P2G_SUBGROUP}")
+        } else {
+            format!("{CONSTITUTIVE}\n{P2G}")
+        };
+        let p2g = module(&p2g_body, 0, true);
         let g2p = module(&format!("{CONSTITUTIVE}\n{G2P}"), 0, true);
         let grid: Vec<[wgpu::ShaderModule; 2]> = (0..variant.dim)
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
@@ -144,7 +154,14 @@ impl Kernels {
         Self {
             speeds: pipeline(&p2g, "speeds"),
             clear: pipeline(&p2g, "clear"),
-            p2g: pipeline(&p2g, "p2g"),
+            p2g: pipeline(
+                &p2g,
+                if variant.subgroups {
+                    "p2g_subgroup"
+                } else {
+                    "p2g"
+                },
+            ),
             fold: grid
                 .iter()
                 .map(|[all, momentum]| [pipeline(all, "fold"), pipeline(momentum, "fold")])
