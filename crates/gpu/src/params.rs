@@ -55,6 +55,26 @@ pub(crate) fn transfer_code(transfer: Transfer) -> u32 {
     }
 }
 
+/// The model of a material as constitutive.wgsl numbers it (`MODEL_*`).
+fn model_code(model: &Model<f32>) -> u32 {
+    match model {
+        Model::Fluid(_) => 0,
+        Model::NeoHookean(_) => 1,
+        Model::Hencky(_) => 2,
+        Model::DruckerPrager(_) => 3,
+        Model::LinearElastic(_) | Model::J2(_) => unreachable!("refused by `check`"),
+    }
+}
+
+/// The models of the scene's materials, bit `model_code` set for each (`MODELS` of
+/// constitutive.wgsl: the kernels hold only these models' updates).
+pub(crate) fn models<const D: usize>(config: &Config<f32, D>) -> u32 {
+    config
+        .materials
+        .iter()
+        .fold(0, |bits, m| bits | 1 << model_code(&m.model))
+}
+
 /// The words of the node buffer of `nodes` nodes in `D` dimensions (`nodev` of
 /// `common.wgsl`): the velocities and the state words, then for FLIP the start-of-step
 /// velocities `v_iⁿ` that G2P's increment `Σ w (v_i − v_iⁿ)` reads.
@@ -180,24 +200,25 @@ const MATERIAL_ENTRIES: usize = 3;
 /// The Drucker–Prager constants come from loam-core's own methods evaluated in f32, the
 /// values the CPU's f32 return mapping uses.
 fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
-    let elastic = |code: f32, lame: &Lame<f32>| [code, lame.mu, lame.lambda, 0.0];
+    let code = model_code(&material.model) as f32;
+    let elastic = |lame: &Lame<f32>| [code, lame.mu, lame.lambda, 0.0];
     let c = material.wave_speed() as f32;
     match &material.model {
         Model::Fluid(f) => {
             let n = f.gamma as u32;
             let whole = if n as f32 == f.gamma && n <= 64 { n } else { 0 };
             [
-                [0.0; 4],
+                [code, 0.0, 0.0, 0.0],
                 [f.bulk_modulus, f.gamma, f.viscosity, whole as f32],
                 [0.0, c, 0.0, 0.0],
             ]
         }
-        Model::NeoHookean(m) => [elastic(1.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
-        Model::Hencky(m) => [elastic(2.0, &m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::NeoHookean(m) => [elastic(&m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::Hencky(m) => [elastic(&m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
         Model::DruckerPrager(m) => {
             let (sigma_t, q_c) = m.corner();
             [
-                [3.0, m.lame.mu, m.lame.lambda, m.bulk_modulus()],
+                [code, m.lame.mu, m.lame.lambda, m.bulk_modulus()],
                 [m.alpha(), m.k(), sigma_t, q_c],
                 [m.alpha_psi(), c, 0.0, 0.0],
             ]

@@ -141,6 +141,7 @@ impl<const D: usize> GpuSolver<D> {
             transfer: params::transfer_code(config.transfer),
             musl: params::is_musl(config),
             subgroups: gpu.subgroups(),
+            models: params::models(config),
         };
         let mut kin = Vec::with_capacity(3 * D * n);
         flat_vectors(&particles.x, &mut kin);

@@ -25,6 +25,12 @@ const IDENTITY: mat3x3<f32> = mat3x3<f32>(
     vec3<f32>(0.0, 0.0, 1.0),
 );
 
+// Whether a material of the scene has model `k`: `MODELS`, which the launcher prepends, has
+// bit k set.
+fn has_model(k: u32) -> bool {
+    return (MODELS & (1u << k)) != 0u;
+}
+
 fn material_entry(m: u32, e: u32) -> vec4<f32> {
     return table[m * MATERIAL_ENTRIES + e];
 }
@@ -291,22 +297,21 @@ fn update_stress(m: u32, f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>) -
     let e = material_entry(m, 0u);
     var out: Updated;
     out.plastic = 0.0;
-    switch u32(e.x) {
-        case MODEL_NEO_HOOKEAN: {
-            out.sigma = neo_hookean_stress(e, f);
-        }
-        case MODEL_HENCKY: {
-            out.sigma = hencky_stress(e, f);
-        }
-        case MODEL_DRUCKER_PRAGER: {
-            let trial = dp_trial(e, sigma_n, l * prm.dt);
-            let r = dp_return(e, material_entry(m, 1u), material_entry(m, 2u).x, trial);
-            out.sigma = r.sigma;
-            out.plastic = r.plastic;
-        }
-        default: {
-            out.sigma = fluid_stress(material_entry(m, 1u), f, l);
-        }
+    let model = u32(e.x);
+    // Only the models of the scene's materials are compiled in (`has_model`): the others'
+    // code, Hencky's eigenvalues and the Drucker–Prager return above all, would hold
+    // registers in every scene's kernel.
+    if has_model(MODEL_NEO_HOOKEAN) && model == MODEL_NEO_HOOKEAN {
+        out.sigma = neo_hookean_stress(e, f);
+    } else if has_model(MODEL_HENCKY) && model == MODEL_HENCKY {
+        out.sigma = hencky_stress(e, f);
+    } else if has_model(MODEL_DRUCKER_PRAGER) && model == MODEL_DRUCKER_PRAGER {
+        let trial = dp_trial(e, sigma_n, l * prm.dt);
+        let r = dp_return(e, material_entry(m, 1u), material_entry(m, 2u).x, trial);
+        out.sigma = r.sigma;
+        out.plastic = r.plastic;
+    } else if has_model(MODEL_FLUID) {
+        out.sigma = fluid_stress(material_entry(m, 1u), f, l);
     }
     return out;
 }

@@ -47,6 +47,9 @@ pub(crate) struct Variant {
     /// Whether the scatter sums runs of particles with one stencil in their subgroup before
     /// adding (`p2g_subgroup.wgsl`; needs `Features::SUBGROUP`).
     pub subgroups: bool,
+    /// The models of the scene's materials (`params::models`: bit `MODEL_*` of
+    /// constitutive.wgsl set for each).
+    pub models: u32,
 }
 
 impl Variant {
@@ -79,11 +82,13 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
             "const D: u32 = {d}u;\nconst NK: u32 = {nk}u;\nconst S: u32 = {s}u;\n\
              const WG: u32 = {WORKGROUP}u;\nconst TRANSFER: u32 = {t}u;\nconst MUSL: bool = {m};\n\
              const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
+             const MODELS: u32 = {models}u;\n\
              {accumulator}{COMMON}\n{CONTACT}\n{body}",
             nk = if d == 3 { 3 } else { 1 },
             s = 1 + 2 * d,
             t = self.transfer,
             m = self.musl,
+            models = self.models,
         )
     }
 }
