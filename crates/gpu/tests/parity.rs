@@ -348,6 +348,13 @@ fn block_drop_2d_hencky_musl_apic() {
     parity::<2>(&scenes::block_drop_2d("hencky"), "musl", "apic", 700);
 }
 
+/// A Neo-Hookean and a Hencky block in one scene (the kernels compile in the models of
+/// the scene's materials, here two).
+#[test]
+fn two_models_2d_musl_apic() {
+    parity::<2>(&scenes::two_models_2d(), "musl", "apic", 700);
+}
+
 /// A particle put inside an obstacle is reported with its id and the obstacle's index (the
 /// contact layer keeps it there: every node of its stencil is in the layer).
 #[test]

@@ -1,6 +1,6 @@
-//! The scenes of the parity tests, written from their parts: a box of one material in a
-//! walled rectangle (2D) or box (3D) under gravity along −y, with friction segments or
-//! obstacles where a scene has them.
+//! The scenes of the parity tests, written from their parts: a box of one material (and
+//! more boxes of other materials where a scene has them) in a walled rectangle (2D) or box
+//! (3D) under gravity along −y, with friction segments or obstacles where a scene has them.
 
 /// One test scene; [`SceneText::toml`] writes its scene file for a scheme and a transfer.
 #[derive(Clone, Debug)]
@@ -24,6 +24,9 @@ pub struct SceneText<const D: usize> {
     pub gravity: f64,
     /// `solver.time_step` ([`fixed`], or an adaptive table).
     pub time_step: String,
+    /// Further materials and bodies (`[[materials]]` and `[[bodies]]` tables), after the
+    /// first ones.
+    pub more: String,
 }
 
 /// A separable (unilateral) slip floor.
@@ -99,7 +102,7 @@ impl<const D: usize> SceneText<D> {
             "[grid]\nlo = {lo}\nhi = {hi}\ncell_size = {h:?}\nshape_function = \"quadratic_bspline\"\n\n\
              [[materials]]\nname = \"m\"\n{material}\n\n\
              [[bodies]]\nmaterial = \"m\"\nshape = {{ type = \"box\", lo = {body_lo}, hi = {body_hi} }}\n\
-             particles_per_cell = 2\n\n\
+             particles_per_cell = 2\n\n{more}\
              [boundaries]\n{walls}\n{contact}\
              [loads]\ngravity = {gravity}\n\n\
              [solver]\ntype = \"explicit\"\nscheme = \"{scheme}\"\ntransfer = {transfer}\n\
@@ -113,6 +116,7 @@ impl<const D: usize> SceneText<D> {
             contact = self.contact,
             gravity = array(gravity),
             time_step = self.time_step,
+            more = self.more,
         )
     }
 }
@@ -130,6 +134,7 @@ pub fn dam_break_2d() -> SceneText<2> {
         contact: String::new(),
         gravity: 9.8,
         time_step: fixed(1e-4),
+        more: String::new(),
     }
 }
 
@@ -167,6 +172,22 @@ pub fn block_drop_2d(model: &str) -> SceneText<2> {
     }
 }
 
+/// Two blocks of different models side by side, a Neo-Hookean one and a Hencky one, dropped
+/// as in [`block_drop_2d`] (each 0.3 × 0.3 m, 900 particles): one kernel holds both models'
+/// updates and picks each particle's from its material.
+pub fn two_models_2d() -> SceneText<2> {
+    SceneText {
+        body: [[0.1, 0.3], [0.4, 0.6]],
+        more: format!(
+            "[[materials]]\nname = \"h\"\n{}\n\n[[bodies]]\nmaterial = \"h\"\n\
+             shape = {{ type = \"box\", lo = [0.6, 0.3], hi = [0.9, 0.6] }}\n\
+             particles_per_cell = 2\n\n",
+            solid("hencky", 1000.0, 1.0e5, "")
+        ),
+        ..block_drop_2d("neo_hookean")
+    }
+}
+
 /// The 3D dam-break of examples/dambreak_obstacles_3d.toml without its columns, at 0.05 m
 /// (24 × 8 × 12 cells, 4,608 particles), a separable slip floor, fixed step 5e-4 s (CFL 0.3
 /// at the sound speed).
@@ -181,6 +202,7 @@ pub fn dam_break_3d() -> SceneText<3> {
         contact: String::new(),
         gravity: 9.81,
         time_step: fixed(5e-4),
+        more: String::new(),
     }
 }
 
