@@ -147,8 +147,9 @@ struct Measured {
     wall: f64,
     /// Newton iterations (implicit only).
     iterations: Option<usize>,
-    /// Gradient time over forward time, and the forward time (the gradient bench only).
-    ratio: Option<(f64, f64)>,
+    /// Gradient time over forward time, the forward time and the adjoint's segment length
+    /// `K` (the gradient bench only).
+    ratio: Option<(f64, f64, usize)>,
     /// The bytes of the buffers the GPU solver allocated (GPU benches only).
     device_bytes: Option<u64>,
 }
@@ -163,13 +164,15 @@ impl Measured {
 /// Runs the named benches (all when empty) and prints a table; `steps` overrides the
 /// default step counts of the explicit scenes, `f32` runs them in single precision. `gpu`
 /// runs them on the GPU (`Some`), with that many profiled steps after the timed ones where
-/// it holds a count.
+/// it holds a count. `memory` is the gradient bench's budget for the adjoint (bytes;
+/// `None`: the segment length of least memory).
 pub fn bench(
     names: &[String],
     list: bool,
     steps: Option<usize>,
     f32: bool,
     gpu: Option<Option<usize>>,
+    memory: Option<u64>,
     json: Option<&Path>,
 ) -> Outcome {
     if list {
@@ -230,8 +233,12 @@ pub fn bench(
                 eprintln!("error: the gradient bench runs in f64 only (drop --f32)");
                 return Outcome::BadInput;
             }
-            ("gradient", false) => match gradient(n) {
+            ("gradient", false) => match gradient(n, memory) {
                 Ok(m) => m,
+                Err(e @ loam_inverse::AdjointError::Memory { .. }) => {
+                    eprintln!("error: --memory: {e}");
+                    return Outcome::BadInput;
+                }
                 Err(e) => {
                     eprintln!("error: gradient: {e}");
                     return Outcome::Failed;
@@ -242,8 +249,8 @@ pub fn bench(
         };
         let note = match (m.iterations, m.ratio) {
             (Some(k), _) => format!("{k} Newton iterations"),
-            (_, Some((r, fwd))) => format!(
-                "gradient / forward {r:.2} (forward {fwd:.3} s; peak RSS {})",
+            (_, Some((r, fwd, k))) => format!(
+                "gradient / forward {r:.2} (forward {fwd:.3} s; segments of {k} steps; peak RSS {})",
                 peak_memory()
             ),
             _ => String::new(),
@@ -459,8 +466,9 @@ fn time_steps<T: Scalar, const D: usize>(
 /// One gradient of the friction dam-break over `steps` steps with respect to the friction
 /// coefficients of its first four floor segments (the loss: squared distance of every 12th
 /// particle, 500 of them, from its initial position at every 10th step), timed against one
-/// forward run of the same steps.
-fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
+/// forward run of the same steps; the adjoint's segments are the longest that fit in
+/// `memory` bytes, or those of least memory.
+fn gradient(steps: usize, memory: Option<u64>) -> Result<Measured, loam_inverse::AdjointError> {
     use loam_inverse::{Param, TrackedPositions};
     let (config, particles) = explicit_scene::<f64, 2>("dambreak_friction");
     let start = Instant::now();
@@ -483,8 +491,11 @@ fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
     };
     let params: Vec<Param> = (0..4).map(Param::Friction).collect();
     let start = Instant::now();
-    let checkpoints = loam_inverse::Checkpoints::Least;
-    loam_inverse::gradient(&config, &particles, steps, &params, &objective, checkpoints)?;
+    let checkpoints = memory.map_or(
+        loam_inverse::Checkpoints::Least,
+        loam_inverse::Checkpoints::Memory,
+    );
+    let g = loam_inverse::gradient(&config, &particles, steps, &params, &objective, checkpoints)?;
     let wall = start.elapsed().as_secs_f64();
     Ok(Measured {
         name: "gradient",
@@ -493,7 +504,7 @@ fn gradient(steps: usize) -> Result<Measured, loam_inverse::AdjointError> {
         steps,
         wall,
         iterations: None,
-        ratio: Some((wall / forward, forward)),
+        ratio: Some((wall / forward, forward, g.segment)),
         device_bytes: None,
     })
 }
@@ -560,6 +571,7 @@ fn write_json(path: &Path, results: &[Measured]) -> std::io::Result<()> {
                 "particle_steps_per_s": m.rate(),
                 "newton_iterations": m.iterations,
                 "gradient_over_forward": m.ratio.map(|r| r.0),
+                "segment_steps": m.ratio.map(|r| r.2),
                 "device_bytes": m.device_bytes,
                 "threads": rayon::current_num_threads(),
                 "cpu": cpu_model(),

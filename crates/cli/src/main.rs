@@ -137,6 +137,10 @@ enum Command {
         /// timed by the device's timestamps, and print each kernel's time per step and share.
         #[arg(long, value_name = "STEPS")]
         profile: Option<usize>,
+        /// The gradient bench's memory for the adjoint, as for `loam gradient --memory`
+        /// (default: the segment length of least memory).
+        #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+        memory: Option<u64>,
         /// Write the results as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -262,10 +266,14 @@ fn main() -> ExitCode {
             f32,
             device,
             profile,
+            memory,
             json,
         } => {
             if device == Device::Cpu && profile.is_some() {
                 eprintln!("error: --profile times the GPU kernels; use it with --device gpu");
+                Outcome::BadInput
+            } else if memory.is_some() && !benches.iter().any(|b| b == "gradient") {
+                eprintln!("error: --memory sets the gradient bench's memory; name `gradient`");
                 Outcome::BadInput
             } else {
                 bench::bench(
@@ -274,6 +282,7 @@ fn main() -> ExitCode {
                     steps,
                     f32,
                     (device == Device::Gpu).then_some(profile),
+                    memory,
                     json.as_deref(),
                 )
             }

@@ -782,6 +782,26 @@ fn bench_lists_its_scenes_and_refuses_an_unknown_one() {
     for name in ["dambreak", "dambreak-1m", "column-3d", "cantilever"] {
         assert!(list.contains(name), "{name} missing from {list}");
     }
+    // `--memory` is the gradient bench's; a budget below its least is refused.
+    for (args, words) in [
+        (
+            &["bench", "--memory", "1GB", "dambreak"][..],
+            "name `gradient`",
+        ),
+        (
+            &["bench", "--memory", "1kB", "--steps", "20", "gradient"][..],
+            "is too small",
+        ),
+        (
+            &["bench", "--memory", "lots", "gradient"][..],
+            "expected a size such as 512MB",
+        ),
+    ] {
+        let out = loam(args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(words), "{args:?}: {stderr}");
+    }
     let out = loam(&["bench", "dambreak-2m"]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
