@@ -3,7 +3,8 @@
 //
 // The launcher prepends the constants `D` (dimension), `NK` (stencil rows along z: 3 in 3D,
 // 1 in 2D), `S` (accumulator entries per node, 1 + 2D), `WG` (workgroup size), `TRANSFER`,
-// `MUSL`, `AXIS` (for the per-axis ghost passes) and the accumulator binding with its
+// `MUSL`, `AXIS` (for the per-axis ghost passes), `MODELS` (bit `MODEL_*` of constitutive.wgsl
+// set for each model the scene's materials have) and the accumulator binding with its
 // `acc_add` / `acc_load` / `acc_store` (native f32 atomics, or a compare-exchange loop on the
 // f32 bits where the adapter has none).
 //

@@ -5,8 +5,9 @@
 //! and `constitutive.wgsl` (the stress updates, the materials' table) in front of `p2g.wgsl`
 //! and `g2p.wgsl`,
 //! after a header of constants: the dimension, the transfer, the
-//! scheme, the axis of the ghost passes, and the accumulator with its atomic add (native f32
-//! atomics, or a compare-exchange loop on the bits).
+//! scheme, the axis of the ghost passes, the constitutive models of the scene's materials, and
+//! the accumulator with its atomic add (native f32 atomics, or a compare-exchange loop on the
+//! bits).
 //!
 //! One step, all on the device (each dispatch sees the writes of the one before):
 //!
