@@ -33,6 +33,17 @@ fn scene(toml: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
     (built.implicit_config().expect("implicit"), built.particles)
 }
 
+/// `quantity` after load or time step `step`, measured as `value` with standard deviation
+/// `sigma`.
+fn observe(step: usize, quantity: Quantity, value: f64, sigma: f64) -> Observation {
+    Observation {
+        step,
+        quantity,
+        value,
+        sigma,
+    }
+}
+
 /// The largest relative difference `max_j |a_j − b_j| / |b_j|`.
 fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
@@ -232,12 +243,6 @@ fn footing_adjoint_matches_dual_and_differences() {
 fn newmark_cantilever() -> (ImplicitConfig<2>, Particles<f64, 2>, Vec<Observation>) {
     let (config, initial) = scene(CANTILEVER_NEWMARK);
     let tip = config.point_loads[0].particle;
-    let observe = |step, quantity, value, sigma| Observation {
-        step,
-        quantity,
-        value,
-        sigma,
-    };
     let deflection = Quantity::Displacement {
         particle: tip,
         component: 1,
@@ -351,12 +356,6 @@ fn newmark_footing_adjoint_matches_dual_and_differences() {
         v[1..].iter().all(|v| v.abs() > 1e-3),
         "side velocities {v:?}"
     );
-    let observe = |step, quantity, value, sigma| Observation {
-        step,
-        quantity,
-        value,
-        sigma,
-    };
     let load = Quantity::Reaction {
         constraint: 0,
         component: 1,
