@@ -195,10 +195,7 @@ fn footing() -> Result<Outcome, VerifyError> {
     };
     let mut quantities: Vec<(usize, Quantity, f64)> =
         (1..=load_steps).map(|step| (step, load, 1e3)).collect();
-    let beside = Quantity::Displacement {
-        particle: side,
-        component: 1,
-    };
+    let beside = Quantity::displacement(side, 1);
     quantities.push((load_steps, beside, 1e-3));
     let mut problem = ImplicitProblem {
         config,
@@ -223,14 +220,8 @@ fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
     let tip = config.point_loads[0].particle;
     let mut quantities = Vec::new();
     for step in 1..=steps {
-        let deflection = Quantity::Displacement {
-            particle: tip,
-            component: 1,
-        };
-        let velocity = Quantity::Velocity {
-            particle: tip,
-            component: 1,
-        };
+        let deflection = Quantity::displacement(tip, 1);
+        let velocity = Quantity::velocity(tip, 1);
         quantities.push((step, deflection, 0.01));
         quantities.push((step, velocity, 0.1));
     }

@@ -215,10 +215,7 @@ fn footing_adjoint_matches_dual_and_differences() {
         .collect();
     items.push(Observation {
         step: 4,
-        quantity: Quantity::Displacement {
-            particle: side,
-            component: 1,
-        },
+        quantity: Quantity::displacement(side, 1),
         value: 0.0,
         sigma: 1e-3,
     });
@@ -243,14 +240,8 @@ fn footing_adjoint_matches_dual_and_differences() {
 fn newmark_cantilever() -> (ImplicitConfig<2>, Particles<f64, 2>, Vec<Observation>) {
     let (config, initial) = scene(CANTILEVER_NEWMARK);
     let tip = config.point_loads[0].particle;
-    let deflection = Quantity::Displacement {
-        particle: tip,
-        component: 1,
-    };
-    let velocity = Quantity::Velocity {
-        particle: tip,
-        component: 1,
-    };
+    let deflection = Quantity::displacement(tip, 1);
+    let velocity = Quantity::velocity(tip, 1);
     let reaction = Quantity::Reaction {
         constraint: 0,
         component: 1,
@@ -363,14 +354,8 @@ fn newmark_footing_adjoint_matches_dual_and_differences() {
     let mut items: Vec<Observation> = (1..=4)
         .map(|step| observe(step, load, -30e3 - 5e3 * step as f64, 1e3))
         .collect();
-    let beside = Quantity::Displacement {
-        particle: side,
-        component: 1,
-    };
-    let velocity = Quantity::Velocity {
-        particle: side,
-        component: 1,
-    };
+    let beside = Quantity::displacement(side, 1);
+    let velocity = Quantity::velocity(side, 1);
     items.push(observe(4, beside, 0.0, 1e-3));
     items.push(observe(2, velocity, 0.0, 0.01));
     items.push(observe(4, velocity, 0.0, 0.01));

@@ -34,6 +34,22 @@ pub enum Quantity {
 }
 
 impl Quantity {
+    /// Component `component` of particle `particle`'s displacement.
+    pub fn displacement(particle: usize, component: usize) -> Self {
+        Quantity::Displacement {
+            particle,
+            component,
+        }
+    }
+
+    /// Component `component` of particle `particle`'s velocity.
+    pub fn velocity(particle: usize, component: usize) -> Self {
+        Quantity::Velocity {
+            particle,
+            component,
+        }
+    }
+
     /// This quantity observed after each load step of `steps`: `(n, self)` for every `n`.
     pub fn after_each(self, steps: impl IntoIterator<Item = usize>) -> Vec<(usize, Quantity)> {
         steps.into_iter().map(|n| (n, self)).collect()
