@@ -161,17 +161,34 @@ impl Measured {
     }
 }
 
+/// How the GPU benches' P2G adds into the grid, where not the adapter's choice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum P2g {
+    /// The compare-exchange loop on the f32 bits (`loam_gpu::Atomics::CompareExchange`).
+    CompareExchange,
+    /// The gather from particles binned by stencil (`loam_gpu::Atomics::Gather`).
+    Gather,
+}
+
+/// The GPU benches' options.
+#[derive(Clone, Copy, Debug)]
+pub struct GpuBench {
+    /// Profiled steps after the timed ones.
+    pub profile: Option<usize>,
+    /// P2G, where not the adapter's choice.
+    pub p2g: Option<P2g>,
+}
+
 /// Runs the named benches (all when empty) and prints a table; `steps` overrides the
 /// default step counts of the explicit scenes, `f32` runs them in single precision. `gpu`
-/// runs them on the GPU (`Some`), with that many profiled steps after the timed ones where
-/// it holds a count. `memory` is the gradient bench's budget for the adjoint (bytes;
+/// runs them on the GPU (`Some`), with its options. `memory` is the gradient bench's budget for the adjoint (bytes;
 /// `None`: the segment length of least memory).
 pub fn bench(
     names: &[String],
     list: bool,
     steps: Option<usize>,
     f32: bool,
-    gpu: Option<Option<usize>>,
+    gpu: Option<GpuBench>,
     memory: Option<u64>,
     json: Option<&Path>,
 ) -> Outcome {
@@ -206,11 +223,13 @@ pub fn bench(
         return Outcome::BadInput;
     }
     match gpu {
-        Some(Some(0)) => {
+        Some(GpuBench {
+            profile: Some(0), ..
+        }) => {
             eprintln!("error: --profile must be at least 1 step");
             return Outcome::BadInput;
         }
-        Some(profile) => return gpu_benches(&selected, steps, profile, json),
+        Some(options) => return gpu_benches(&selected, steps, options, json),
         None => {}
     }
     println!("{} ({} threads)", cpu_model(), rayon::current_num_threads());
@@ -282,7 +301,7 @@ pub fn bench(
 fn gpu_benches(
     selected: &[&Bench],
     steps: Option<usize>,
-    profile: Option<usize>,
+    options: GpuBench,
     json: Option<&Path>,
 ) -> Outcome {
     if let Some(b) = selected.iter().find(|b| b.gpu_steps == 0) {
@@ -298,19 +317,22 @@ fn gpu_benches(
         );
         return Outcome::BadInput;
     }
-    let device = match loam_gpu::Gpu::new(false) {
+    let device = match loam_gpu::Gpu::new(options.p2g == Some(P2g::CompareExchange)) {
+        Ok(d) if options.p2g == Some(P2g::Gather) => d.with_gather(),
         Ok(d) => d,
         Err(e) => {
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
     };
-    println!(
-        "{} (atomics: {:?}, subgroup scatter: {})",
-        device.name(),
-        device.atomics(),
-        if device.subgroups() { "yes" } else { "no" }
-    );
+    let p2g = match (device.atomics(), device.subgroups()) {
+        (loam_gpu::Atomics::Gather, _) => "gather from binned particles",
+        (loam_gpu::Atomics::Native, true) => "scatter, native f32 atomics, subgroup sums",
+        (loam_gpu::Atomics::Native, false) => "scatter, native f32 atomics",
+        (loam_gpu::Atomics::CompareExchange, true) => "scatter, compare-exchange, subgroup sums",
+        (loam_gpu::Atomics::CompareExchange, false) => "scatter, compare-exchange",
+    };
+    println!("{} (P2G: {p2g})", device.name());
     println!(
         "{:<27} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
         "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s", "device MiB"
@@ -324,7 +346,7 @@ fn gpu_benches(
             b.name,
             &scene,
             steps.unwrap_or(b.gpu_steps),
-            profile,
+            options.profile,
         );
         let (m, kernels) = match run {
             Ok(m) => m,

@@ -137,6 +137,10 @@ enum Command {
         /// timed by the device's timestamps, and print each kernel's time per step and share.
         #[arg(long, value_name = "STEPS")]
         profile: Option<usize>,
+        /// With `--device gpu`: how P2G adds into the grid instead of the adapter's choice
+        /// (native f32 atomics where it has them, else the gather).
+        #[arg(long, value_enum)]
+        p2g: Option<bench::P2g>,
         /// The gradient bench's memory for the adjoint, as for `loam gradient --memory`
         /// (default: the segment length of least memory).
         #[arg(long, value_name = "SIZE", value_parser = parse_size)]
@@ -266,11 +270,15 @@ fn main() -> ExitCode {
             f32,
             device,
             profile,
+            p2g,
             memory,
             json,
         } => {
             if device == Device::Cpu && profile.is_some() {
                 eprintln!("error: --profile times the GPU kernels; use it with --device gpu");
+                Outcome::BadInput
+            } else if device == Device::Cpu && p2g.is_some() {
+                eprintln!("error: --p2g chooses the GPU's transfer; use it with --device gpu");
                 Outcome::BadInput
             } else if memory.is_some() && !benches.iter().any(|b| b == "gradient") {
                 eprintln!("error: --memory sets the gradient bench's memory; name `gradient`");
@@ -281,7 +289,7 @@ fn main() -> ExitCode {
                     list,
                     steps,
                     f32,
-                    (device == Device::Gpu).then_some(profile),
+                    (device == Device::Gpu).then_some(bench::GpuBench { profile, p2g }),
                     memory,
                     json.as_deref(),
                 )

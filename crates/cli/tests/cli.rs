@@ -826,6 +826,14 @@ fn bench_lists_its_scenes_and_refuses_an_unknown_one() {
             ][..],
             "--profile must be at least 1 step",
         ),
+        (
+            &["bench", "--p2g", "gather", "dambreak"][..],
+            "--p2g chooses the GPU's transfer; use it with --device gpu",
+        ),
+        (
+            &["bench", "--device", "gpu", "--p2g", "atomics"][..],
+            "invalid value 'atomics' for '--p2g <P2G>'",
+        ),
     ] {
         let out = loam(args);
         let stderr = String::from_utf8_lossy(&out.stderr);

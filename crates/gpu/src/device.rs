@@ -9,6 +9,11 @@ pub enum Atomics {
     Native,
     /// A compare-exchange loop on `atomic<u32>` holding the f32 bits (any adapter).
     CompareExchange,
+    /// No float atomics: the particles are binned by stencil (a counting sort with integer
+    /// atomics) and each node sums its share from the bins around it, in a fixed order, so
+    /// the step gives the same bits from run to run (any adapter; the fallback where the
+    /// adapter has no float atomics).
+    Gather,
 }
 
 /// An open GPU device and what the step needs to know of it.
@@ -26,7 +31,8 @@ pub struct Gpu {
 
 impl Gpu {
     /// Opens the system's preferred high-performance adapter. Native f32 atomics are used
-    /// where the adapter offers them unless `compare_exchange` asks for the fallback.
+    /// where the adapter offers them, and the gather ([`Atomics::Gather`]) where it does not;
+    /// `compare_exchange` asks for the compare-exchange loop instead of either.
     pub fn new(compare_exchange: bool) -> Result<Self, GpuError> {
         pollster::block_on(Self::open(compare_exchange))
     }
@@ -48,17 +54,18 @@ impl Gpu {
         let native = adapter
             .features()
             .contains(wgpu::Features::SHADER_FLOAT32_ATOMIC);
-        let atomics = if native && !compare_exchange {
-            Atomics::Native
-        } else {
-            Atomics::CompareExchange
+        let atomics = match (compare_exchange, native) {
+            (true, _) => Atomics::CompareExchange,
+            (false, true) => Atomics::Native,
+            (false, false) => Atomics::Gather,
         };
         // Timestamps only time the kernels (`GpuSolver::profile`); a device without them
         // runs the step all the same.
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let mut required_features = match atomics {
-            Atomics::Native => wgpu::Features::SHADER_FLOAT32_ATOMIC,
-            Atomics::CompareExchange => wgpu::Features::empty(),
+        let mut required_features = if native {
+            wgpu::Features::SHADER_FLOAT32_ATOMIC
+        } else {
+            wgpu::Features::empty()
         };
         if timestamps {
             required_features |= wgpu::Features::TIMESTAMP_QUERY;
@@ -112,6 +119,13 @@ impl Gpu {
     /// subgroup operations (as on an adapter without them).
     pub fn without_subgroups(mut self) -> Self {
         self.subgroups = false;
+        self
+    }
+
+    /// The same device with P2G as a gather ([`Atomics::Gather`]), as on an adapter without
+    /// float atomics.
+    pub fn with_gather(mut self) -> Self {
+        self.atomics = Atomics::Gather;
         self
     }
 

@@ -37,7 +37,7 @@ pub(crate) struct Params {
     pub time_end: f32,
     pub adaptive: u32,
     pub flip_alpha: f32,
-    pub pad_b: u32,
+    pub bins: u32,
 }
 
 /// The most obstacles a run may have on the GPU: one bit each of a node's state, above the

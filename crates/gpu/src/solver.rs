@@ -1,10 +1,10 @@
 //! [`GpuSolver`]: the particle and grid buffers on the device, the run of steps, the checks
 //! and the read-back.
 
-use crate::device::Gpu;
+use crate::device::{Atomics, Gpu};
 use crate::error::GpuError;
 use crate::params::{self, Params};
-use crate::step::{Kernels, Variant};
+use crate::step::{Kernels, Variant, WORKGROUP};
 use loam_core::constitutive::{DruckerPrager, Model};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{Boundary, Grid, Particles, Scalar, TimeStep, WallKind};
@@ -134,7 +134,21 @@ impl<const D: usize> GpuSolver<D> {
         let n = particles.len();
         let nodes = config.grid.num_nodes();
         let max_mass = particles.mass.iter().fold(0.0f64, |m, &x| m.max(x as f64));
-        let prm: Params = params::params(config, n, max_mass);
+        let mut prm: Params = params::params(config, n, max_mass);
+        // The gather's particle bins follow the flags (bins.wgsl): the counts and starts of
+        // the N + 1 bins, the tiles' totals, per particle its key, slot and place, and per
+        // place its scatter (`PAYLOAD` words).
+        prm.bins = (SPEEDS + config.materials.len()) as u32;
+        let bin_words = if gpu.atomics() == Atomics::Gather {
+            let payload = if config.transfer == loam_core::Transfer::Mls {
+                16
+            } else {
+                22
+            };
+            (nodes + 1) + (nodes + 1).div_ceil(WORKGROUP as usize) + (3 + payload) * n
+        } else {
+            0
+        };
         let variant = Variant {
             dim: D,
             atomics: gpu.atomics(),
@@ -163,21 +177,37 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
         mat.extend(particles.state.iter().map(|s| s.plastic_strain));
         let table = params::table(config);
+        // Each buffer with the scene field that sizes it: the particles' by the bodies, the
+        // grid's by the cell size; the gather's bins mostly by the particles.
         let buffers = [
             (
                 "particle kinematics",
                 bytemuck::cast_slice::<f32, u8>(&kin).len(),
+                "bodies",
             ),
-            ("particle C", 4 * D * D * n),
-            ("particle F", 4 * D * D * n),
-            ("particle stress and mass", 4 * mat.len()),
-            ("grid accumulator", 4 * (1 + 2 * D) * nodes),
-            ("grid velocity", 4 * params::node_words(config)),
+            ("particle C", 4 * D * D * n, "bodies"),
+            ("particle F", 4 * D * D * n, "bodies"),
+            ("particle stress and mass", 4 * mat.len(), "bodies"),
+            (
+                "grid accumulator",
+                4 * (1 + 2 * D) * nodes,
+                "grid.cell_size",
+            ),
+            (
+                "grid velocity",
+                4 * params::node_words(config),
+                "grid.cell_size",
+            ),
+            (
+                "flags and particle bins",
+                4 * (prm.bins as usize + bin_words),
+                "bodies",
+            ),
         ];
-        for (what, bytes) in buffers {
+        for (what, bytes, field) in buffers {
             if bytes as u64 > gpu.max_binding() {
                 return Err(GpuError::Unsupported {
-                    field: "grid.cell_size".into(),
+                    field: field.into(),
                     what: format!(
                         "a {what} buffer of {} MiB (this adapter binds at most {} MiB)",
                         bytes >> 20,
@@ -207,7 +237,7 @@ impl<const D: usize> GpuSolver<D> {
         let mat = storage(gpu, "stress and mass", bytemuck::cast_slice(&mat));
         let acc = zeroed(gpu, "accumulator", (1 + 2 * D) * nodes);
         let nodev = zeroed(gpu, "node velocity", params::node_words(config));
-        let flags = zeroed(gpu, "flags", SPEEDS + config.materials.len());
+        let flags = zeroed(gpu, "flags", prm.bins as usize + bin_words);
         let table = storage(gpu, "table", bytemuck::cast_slice(&table));
         use wgpu::BufferBindingType::{Storage, Uniform};
         let rw = Storage { read_only: false };

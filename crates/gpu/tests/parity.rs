@@ -7,35 +7,45 @@ use std::sync::OnceLock;
 
 use loam_core::Particles;
 use loam_explicit::{Config, Solver};
-use loam_gpu::{Gpu, GpuError, GpuSolver};
+use loam_gpu::{Atomics, Gpu, GpuError, GpuSolver};
 use loam_scene::Scene;
 use scenes::{FLIP, SceneText, fixed, solid};
 
 mod scenes;
 
+/// How a test device does P2G.
+#[derive(Clone, Copy, Debug)]
+enum Flavour {
+    /// Native f32 atomics where the adapter has them, summed within subgroups where it can.
+    Native,
+    /// The compare-exchange loop, without subgroup operations.
+    CompareExchange,
+    /// The gather from particles binned by stencil.
+    Gather,
+}
+
+const FLAVOURS: [Flavour; 3] = [Flavour::Native, Flavour::CompareExchange, Flavour::Gather];
+
 /// The GPU, or `None` (with a note) where there is none outside CI.
 ///
-/// One device per atomics flavour serves the whole test binary: a process that opens a new
-/// device for every test can run out of them (the NVIDIA Vulkan driver refused the
-/// twenty-fifth open in one process), and a solver needs only one.
-fn gpu(compare_exchange: bool) -> Option<Gpu> {
-    static NATIVE: OnceLock<Result<Gpu, String>> = OnceLock::new();
-    static FALLBACK: OnceLock<Result<Gpu, String>> = OnceLock::new();
-    let cell = if compare_exchange { &FALLBACK } else { &NATIVE };
-    // The fallback device also scatters without subgroup operations, so that both scatters
-    // are tested where the adapter has them.
+/// One device per flavour serves the whole test binary: a process that opens a new device
+/// for every test can run out of them (the NVIDIA Vulkan driver refused the twenty-fifth open
+/// in one process), and a solver needs only one.
+fn gpu(flavour: Flavour) -> Option<Gpu> {
+    static DEVICES: [OnceLock<Result<Gpu, String>>; 3] =
+        [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    // The compare-exchange device also scatters without subgroup operations, so that both
+    // scatters are tested where the adapter has them.
     let open = || {
-        Gpu::new(compare_exchange)
-            .map(|g| {
-                if compare_exchange {
-                    g.without_subgroups()
-                } else {
-                    g
-                }
+        Gpu::new(matches!(flavour, Flavour::CompareExchange))
+            .map(|g| match flavour {
+                Flavour::Native => g,
+                Flavour::CompareExchange => g.without_subgroups(),
+                Flavour::Gather => g.with_gather(),
             })
             .map_err(|e| e.to_string())
     };
-    match cell.get_or_init(open) {
+    match DEVICES[flavour as usize].get_or_init(open) {
         Ok(gpu) => Some(gpu.clone()),
         Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
             panic!("CI needs a GPU adapter for the GPU tests: {e}")
@@ -99,7 +109,7 @@ fn bound<const D: usize>(config: &Config<f64, D>, e32: f64) -> f64 {
 }
 
 /// Runs `steps` steps on the CPU in f64 and f32 and on the GPU (native atomics where the
-/// adapter has them, and the compare-exchange fallback), and compares.
+/// adapter has them, the compare-exchange loop, and the gather), and compares.
 ///
 /// The bound on positions is derived, not tuned: the CPU f32 run differs from the CPU f64 run
 /// by the growth of f32 round-off over the steps, `e32 = max |x_f32 − x_f64|`. The GPU adds in
@@ -108,7 +118,7 @@ fn bound<const D: usize>(config: &Config<f64, D>, e32: f64) -> f64 {
 /// x_cpu32|` must be of the order of `e32`. We require at most 10 e32 (one order of
 /// magnitude), plus 4 ulps of the domain size for runs so short that `e32` is below that.
 fn parity<const D: usize>(case: &SceneText<D>, scheme: &str, transfer: &str, steps: usize) {
-    parity_of(case, scheme, transfer, steps, |solver, n| {
+    parity_of(case, scheme, transfer, steps, |_, solver, n| {
         solver.advance(n).expect("stable")
     });
 }
@@ -119,18 +129,18 @@ fn parity_of<const D: usize>(
     scheme: &str,
     transfer: &str,
     steps: usize,
-    take: impl Fn(&mut GpuSolver<D>, usize),
+    take: impl Fn(&Gpu, &mut GpuSolver<D>, usize),
 ) {
-    for compare_exchange in [false, true] {
-        let Some(gpu) = gpu(compare_exchange) else {
+    let (config, particles) = scene::<D>(case, scheme, transfer);
+    let x64 = cpu::<f64, D>(&config, &particles, steps);
+    let x32 = cpu::<f32, D>(&config, &particles, steps);
+    for flavour in FLAVOURS {
+        let Some(gpu) = gpu(flavour) else {
             return;
         };
-        let (config, particles) = scene::<D>(case, scheme, transfer);
-        let x64 = cpu::<f64, D>(&config, &particles, steps);
-        let x32 = cpu::<f32, D>(&config, &particles, steps);
         let p32 = particles.lift::<f32>();
         let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
-        take(&mut solver, steps);
+        take(&gpu, &mut solver, steps);
         let mut out = p32.clone();
         solver.read_particles(&mut out).expect("read-back");
         let xg: Vec<[f64; D]> = out
@@ -196,24 +206,40 @@ fn profiled_steps_are_the_steps() {
         "musl",
         "apic",
         200,
-        |solver, n| match solver.profile(n) {
+        |gpu, solver, n| match solver.profile(n) {
             Ok(p) => {
                 let names: Vec<&str> = p.stages.iter().map(|(name, _)| *name).collect();
-                assert_eq!(
-                    names,
-                    [
-                        "clear",
-                        "p2g",
-                        "fold",
-                        "update",
-                        "reflect",
-                        "g2p_musl",
+                let (p2g, second): (&[&str], &[&str]) = match gpu.atomics() {
+                    Atomics::Gather => (
+                        &[
+                            "bin_clear",
+                            "bin_count",
+                            "scan_tiles",
+                            "scan_totals",
+                            "scan_add",
+                            "bin_place",
+                            "bin_sort",
+                            "bin_payload",
+                            "gather",
+                        ],
+                        &["bin_payload_second", "gather_momentum"],
+                    ),
+                    _ => (&["p2g"], &[]),
+                };
+                let expected = [
+                    &["clear"],
+                    p2g,
+                    &["fold", "update", "reflect", "g2p_musl"],
+                    second,
+                    &[
                         "fold momentum",
                         "second_velocity",
                         "reflect second",
-                        "end_musl"
-                    ]
-                );
+                        "end_musl",
+                    ],
+                ]
+                .concat();
+                assert_eq!(names, expected);
                 assert_eq!(p.steps, n);
                 assert!(p.stages.iter().all(|(_, t)| t.is_finite() && *t >= 0.0));
                 assert!(p.total() > 0.0, "{p:?}");
@@ -359,7 +385,7 @@ fn two_models_2d_musl_apic() {
 /// contact layer keeps it there: every node of its stencil is in the layer).
 #[test]
 fn a_particle_inside_an_obstacle_is_reported() {
-    let Some(gpu) = gpu(false) else {
+    let Some(gpu) = gpu(Flavour::Native) else {
         return;
     };
     let (config, particles) = scene::<3>(&scenes::obstacles_3d(), "musl", "apic");
@@ -389,7 +415,7 @@ fn dam_break_2d_adaptive_musl_apic() {
 /// naming `grid.shape_function`.
 #[test]
 fn unsupported_features_name_their_field() {
-    let Some(gpu) = gpu(false) else {
+    let Some(gpu) = gpu(Flavour::Native) else {
         return;
     };
     let text = scenes::dam_break_2d()
@@ -429,9 +455,6 @@ fn unsupported_models_name_their_field() {
 /// the crossing) and the same particle among the ids it keeps.
 #[test]
 fn a_fixed_step_above_the_stability_bound_is_reported_at_its_step() {
-    let Some(gpu) = gpu(false) else {
-        return;
-    };
     let case = SceneText {
         time_step: fixed(5.5e-4),
         ..scenes::dam_break_2d()
@@ -449,20 +472,60 @@ fn a_fixed_step_above_the_stability_bound_is_reported_at_its_step() {
         }
     };
     assert!(cpu_step > 10, "the initial state is within the bound");
-    let p32 = particles.lift::<f32>();
-    let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
-    match solver.advance(cpu_step + 5) {
-        Err(GpuError::TimeStepTooLarge {
-            step, count, ids, ..
-        }) => {
-            assert_eq!(step, cpu_step);
-            if count as usize <= ids.len() {
-                assert!(
-                    ids.contains(&(cpu_particle as u32)),
-                    "{cpu_particle} in {ids:?}"
-                );
+    // The check runs in the scatter, or where P2G is a gather, in the binning.
+    for flavour in [Flavour::Native, Flavour::Gather] {
+        let Some(gpu) = gpu(flavour) else {
+            return;
+        };
+        let p32 = particles.lift::<f32>();
+        let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
+        match solver.advance(cpu_step + 5) {
+            Err(GpuError::TimeStepTooLarge {
+                step, count, ids, ..
+            }) => {
+                assert_eq!(step, cpu_step, "{flavour:?}");
+                if count as usize <= ids.len() {
+                    assert!(
+                        ids.contains(&(cpu_particle as u32)),
+                        "{flavour:?}: {cpu_particle} in {ids:?}"
+                    );
+                }
             }
+            other => panic!(
+                "{flavour:?}: expected the step to be too large at step {cpu_step}, got {other:?}"
+            ),
         }
-        other => panic!("expected the step to be too large at step {cpu_step}, got {other:?}"),
     }
+}
+
+/// The gather's sums do not depend on the order in which the particles were counted into
+/// their bins (the threads' atomic adds race): two runs of the same scene end on the same
+/// bits.
+#[test]
+fn the_gather_gives_the_same_bits_twice() {
+    let Some(gpu) = gpu(Flavour::Gather) else {
+        return;
+    };
+    let (config, particles) = scene::<3>(&scenes::obstacles_3d(), "musl", "apic");
+    let p32 = particles.lift::<f32>();
+    let run = || {
+        let mut solver = GpuSolver::new(&gpu, &config.lift(), &p32).expect("supported scene");
+        solver.advance(200).expect("stable");
+        let mut out = p32.clone();
+        solver.read_particles(&mut out).expect("read-back");
+        let bits = |v: &[nalgebra::Vector3<f32>]| -> Vec<u32> {
+            v.iter()
+                .flat_map(|x| x.iter().map(|c| c.to_bits()))
+                .collect()
+        };
+        [bits(&out.x), bits(&out.v)].concat()
+    };
+    let (first, second) = (run(), run());
+    let differ = first.iter().zip(&second).filter(|(a, b)| a != b).count();
+    assert_eq!(
+        differ,
+        0,
+        "{differ} of {} position and velocity components differ between two runs",
+        first.len()
+    );
 }

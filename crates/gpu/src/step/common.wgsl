@@ -83,7 +83,8 @@ struct Params {
     adaptive: u32,
     // FLIP's fraction α of v_p ← α (v_p + Σ w (v_i − v_iⁿ)) + (1 − α) Σ w v_i.
     flip_alpha: f32,
-    pad_b: u32,
+    // Where the particle bins of the gather start in `flags` (bins.wgsl).
+    bins: u32,
 }
 
 @group(0) @binding(0) var<uniform> prm: Params;
@@ -100,6 +101,8 @@ struct Params {
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits), then for
 // FLIP the start-of-step velocities v_iⁿ = p_i / m_i (D N).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
+// The stability flags (below), the clock and the speeds; where the scatter is a gather, then
+// the particle bins (bins.wgsl).
 @group(0) @binding(7) var<storage, read_write> flags: array<atomic<u32>>;
 // Per material MATERIAL_ENTRIES entries (constitutive.wgsl); then the friction segments and
 // the obstacles (contact.wgsl).

@@ -171,6 +171,10 @@ fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         store_vec(x_next_at(), i, x + g.v * prm.dt);
         store_vec(v_at(), i, v);
         store_c(i, c);
+        // The gather (p2g_gather.wgsl's `gather_momentum`) reads the stored v and C instead.
+        if GATHER {
+            continue;
+        }
         let m = mass_of(i);
         let mc = c * m;
         let mv = v * m;

@@ -13,12 +13,17 @@
 //!
 //! 1. `clear` the accumulator; `p2g` scatters mass, momentum and force (`p2g_subgroup`, which
 //!    sums runs of particles with one stencil in a subgroup first, where the adapter can).
+//!    Without float atomics ([`Atomics::Gather`]) the particles are binned by stencil
+//!    (`bin_clear`, `bin_count`, `scan_tiles`, `scan_totals`, `scan_add`, `bin_place`,
+//!    `bin_sort`, `bin_payload`; bins.wgsl) and `gather` sums each node from its bins
+//!    (p2g_gather.wgsl).
 //! 2. `fold` per axis: ghost layers behind bilateral walls onto their mirrors.
 //! 3. `update`: the momentum update, contact and the wall law per node (FLIP keeps the
 //!    start-of-step velocity `v_iⁿ` beside `v_i`); `reflect` per axis (both velocities).
 //! 4. USL: `g2p_usl` gathers, moves and ends each particle's step. MUSL: `g2p_musl` gathers
-//!    and scatters the new momentum, `fold` (momentum only), `second_velocity`, `reflect`,
-//!    then `end_musl`.
+//!    and scatters the new momentum (or `bin_payload_second` and `gather_momentum` sum it
+//!    from the bins), `fold`
+//!    (momentum only), `second_velocity`, `reflect`, then `end_musl`.
 
 use crate::device::Atomics;
 
@@ -33,6 +38,8 @@ const COMMON: &str = include_str!("common.wgsl");
 const CONTACT: &str = include_str!("contact.wgsl");
 const P2G: &str = include_str!("p2g.wgsl");
 const P2G_SUBGROUP: &str = include_str!("p2g_subgroup.wgsl");
+const BINS: &str = include_str!("bins.wgsl");
+const P2G_GATHER: &str = include_str!("p2g_gather.wgsl");
 const GRID: &str = include_str!("grid.wgsl");
 const G2P: &str = include_str!("g2p.wgsl");
 const CONSTITUTIVE: &str = include_str!("constitutive.wgsl");
@@ -64,6 +71,13 @@ fn acc_load(i: u32) -> f32 { return atomicLoad(&acc[i]); }
 fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], x); }
 "
             }
+            Atomics::Gather => {
+                "@group(0) @binding(5) var<storage, read_write> acc: array<f32>;
+fn acc_add(i: u32, x: f32) { acc[i] += x; }
+fn acc_load(i: u32) -> f32 { return acc[i]; }
+fn acc_store(i: u32, x: f32) { acc[i] = x; }
+"
+            }
             Atomics::CompareExchange => {
                 "@group(0) @binding(5) var<storage, read_write> acc: array<atomic<u32>>;
 fn acc_add(i: u32, x: f32) {
@@ -83,13 +97,14 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
             "const D: u32 = {d}u;\nconst NK: u32 = {nk}u;\nconst S: u32 = {s}u;\n\
              const WG: u32 = {WORKGROUP}u;\nconst TRANSFER: u32 = {t}u;\nconst MUSL: bool = {m};\n\
              const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
-             const MODELS: u32 = {models}u;\n\
+             const MODELS: u32 = {models}u;\nconst GATHER: bool = {gather};\n\
              {accumulator}{COMMON}\n{CONTACT}\n{body}",
             nk = if d == 3 { 3 } else { 1 },
             s = 1 + 2 * d,
             t = self.transfer,
             m = self.musl,
             models = self.models,
+            gather = self.atomics == Atomics::Gather,
         )
     }
 }
@@ -98,6 +113,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
 pub(crate) struct Kernels {
     speeds: wgpu::ComputePipeline,
     clear: wgpu::ComputePipeline,
+    /// The scatter, or the gather ([`Atomics::Gather`]).
     p2g: wgpu::ComputePipeline,
     /// Per axis: the first fold (mass, momentum, force) and MUSL's (momentum).
     fold: Vec<[wgpu::ComputePipeline; 2]>,
@@ -107,7 +123,23 @@ pub(crate) struct Kernels {
     g2p_usl: wgpu::ComputePipeline,
     g2p_musl: wgpu::ComputePipeline,
     end_musl: wgpu::ComputePipeline,
+    /// The binning and the gathers, where P2G is a gather ([`Atomics::Gather`]).
+    gather: Option<Gather>,
     musl: bool,
+}
+
+/// The pipelines of the gather's P2G (bins.wgsl, p2g_gather.wgsl).
+struct Gather {
+    bin_clear: wgpu::ComputePipeline,
+    bin_count: wgpu::ComputePipeline,
+    scan_tiles: wgpu::ComputePipeline,
+    scan_totals: wgpu::ComputePipeline,
+    scan_add: wgpu::ComputePipeline,
+    bin_place: wgpu::ComputePipeline,
+    bin_sort: wgpu::ComputePipeline,
+    bin_payload: wgpu::ComputePipeline,
+    bin_payload_second: wgpu::ComputePipeline,
+    gather_momentum: wgpu::ComputePipeline,
 }
 
 /// One dispatch of a step: the kernel's entry point, its pipeline and its workgroups.
@@ -147,12 +179,27 @@ impl Kernels {
                 cache: None,
             })
         };
-        let p2g_body = if variant.subgroups {
+        let gathers = variant.atomics == Atomics::Gather;
+        let p2g_body = if gathers {
+            format!("{CONSTITUTIVE}\n{P2G}\n{BINS}\n{P2G_GATHER}")
+        } else if variant.subgroups {
             format!("{CONSTITUTIVE}\n{P2G}\n{P2G_SUBGROUP}")
         } else {
             format!("{CONSTITUTIVE}\n{P2G}")
         };
         let p2g = module(&p2g_body, 0, true);
+        let gather = gathers.then(|| Gather {
+            bin_clear: pipeline(&p2g, "bin_clear"),
+            bin_count: pipeline(&p2g, "bin_count"),
+            scan_tiles: pipeline(&p2g, "scan_tiles"),
+            scan_totals: pipeline(&p2g, "scan_totals"),
+            scan_add: pipeline(&p2g, "scan_add"),
+            bin_place: pipeline(&p2g, "bin_place"),
+            bin_sort: pipeline(&p2g, "bin_sort"),
+            bin_payload: pipeline(&p2g, "bin_payload"),
+            bin_payload_second: pipeline(&p2g, "bin_payload_second"),
+            gather_momentum: pipeline(&p2g, "gather_momentum"),
+        });
         let g2p = module(&format!("{CONSTITUTIVE}\n{G2P}"), 0, true);
         let grid: Vec<[wgpu::ShaderModule; 2]> = (0..variant.dim)
             .map(|a| [module(GRID, a, true), module(GRID, a, false)])
@@ -162,7 +209,9 @@ impl Kernels {
             clear: pipeline(&p2g, "clear"),
             p2g: pipeline(
                 &p2g,
-                if variant.subgroups {
+                if gathers {
+                    "gather"
+                } else if variant.subgroups {
                     "p2g_subgroup"
                 } else {
                     "p2g"
@@ -178,6 +227,7 @@ impl Kernels {
             g2p_usl: pipeline(&g2p, "g2p_usl"),
             g2p_musl: pipeline(&g2p, "g2p_musl"),
             end_musl: pipeline(&g2p, "end_musl"),
+            gather,
             musl: variant.musl,
         }
     }
@@ -197,15 +247,35 @@ impl Kernels {
             pipeline,
             groups,
         };
-        let mut out = vec![
-            stage("clear", &self.clear, groups(nodes * (1 + 2 * dim))),
-            stage("p2g", &self.p2g, gp),
-        ];
+        let mut out = vec![stage("clear", &self.clear, groups(nodes * (1 + 2 * dim)))];
+        match &self.gather {
+            Some(g) => {
+                let bins = groups(nodes + 1);
+                out.extend([
+                    stage("bin_clear", &g.bin_clear, bins),
+                    stage("bin_count", &g.bin_count, gp),
+                    stage("scan_tiles", &g.scan_tiles, bins),
+                    stage("scan_totals", &g.scan_totals, 1),
+                    stage("scan_add", &g.scan_add, bins),
+                    stage("bin_place", &g.bin_place, gp),
+                    stage("bin_sort", &g.bin_sort, gn),
+                    stage("bin_payload", &g.bin_payload, gp),
+                    stage("gather", &self.p2g, gn),
+                ]);
+            }
+            None => out.push(stage("p2g", &self.p2g, gp)),
+        }
         out.extend(self.fold.iter().map(|[all, _]| stage("fold", all, gn)));
         out.push(stage("update", &self.update, gn));
         out.extend(self.reflect.iter().map(|r| stage("reflect", r, gn)));
         if self.musl {
             out.push(stage("g2p_musl", &self.g2p_musl, gp));
+            if let Some(g) = &self.gather {
+                out.extend([
+                    stage("bin_payload_second", &g.bin_payload_second, gp),
+                    stage("gather_momentum", &g.gather_momentum, gn),
+                ]);
+            }
             out.extend(
                 self.fold
                     .iter()

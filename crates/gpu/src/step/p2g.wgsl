@@ -9,6 +9,10 @@ fn clear(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     if gid.x == 0u {
         atomicAdd(&flags[CLOCK], 1u);
     }
+    // The gather writes every entry of every node itself.
+    if GATHER {
+        return;
+    }
     let total = prm.nodes.w * S;
     for (var e = gid.x; e < total; e += stride(groups)) {
         acc_store(e, 0.0);
@@ -44,11 +48,11 @@ struct Scatter {
 // start of the step, as the CPU solver's `choose_dt`: Δt > h / (c + |v|), c the material's
 // elastic wave speed (constitutive.wgsl's table).
 fn prepare(i: u32) -> Scatter {
-    var sc: Scatter;
-    let x = load_vec(x_at(), i);
-    sc.st = stencil(x);
-    if !sc.st.on_grid {
+    let st = stencil(load_vec(x_at(), i));
+    if !st.on_grid {
         _ = raise(FLAG_LEFT_GRID, i);
+        var sc: Scatter;
+        sc.st = st;
         return sc;
     }
     let v = load_vec(v_at(), i);
@@ -58,6 +62,13 @@ fn prepare(i: u32) -> Scatter {
             atomicStore(&flags[FLAG_STEP], atomicLoad(&flags[CLOCK]));
         }
     }
+    return payload(i, st, v);
+}
+
+// The scatter of particle `i`, with stencil `st` and velocity `v`, without the checks.
+fn payload(i: u32, st: Stencil, v: vec3<f32>) -> Scatter {
+    var sc: Scatter;
+    sc.st = st;
     let f = load_f(i);
     let volume = volume0_of(i) * det3(f);
     var sv = load_stress(i) * volume;
