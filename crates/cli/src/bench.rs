@@ -325,14 +325,7 @@ fn gpu_benches(
             return Outcome::Failed;
         }
     };
-    let p2g = match (device.atomics(), device.subgroups()) {
-        (loam_gpu::Atomics::Gather, _) => "gather from binned particles",
-        (loam_gpu::Atomics::Native, true) => "scatter, native f32 atomics, subgroup sums",
-        (loam_gpu::Atomics::Native, false) => "scatter, native f32 atomics",
-        (loam_gpu::Atomics::CompareExchange, true) => "scatter, compare-exchange, subgroup sums",
-        (loam_gpu::Atomics::CompareExchange, false) => "scatter, compare-exchange",
-    };
-    println!("{} (P2G: {p2g})", device.name());
+    println!("{} (P2G: {})", device.name(), device.p2g());
     println!(
         "{:<27} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
         "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s", "device MiB"

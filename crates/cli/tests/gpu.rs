@@ -163,6 +163,16 @@ fn a_gpu_run_writes_the_output_of_a_cpu_run() {
             .expect("json");
     assert_eq!(summary["status"], "completed");
     assert_eq!(summary["steps"], 1500);
+    // The summary names the adapter and the P2G the run took (the CPU run's has no device).
+    let device = summary["device"].as_str().expect("the GPU run's device");
+    assert!(
+        stdout.contains(device) && device.contains("(P2G: "),
+        "{device}"
+    );
+    let cpu_summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(c.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert!(cpu_summary.get("device").is_none(), "{cpu_summary}");
     let (fg, fc) = (
         front(&g.join("frame_0002.vtu")),
         front(&c.join("frame_0002.vtu")),

@@ -109,6 +109,19 @@ impl Gpu {
         self.atomics
     }
 
+    /// How P2G adds into the grid on this device, in words: `gather from binned particles`,
+    /// or `scatter` with the atomics (`native f32 atomics`, `compare-exchange`) and, where
+    /// the scatter sums runs of particles within a subgroup, `subgroup sums`.
+    pub fn p2g(&self) -> &'static str {
+        match (self.atomics, self.subgroups) {
+            (Atomics::Gather, _) => "gather from binned particles",
+            (Atomics::Native, true) => "scatter, native f32 atomics, subgroup sums",
+            (Atomics::Native, false) => "scatter, native f32 atomics",
+            (Atomics::CompareExchange, true) => "scatter, compare-exchange, subgroup sums",
+            (Atomics::CompareExchange, false) => "scatter, compare-exchange",
+        }
+    }
+
     /// Whether the scatter sums each subgroup's runs of particles that share a stencil
     /// before it adds them to the grid (where the adapter has `Features::SUBGROUP`).
     pub fn subgroups(&self) -> bool {

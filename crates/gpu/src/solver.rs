@@ -338,9 +338,10 @@ impl<const D: usize> GpuSolver<D> {
         self.device_bytes
     }
 
-    /// The adapter the steps run on ([`Gpu::name`]).
+    /// The adapter the steps run on ([`Gpu::name`]) and how P2G adds into the grid
+    /// ([`Gpu::p2g`]).
     pub fn device_name(&self) -> String {
-        self.gpu.name()
+        format!("{} (P2G: {})", self.gpu.name(), self.gpu.p2g())
     }
 
     /// Records `steps` steps into command buffers of [`STEPS_PER_SUBMIT`] steps each and

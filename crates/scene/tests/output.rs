@@ -259,6 +259,7 @@ fn run_summary_is_written_as_json() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("summary.json");
     let summary = RunSummary {
+        device: None,
         scene: "examples/disk_collision.toml".into(),
         dimension: 2,
         particles: 2000,

@@ -248,9 +248,13 @@ pub fn run<const D: usize>(
     rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
     let wall = clock.start.elapsed().as_secs_f64();
     let steps = engine.steps();
-    let on = match &engine {
-        Engine::Cpu(_) => String::new(),
-        Engine::Gpu(s) => format!(", on {}", s.device_name()),
+    rec.summary.device = match &engine {
+        Engine::Cpu(_) => None,
+        Engine::Gpu(s) => Some(s.device_name()),
+    };
+    let on = match &rec.summary.device {
+        Some(device) => format!(", on {device}"),
+        None => String::new(),
     };
     let resumed = match start.resume {
         Some(_) => format!("resumed at step {} (t = {:.4} s), ", from.0, from.1),

@@ -236,6 +236,7 @@ impl<const D: usize> Recorder<D> {
                 load_steps: Vec::new(),
                 resumed_from: None,
                 checkpoint: None,
+                device: None,
             },
         }
     }

@@ -102,6 +102,12 @@ pub struct RunSummary {
     /// The last checkpoint this run wrote (`loam run --checkpoint-every`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointNote>,
+    /// Explicit runs on the GPU: the adapter and how P2G added into the grid, e.g.
+    /// `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu) (P2G: scatter, native f32 atomics,
+    /// subgroup sums)` (a run with the gather gives the same bits every time, one with atomics
+    /// to f32 round-off); absent for CPU runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
 }
 
 /// A checkpoint file and the state it holds.
