@@ -161,22 +161,13 @@ impl Measured {
     }
 }
 
-/// How the GPU benches' P2G adds into the grid, where not the adapter's choice.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum P2g {
-    /// The compare-exchange loop on the f32 bits (`loam_gpu::Atomics::CompareExchange`).
-    CompareExchange,
-    /// The gather from particles binned by stencil (`loam_gpu::Atomics::Gather`).
-    Gather,
-}
-
 /// The GPU benches' options.
 #[derive(Clone, Copy, Debug)]
 pub struct GpuBench {
     /// Profiled steps after the timed ones.
     pub profile: Option<usize>,
     /// P2G, where not the adapter's choice.
-    pub p2g: Option<P2g>,
+    pub p2g: Option<crate::run::gpu::P2g>,
 }
 
 /// Runs the named benches (all when empty) and prints a table; `steps` overrides the
@@ -317,8 +308,7 @@ fn gpu_benches(
         );
         return Outcome::BadInput;
     }
-    let device = match loam_gpu::Gpu::new(options.p2g == Some(P2g::CompareExchange)) {
-        Ok(d) if options.p2g == Some(P2g::Gather) => d.with_gather(),
+    let device = match crate::run::gpu::device(options.p2g) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("error: {e}");

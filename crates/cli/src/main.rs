@@ -61,6 +61,11 @@ enum Command {
         /// runs them in f32 on the first GPU adapter (Vulkan, Metal or DX12).
         #[arg(long, value_enum)]
         device: Option<Device>,
+        /// Runs on the GPU: how P2G adds into the grid, instead of the adapter's choice
+        /// (native f32 atomics where it has them, else the gather); `gather` gives the same
+        /// bits on every run.
+        #[arg(long, value_enum)]
+        p2g: Option<run::gpu::P2g>,
     },
     /// Validate a scene file and estimate its size, memory and steps (or validate an
     /// inversion file, its scene and observations): exit 0 if it can run, 2 with the
@@ -140,7 +145,7 @@ enum Command {
         /// With `--device gpu`: how P2G adds into the grid instead of the adapter's choice
         /// (native f32 atomics where it has them, else the gather).
         #[arg(long, value_enum)]
-        p2g: Option<bench::P2g>,
+        p2g: Option<run::gpu::P2g>,
         /// The gradient bench's memory for the adjoint, as for `loam gradient --memory`
         /// (default: the segment length of least memory).
         #[arg(long, value_name = "SIZE", value_parser = parse_size)]
@@ -226,6 +231,7 @@ fn main() -> ExitCode {
             checkpoint_every,
             resume,
             device,
+            p2g,
         } => {
             let options = run::Options {
                 out: out.as_deref(),
@@ -235,6 +241,7 @@ fn main() -> ExitCode {
                 checkpoint_every: checkpoint_every
                     .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
                 device: device.map(Device::scene),
+                p2g,
             };
             match (resume, scene) {
                 (Some(dir), _) => run::resume(&dir, &options),

@@ -184,6 +184,56 @@ fn a_gpu_run_writes_the_output_of_a_cpu_run() {
     assert!(fc > 0.52, "the surge moved: front {fc}");
 }
 
+/// `--p2g gather` runs P2G as the gather: two runs of one scene write the same frames, byte
+/// for byte (the atomic scatters' order of adds varies, the gather's does not), and the
+/// summary names it. `--p2g` on a CPU run is refused with exit 2.
+#[test]
+fn the_gather_writes_the_same_frames_twice() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = scene("device = \"gpu\"", FIXED).replace("end_time = 0.09", "end_time = 0.009");
+    let first = run(dir.path(), "a", &text, &["--p2g", "gather"]);
+    if no_adapter(&first) {
+        return;
+    }
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let second = run(dir.path(), "b", &text, &["--p2g", "gather"]);
+    assert!(second.status.success());
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let frames: Vec<String> = files(&a)
+        .into_iter()
+        .filter(|f| f.ends_with(".vtu"))
+        .collect();
+    assert!(frames.len() >= 2, "{frames:?}");
+    for f in &frames {
+        let read = |d: &Path| std::fs::read(d.join(f)).expect("frame");
+        assert!(read(&a) == read(&b), "{f} differs between two gather runs");
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(a.join("summary.json")).expect("summary"))
+            .expect("json");
+    let device = summary["device"].as_str().expect("device");
+    assert!(
+        device.ends_with("(P2G: gather from binned particles)"),
+        "{device}"
+    );
+    let cpu = run(
+        dir.path(),
+        "c",
+        &text,
+        &["--device", "cpu", "--p2g", "gather"],
+    );
+    let stderr = String::from_utf8_lossy(&cpu.stderr);
+    assert_eq!(cpu.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--p2g chooses the GPU's transfer; this run is on the CPU"),
+        "{stderr}"
+    );
+}
+
 /// `solver.device = "gpu"` in the scene runs on the GPU without the flag.
 #[test]
 fn the_scene_can_ask_for_the_gpu() {

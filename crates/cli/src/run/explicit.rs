@@ -166,6 +166,14 @@ pub fn run<const D: usize>(
         eprintln!("warning: {}: {w}", target.scene.display());
     }
     let device = options.device.unwrap_or(plan.device);
+    if device == Device::Cpu && options.p2g.is_some() {
+        eprintln!(
+            "error: {}: --p2g chooses the GPU's transfer; this run is on the CPU (add --device \
+             gpu, or set solver.device = \"gpu\")",
+            target.scene.display()
+        );
+        return Outcome::BadInput;
+    }
     let mut engine = match device {
         Device::Cpu => Engine::Cpu(Box::new(solver)),
         Device::Gpu => {
@@ -178,7 +186,7 @@ pub fn run<const D: usize>(
                 return Outcome::BadInput;
             }
             drop(solver);
-            match gpu::open(&config, &built.particles) {
+            match gpu::open(&config, &built.particles, options.p2g) {
                 Ok(s) => Engine::Gpu(Box::new(s)),
                 Err(outcome) => return outcome,
             }

@@ -10,6 +10,26 @@ use loam_explicit::Config;
 use loam_gpu::{CHECK_EVERY, Gpu, GpuError, GpuSolver};
 use loam_scene::output::RunSummary;
 
+/// How P2G adds into the grid on the GPU, where not the adapter's choice (native f32 atomics
+/// where it has them, else the gather): `--p2g` of `loam run` and `loam bench`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum P2g {
+    /// The compare-exchange loop on the f32 bits (`loam_gpu::Atomics::CompareExchange`).
+    CompareExchange,
+    /// The gather from particles binned by stencil (`loam_gpu::Atomics::Gather`): the same
+    /// bits on every run.
+    Gather,
+}
+
+/// Opens the first GPU adapter with P2G as `p2g` asks (`None`: the adapter's choice).
+pub fn device(p2g: Option<P2g>) -> Result<Gpu, GpuError> {
+    let gpu = Gpu::new(p2g == Some(P2g::CompareExchange))?;
+    Ok(match p2g {
+        Some(P2g::Gather) => gpu.with_gather(),
+        _ => gpu,
+    })
+}
+
 /// Opens the first GPU adapter and uploads the run: a feature the GPU path lacks is invalid
 /// input (exit 2, naming the scene field; checked first, so with or without an adapter), no
 /// adapter a failure of the run (exit 1, with how to get a software adapter); both are
@@ -17,13 +37,14 @@ use loam_scene::output::RunSummary;
 pub fn open<const D: usize>(
     config: &Config<f64, D>,
     particles: &Particles<f64, D>,
+    p2g: Option<P2g>,
 ) -> Result<GpuSolver<D>, Outcome> {
     let config = config.lift();
     if let Err(e) = GpuSolver::supports(&config) {
         eprintln!("error: {e}");
         return Err(Outcome::BadInput);
     }
-    let gpu = Gpu::new(false).map_err(|e| {
+    let gpu = device(p2g).map_err(|e| {
         eprintln!("error: {e}");
         Outcome::Failed
     })?;

@@ -13,7 +13,7 @@
 
 mod checkpoint;
 mod explicit;
-mod gpu;
+pub mod gpu;
 mod implicit;
 pub mod interrupt;
 mod progress;
@@ -45,6 +45,8 @@ pub struct Options<'a> {
     /// Explicit runs: where the steps run (`--device`), instead of the scene's
     /// `solver.device`.
     pub device: Option<Device>,
+    /// Runs on the GPU: how P2G adds into the grid (`--p2g`), instead of the adapter's choice.
+    pub p2g: Option<gpu::P2g>,
 }
 
 /// Loads `scene`, runs it and reports; see the module docs of `main` for exit codes.
@@ -105,10 +107,12 @@ fn start_run(scene: &Scene, path: &Path, options: &Options, start: Start) -> Out
         );
         return Outcome::BadInput;
     }
-    if scene.solver.kind == SolverKind::Implicit && options.device == Some(Device::Gpu) {
+    if scene.solver.kind == SolverKind::Implicit
+        && (options.device == Some(Device::Gpu) || options.p2g.is_some())
+    {
         eprintln!(
-            "error: {}: --device gpu runs explicit scenes; this scene runs the implicit solver, \
-             which is not supported on the GPU",
+            "error: {}: --device gpu and --p2g run explicit scenes; this scene runs the \
+             implicit solver, which is not supported on the GPU",
             path.display()
         );
         return Outcome::BadInput;
