@@ -14,10 +14,11 @@ use loam_scene::output::RunSummary;
 /// where it has them, else the gather): `--p2g` of `loam run` and `loam bench`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum P2g {
-    /// The compare-exchange loop on the f32 bits (`loam_gpu::Atomics::CompareExchange`).
+    /// A scatter that adds with a compare-exchange loop on the float bits, on any adapter
+    /// (`loam_gpu::Atomics::CompareExchange`).
     CompareExchange,
-    /// The gather from particles binned by stencil (`loam_gpu::Atomics::Gather`): the same
-    /// bits on every run.
+    /// A gather from the particles binned by stencil, on any adapter: the same bits on every
+    /// run (`loam_gpu::Atomics::Gather`).
     Gather,
 }
 
