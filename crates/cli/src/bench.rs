@@ -479,9 +479,12 @@ fn gradient(steps: usize, memory: Option<u64>) -> Result<Measured, loam_inverse:
     let start = Instant::now();
     let mut solver = Solver::new(config.clone(), &particles)?;
     let mut p = particles.clone();
-    for _ in 0..steps {
-        solver.step(&mut p, f64::INFINITY)?;
-    }
+    rayon::scope(|_| -> Result<(), loam_explicit::StepError> {
+        for _ in 0..steps {
+            solver.step(&mut p, f64::INFINITY)?;
+        }
+        Ok(())
+    })?;
     let forward = start.elapsed().as_secs_f64();
     let tracked: Vec<_> = (0..particles.len())
         .step_by(12)

@@ -58,6 +58,19 @@ pub fn gradient<const D: usize>(
     objective: &impl Objective<D>,
     checkpoints: Checkpoints,
 ) -> Result<Gradient<D>, AdjointError> {
+    rayon::scope(|_| gradient_in_pool(config, initial, steps, params, objective, checkpoints))
+}
+
+/// [`gradient`], on a thread of the current rayon pool: the forward, recomputed and reverse
+/// steps then start their parallel phases from inside the pool, with no hand-over per step.
+fn gradient_in_pool<const D: usize>(
+    config: &Config<f64, D>,
+    initial: &Particles<f64, D>,
+    steps: usize,
+    params: &[Param],
+    objective: &impl Objective<D>,
+    checkpoints: Checkpoints,
+) -> Result<Gradient<D>, AdjointError> {
     let footprint = Footprint::new(config, initial, steps);
     let k = footprint.segment(checkpoints)?;
     let mut reverse = ReverseStep::new(config, params)?;

@@ -43,7 +43,24 @@ struct Clock {
 /// Steps until the frame point `at` is reached, recording the step sizes in `summary` and
 /// saving the state with `checkpoints`; stops on an error (a failed checkpoint included) or a
 /// signal (checked before every step, after the test for the frame point).
+///
+/// The loop runs on a thread of the rayon pool, so that each step starts its parallel phases
+/// from inside the pool instead of handing itself over to it (a wake-up of a pool thread and
+/// of this one per step: about a sixth of a one-thread run's wall time on a 2-core machine).
 fn step_to<const D: usize>(
+    solver: &mut Solver<f64, D>,
+    particles: &mut Particles<f64, D>,
+    at: FrameAt,
+    summary: &mut RunSummary,
+    checkpoints: Option<&mut Checkpointer>,
+    progress: &mut Progress,
+    clock: Clock,
+) -> Result<(), Stop> {
+    rayon::scope(|_| step_to_in_pool(solver, particles, at, summary, checkpoints, progress, clock))
+}
+
+/// [`step_to`], on a thread of the rayon pool.
+fn step_to_in_pool<const D: usize>(
     solver: &mut Solver<f64, D>,
     particles: &mut Particles<f64, D>,
     at: FrameAt,
