@@ -185,7 +185,7 @@ pub fn bench(
 ) -> Outcome {
     if list {
         for b in &BENCHES {
-            println!("{:<14} {}", b.name, b.description);
+            println!("{:<w$} {}", b.name, b.description, w = name_width());
         }
         return Outcome::Ok;
     }
@@ -224,8 +224,9 @@ pub fn bench(
         None => {}
     }
     println!("{} ({} threads)", cpu_model(), rayon::current_num_threads());
+    let w = name_width();
     println!(
-        "{:<14} {:>9} {:>10} {:>7} {:>10} {:>14}  note",
+        "{:<w$} {:>9} {:>10} {:>7} {:>10} {:>14}  note",
         "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s"
     );
     let mut results = Vec::new();
@@ -266,7 +267,7 @@ pub fn bench(
             _ => String::new(),
         };
         let row = format!(
-            "{:<14} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {note}",
+            "{:<w$} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {note}",
             m.name,
             m.precision,
             m.particles,
@@ -316,8 +317,9 @@ fn gpu_benches(
         }
     };
     println!("{} (P2G: {})", device.name(), device.p2g());
+    let w = name_width();
     println!(
-        "{:<27} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
+        "{:<w$} {:>9} {:>10} {:>7} {:>10} {:>14} {:>11}",
         "bench", "precision", "particles", "steps", "wall (s)", "p-steps/s", "device MiB"
     );
     let mut results = Vec::new();
@@ -339,7 +341,7 @@ fn gpu_benches(
             }
         };
         println!(
-            "{:<27} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e} {:>11.1}",
+            "{:<w$} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e} {:>11.1}",
             m.name,
             m.precision,
             m.particles,
@@ -446,6 +448,7 @@ fn time_steps<T: Scalar, const D: usize>(
 ) -> Measured {
     let (config, mut particles) = explicit_scene::<T, D>(scene);
     let mut solver = Solver::new(config, &particles).expect("bench scenes are valid");
+    let n = particles.len();
     let mut advance = |k: usize| {
         for _ in 0..k {
             solver
@@ -453,15 +456,19 @@ fn time_steps<T: Scalar, const D: usize>(
                 .expect("bench scenes are stable");
         }
     };
-    advance(WARM_UP_STEPS);
-    let start = Instant::now();
-    advance(steps);
+    // As `loam run` steps: on the pool, its other workers awake.
+    let wall = loam_explicit::pool::hold(|| {
+        advance(WARM_UP_STEPS);
+        let start = Instant::now();
+        advance(steps);
+        start.elapsed().as_secs_f64()
+    });
     Measured {
         name,
         precision: if size_of::<T>() == 4 { "f32" } else { "f64" },
-        particles: particles.len(),
+        particles: n,
         steps,
-        wall: start.elapsed().as_secs_f64(),
+        wall,
         iterations: None,
         ratio: None,
         device_bytes: None,
@@ -479,7 +486,7 @@ fn gradient(steps: usize, memory: Option<u64>) -> Result<Measured, loam_inverse:
     let start = Instant::now();
     let mut solver = Solver::new(config.clone(), &particles)?;
     let mut p = particles.clone();
-    rayon::scope(|_| -> Result<(), loam_explicit::StepError> {
+    loam_explicit::pool::hold(|| -> Result<(), loam_explicit::StepError> {
         for _ in 0..steps {
             solver.step(&mut p, f64::INFINITY)?;
         }
@@ -517,6 +524,11 @@ fn gradient(steps: usize, memory: Option<u64>) -> Result<Measured, loam_inverse:
     })
 }
 
+/// The width of the bench-name column: the longest name, so the columns line up.
+fn name_width() -> usize {
+    BENCHES.iter().map(|b| b.name.len()).max().unwrap_or(0)
+}
+
 /// The peak resident memory of this process so far (`VmHWM` of `/proc/self/status`).
 fn peak_memory() -> String {
     std::fs::read_to_string("/proc/self/status")
@@ -537,9 +549,12 @@ fn cantilever() -> Result<Measured, loam_implicit::ImplicitError> {
     let start = Instant::now();
     let mut solver = ImplicitSolver::new(config, &particles)?;
     let mut iterations = 0;
-    while !solver.finished() {
-        iterations += solver.step(&mut particles)?.iterations();
-    }
+    loam_explicit::pool::hold(|| -> Result<(), loam_implicit::ImplicitError> {
+        while !solver.finished() {
+            iterations += solver.step(&mut particles)?.iterations();
+        }
+        Ok(())
+    })?;
     Ok(Measured {
         name: "cantilever",
         precision: "f64",

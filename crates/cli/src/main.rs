@@ -13,6 +13,9 @@ mod run;
 mod verify;
 
 use clap::{Parser, Subcommand};
+// The CPU commands (`gradient`, `invert`, `verify`) run on the rayon pool with its other
+// workers awake, as `run` does: see `loam_explicit::pool`.
+use loam_explicit::pool::hold;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -256,20 +259,20 @@ fn main() -> ExitCode {
             file,
             check,
             memory,
-        } => invert::gradient(&file, check, memory),
+        } => hold(|| invert::gradient(&file, check, memory)),
         Command::Invert {
             file,
             out,
             resume,
             memory,
-        } => invert::invert(&file, out.as_deref(), resume, memory),
+        } => hold(|| invert::invert(&file, out.as_deref(), resume, memory)),
         Command::Verify {
             cases,
             list,
             json,
             out,
             reduced,
-        } => verify::verify(&cases, list, json.as_deref(), &out, reduced),
+        } => hold(|| verify::verify(&cases, list, json.as_deref(), &out, reduced)),
         Command::Bench {
             benches,
             list,

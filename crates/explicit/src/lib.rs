@@ -12,6 +12,7 @@
 mod blocks;
 mod config;
 mod error;
+pub mod pool;
 mod solver;
 mod trace;
 

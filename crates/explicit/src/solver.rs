@@ -349,7 +349,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         })
     }
 
-    /// Steps until the simulated time reaches `t_end`, calling `on_step` after every step.
+    /// Steps until the simulated time reaches `t_end`, calling `on_step` after every step (the
+    /// steps run on the rayon pool with its other workers awake: [`crate::pool::hold`]).
     ///
     /// - Fixed step: every step keeps its size Δt; the run stops after the first step that
     ///   reaches or passes `t_end`, so it may end up to one step past it (see
@@ -362,7 +363,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         &mut self,
         particles: &mut Particles<T, D>,
         t_end: f64,
-        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>) + Send,
     ) -> Result<(), StepError> {
         self.advance_while(particles, |s| s.next_step_cap(t_end), on_step)
     }
@@ -373,7 +374,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         &mut self,
         particles: &mut Particles<T, D>,
         t_end: f64,
-        on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+        on_step: impl FnMut(&StepInfo, &Particles<T, D>) + Send,
     ) -> Result<(), StepError> {
         self.advance_while(particles, |s| s.landing_cap(t_end), on_step)
     }
@@ -406,18 +407,20 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     }
 
     /// Steps with the caps `cap(self)` until it gives `None`, calling `on_step` after every
-    /// step.
+    /// step, on the rayon pool with its other workers awake ([`crate::pool::hold`]).
     fn advance_while(
         &mut self,
         particles: &mut Particles<T, D>,
-        cap: impl Fn(&Self) -> Option<f64>,
-        mut on_step: impl FnMut(&StepInfo, &Particles<T, D>),
+        cap: impl Fn(&Self) -> Option<f64> + Sync,
+        mut on_step: impl FnMut(&StepInfo, &Particles<T, D>) + Send,
     ) -> Result<(), StepError> {
-        while let Some(max_dt) = cap(self) {
-            let info = self.step(particles, max_dt)?;
-            on_step(&info, particles);
-        }
-        Ok(())
+        crate::pool::hold(|| {
+            while let Some(max_dt) = cap(self) {
+                let info = self.step(particles, max_dt)?;
+                on_step(&info, particles);
+            }
+            Ok(())
+        })
     }
 
     /// One pass over the particles: the block of every stencil (the sort key), the stability

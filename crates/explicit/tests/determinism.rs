@@ -95,3 +95,37 @@ fn same_bits_with_one_and_two_threads_3d() {
         "3D particle state differs between 1 and 2 threads"
     );
 }
+
+/// The same steps through `Solver::advance_exactly_to` from outside any pool: the run is held on
+/// the global pool with its other workers kept awake (`loam_explicit::pool::hold`), which
+/// changes the schedule of the parallel phases and nothing else.
+fn held_run<const D: usize>(transfer: Transfer) -> Particles<f64, D> {
+    let (config, mut particles) = scene::<D>(transfer);
+    let mut solver = Solver::new(config, &particles).expect("valid scene");
+    let mut steps = 0;
+    let mut end = 0.0;
+    // The end time of the 100 steps `run` takes (the step is adaptive).
+    let (config, mut probe) = scene::<D>(transfer);
+    let mut timer = Solver::new(config, &probe).expect("valid scene");
+    for _ in 0..100 {
+        end = timer
+            .step(&mut probe, f64::INFINITY)
+            .expect("stable step")
+            .time;
+    }
+    solver
+        .advance_exactly_to(&mut particles, end, |_, _| steps += 1)
+        .expect("stable run");
+    assert_eq!(steps, 100);
+    particles
+}
+
+#[test]
+fn a_held_run_has_the_bits_of_a_one_thread_run() {
+    for transfer in [Transfer::Apic, Transfer::Mls] {
+        assert!(
+            bits(&held_run::<2>(transfer)) == bits(&run::<2>(1, transfer)),
+            "2D particle state of the held run differs ({transfer:?})"
+        );
+    }
+}

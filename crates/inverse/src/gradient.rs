@@ -58,11 +58,14 @@ pub fn gradient<const D: usize>(
     objective: &impl Objective<D>,
     checkpoints: Checkpoints,
 ) -> Result<Gradient<D>, AdjointError> {
-    rayon::scope(|_| gradient_in_pool(config, initial, steps, params, objective, checkpoints))
+    loam_explicit::pool::hold(|| {
+        gradient_in_pool(config, initial, steps, params, objective, checkpoints)
+    })
 }
 
-/// [`gradient`], on a thread of the current rayon pool: the forward, recomputed and reverse
-/// steps then start their parallel phases from inside the pool, with no hand-over per step.
+/// [`gradient`], on a thread of the current rayon pool with the other workers awake
+/// ([`loam_explicit::pool::hold`]): the forward, recomputed and reverse steps start their
+/// parallel phases from inside the pool, with no hand-over per step.
 fn gradient_in_pool<const D: usize>(
     config: &Config<f64, D>,
     initial: &Particles<f64, D>,

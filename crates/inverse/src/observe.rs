@@ -281,11 +281,14 @@ impl<const D: usize> Observations<D> {
         };
         let mut p = initial.clone();
         let mut solver = Solver::new(config.clone(), &p)?;
-        record(0, &p);
-        for s in 1..=steps {
-            solver.step(&mut p, f64::INFINITY)?;
-            record(s, &p);
-        }
+        loam_explicit::pool::hold(|| {
+            record(0, &p);
+            for s in 1..=steps {
+                solver.step(&mut p, f64::INFINITY)?;
+                record(s, &p);
+            }
+            Ok::<_, AdjointError>(())
+        })?;
         Ok(out)
     }
 }

@@ -384,18 +384,21 @@ pub fn run_residuals<T: Scalar, const D: usize, O: ScalarObjective<D>>(
     Ok(out)
 }
 
-/// Runs `steps` steps, handing the state after each (and the initial one, step 0) to `visit`.
+/// Runs `steps` steps, handing the state after each (and the initial one, step 0) to `visit`,
+/// on the rayon pool with its other workers awake ([`loam_explicit::pool::hold`]).
 fn run_each<T: Scalar, const D: usize>(
     config: Config<T, D>,
     mut particles: Particles<T, D>,
     steps: usize,
-    mut visit: impl FnMut(usize, &Particles<T, D>),
+    mut visit: impl FnMut(usize, &Particles<T, D>) + Send,
 ) -> Result<(), AdjointError> {
     let mut solver = Solver::new(config, &particles)?;
-    visit(0, &particles);
-    for s in 1..=steps {
-        solver.step(&mut particles, f64::INFINITY)?;
-        visit(s, &particles);
-    }
-    Ok(())
+    loam_explicit::pool::hold(|| {
+        visit(0, &particles);
+        for s in 1..=steps {
+            solver.step(&mut particles, f64::INFINITY)?;
+            visit(s, &particles);
+        }
+        Ok(())
+    })
 }

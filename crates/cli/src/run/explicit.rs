@@ -44,9 +44,9 @@ struct Clock {
 /// saving the state with `checkpoints`; stops on an error (a failed checkpoint included) or a
 /// signal (checked before every step, after the test for the frame point).
 ///
-/// The loop runs on a thread of the rayon pool, so that each step starts its parallel phases
-/// from inside the pool instead of handing itself over to it (a wake-up of a pool thread and
-/// of this one per step: about a sixth of a one-thread run's wall time on a 2-core machine).
+/// The loop runs on a thread of the rayon pool with the other workers kept
+/// awake ([`loam_explicit::pool::hold`]): each step starts its parallel phases from inside the
+/// pool instead of handing itself over to it, and none of them waits for a worker to wake.
 fn step_to<const D: usize>(
     solver: &mut Solver<f64, D>,
     particles: &mut Particles<f64, D>,
@@ -56,7 +56,9 @@ fn step_to<const D: usize>(
     progress: &mut Progress,
     clock: Clock,
 ) -> Result<(), Stop> {
-    rayon::scope(|_| step_to_in_pool(solver, particles, at, summary, checkpoints, progress, clock))
+    loam_explicit::pool::hold(|| {
+        step_to_in_pool(solver, particles, at, summary, checkpoints, progress, clock)
+    })
 }
 
 /// [`step_to`], on a thread of the rayon pool.

@@ -49,66 +49,71 @@ pub fn run<const D: usize>(
     {
         stop = Some(e);
     }
-    while stop.is_none() && !solver.finished() {
-        if interrupt::requested() {
-            stop = Some(Stop::Interrupted);
-            break;
-        }
-        let t = Instant::now();
-        let report = match solver.step(&mut particles) {
-            Ok(r) => r,
-            Err(e) => {
-                stop = Some(Stop::Failed(e.to_string()));
+    // The load steps run on the rayon pool with its other workers awake, as the explicit
+    // steps do (`loam_explicit::pool::hold`): faer's parallel kernels start from inside the
+    // pool, and no loop of a Newton iteration waits for a worker to wake.
+    loam_explicit::pool::hold(|| {
+        while stop.is_none() && !solver.finished() {
+            if interrupt::requested() {
+                stop = Some(Stop::Interrupted);
                 break;
             }
-        };
-        let wall = t.elapsed().as_secs_f64();
-        let last = report.solves.last();
-        let rel = last.map_or(0.0, |s| {
-            s.residuals.last().copied().unwrap_or(0.0) / s.reference
-        });
-        let lin: usize = report
-            .solves
-            .iter()
-            .flat_map(|s| s.linear_iterations.iter())
-            .sum();
-        rec.summary.load_steps.push(LoadStepSummary {
-            step: report.step as u64,
-            load_factor: report.load_factor,
-            iterations: report.iterations() as u64,
-            cuts: report.cuts as u64,
-            residual: rel,
-            linear_iterations: lin as u64,
-            wall_time_s: wall,
-        });
-        if !quiet {
-            let history: Vec<String> = last
-                .map(|s| {
-                    s.residuals
-                        .iter()
-                        .map(|r| format!("{:.1e}", r / s.reference))
-                        .collect()
-                })
-                .unwrap_or_default();
-            println!(
-                "{:>5} {:>9.4} {:>8} {:>5} {:>5} {:>11.3e} {:>7} {:>8.3}  {}",
-                report.step,
-                report.load_factor,
-                report.unknowns,
-                report.iterations(),
-                report.cuts,
-                rel,
-                lin,
-                wall,
-                history.join(" ")
-            );
+            let t = Instant::now();
+            let report = match solver.step(&mut particles) {
+                Ok(r) => r,
+                Err(e) => {
+                    stop = Some(Stop::Failed(e.to_string()));
+                    break;
+                }
+            };
+            let wall = t.elapsed().as_secs_f64();
+            let last = report.solves.last();
+            let rel = last.map_or(0.0, |s| {
+                s.residuals.last().copied().unwrap_or(0.0) / s.reference
+            });
+            let lin: usize = report
+                .solves
+                .iter()
+                .flat_map(|s| s.linear_iterations.iter())
+                .sum();
+            rec.summary.load_steps.push(LoadStepSummary {
+                step: report.step as u64,
+                load_factor: report.load_factor,
+                iterations: report.iterations() as u64,
+                cuts: report.cuts as u64,
+                residual: rel,
+                linear_iterations: lin as u64,
+                wall_time_s: wall,
+            });
+            if !quiet {
+                let history: Vec<String> = last
+                    .map(|s| {
+                        s.residuals
+                            .iter()
+                            .map(|r| format!("{:.1e}", r / s.reference))
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                println!(
+                    "{:>5} {:>9.4} {:>8} {:>5} {:>5} {:>11.3e} {:>7} {:>8.3}  {}",
+                    report.step,
+                    report.load_factor,
+                    report.unknowns,
+                    report.iterations(),
+                    report.cuts,
+                    rel,
+                    lin,
+                    wall,
+                    history.join(" ")
+                );
+            }
+            if frame_steps.contains(&report.step)
+                && let Err(e) = rec.frame(report.step, report.load_factor * time_scale, &particles)
+            {
+                stop = Some(e);
+            }
         }
-        if frame_steps.contains(&report.step)
-            && let Err(e) = rec.frame(report.step, report.load_factor * time_scale, &particles)
-        {
-            stop = Some(e);
-        }
-    }
+    });
     let wall = start.elapsed().as_secs_f64();
     let iterations: u64 = rec.summary.load_steps.iter().map(|s| s.iterations).sum();
     let reached = match plan.newmark_dt {
