@@ -58,123 +58,113 @@ pub fn gradient<const D: usize>(
     objective: &impl Objective<D>,
     checkpoints: Checkpoints,
 ) -> Result<Gradient<D>, AdjointError> {
+    // On a pool thread with the other workers awake (`loam_explicit::pool::hold`): the
+    // forward, recomputed and reverse steps start their parallel phases from inside the pool.
     loam_explicit::pool::hold(|| {
-        gradient_in_pool(config, initial, steps, params, objective, checkpoints)
-    })
-}
-
-/// [`gradient`], on a thread of the current rayon pool with the other workers awake
-/// ([`loam_explicit::pool::hold`]): the forward, recomputed and reverse steps start their
-/// parallel phases from inside the pool, with no hand-over per step.
-fn gradient_in_pool<const D: usize>(
-    config: &Config<f64, D>,
-    initial: &Particles<f64, D>,
-    steps: usize,
-    params: &[Param],
-    objective: &impl Objective<D>,
-    checkpoints: Checkpoints,
-) -> Result<Gradient<D>, AdjointError> {
-    let footprint = Footprint::new(config, initial, steps);
-    let k = footprint.segment(checkpoints)?;
-    let mut reverse = ReverseStep::new(config, params)?;
-    // Segment starts, first to last: 0, then T − jK for j = ⌈T/K⌉ − 1, …, 1.
-    let count = steps.div_ceil(k).max(1);
-    let starts: Vec<usize> = std::iter::once(0)
-        .chain((1..count).map(|j| steps - (count - j) * k))
-        .collect();
-    let last = starts[count - 1];
-    // Forward: the checkpoints, the step sizes, the loss, and the last segment traced.
-    let mut solver = Solver::new(config.clone(), initial)?;
-    let mut p = initial.clone();
-    let mut checkpoints = Vec::with_capacity(count - 1);
-    let mut states: Vec<Particles<f64, D>> = Vec::with_capacity(steps - last);
-    let mut traces: Vec<StepTrace<f64, D>> = Vec::with_capacity(steps - last);
-    let mut times = Vec::with_capacity(steps + 1);
-    let mut dts = Vec::with_capacity(steps);
-    let mut loss = objective.term(0, &p, None);
-    times.push(0.0);
-    for s in 0..steps {
-        let info = if s < last {
-            if starts[checkpoints.len()] == s {
-                checkpoints.push(p.clone());
-            }
-            solver.step(&mut p, f64::INFINITY)?
-        } else {
-            states.push(p.clone());
-            traces.push(StepTrace::default());
-            let trace = traces.last_mut().expect("just pushed");
-            solver.step_traced(&mut p, f64::INFINITY, trace)?
-        };
-        dts.push(info.dt);
-        times.push(info.time);
-        loss += objective.term(s + 1, &p, None);
-    }
-    // Reverse, segment by segment, the last one from the forward pass's trace.
-    let mut adjoint = ParticleAdjoint::zeros(p.len());
-    let mut grad = vec![0.0; params.len()];
-    objective.term(steps, &p, Some(&mut adjoint));
-    let (mut next, mut end) = (Particles::default(), Particles::default());
-    for (j, &s0) in starts.iter().enumerate().rev() {
-        let s1 = starts.get(j + 1).copied().unwrap_or(steps);
-        if s1 < steps {
-            // `next` holds the state at `s1`, where the segment must end. Each step goes from
-            // one kept state into the next one's buffer (the last into `end`), uncopied.
-            states[0] = checkpoints.pop().expect("a checkpoint per earlier segment");
-            let mut solver = Solver::new(config.clone(), &states[0])?;
-            solver.set_clock(times[s0], s0);
-            for s in s0..s1 {
-                let (done, rest) = states.split_at_mut(s + 1 - s0);
-                let out = match rest.first_mut() {
-                    Some(q) if s + 1 < s1 => q,
-                    _ => &mut end,
-                };
-                let trace = &mut traces[s - s0];
-                let info = solver.step_traced_from(&done[s - s0], out, f64::INFINITY, trace)?;
-                if info.dt.to_bits() != dts[s].to_bits() {
+        let footprint = Footprint::new(config, initial, steps);
+        let k = footprint.segment(checkpoints)?;
+        let mut reverse = ReverseStep::new(config, params)?;
+        // Segment starts, first to last: 0, then T − jK for j = ⌈T/K⌉ − 1, …, 1.
+        let count = steps.div_ceil(k).max(1);
+        let starts: Vec<usize> = std::iter::once(0)
+            .chain((1..count).map(|j| steps - (count - j) * k))
+            .collect();
+        let last = starts[count - 1];
+        // Forward: the checkpoints, the step sizes, the loss, and the last segment traced.
+        let mut solver = Solver::new(config.clone(), initial)?;
+        let mut p = initial.clone();
+        let mut checkpoints = Vec::with_capacity(count - 1);
+        let mut states: Vec<Particles<f64, D>> = Vec::with_capacity(steps - last);
+        let mut traces: Vec<StepTrace<f64, D>> = Vec::with_capacity(steps - last);
+        let mut times = Vec::with_capacity(steps + 1);
+        let mut dts = Vec::with_capacity(steps);
+        let mut loss = objective.term(0, &p, None);
+        times.push(0.0);
+        for s in 0..steps {
+            let info = if s < last {
+                if starts[checkpoints.len()] == s {
+                    checkpoints.push(p.clone());
+                }
+                solver.step(&mut p, f64::INFINITY)?
+            } else {
+                states.push(p.clone());
+                traces.push(StepTrace::default());
+                let trace = traces.last_mut().expect("just pushed");
+                solver.step_traced(&mut p, f64::INFINITY, trace)?
+            };
+            dts.push(info.dt);
+            times.push(info.time);
+            loss += objective.term(s + 1, &p, None);
+        }
+        // Reverse, segment by segment, the last one from the forward pass's trace.
+        let mut adjoint = ParticleAdjoint::zeros(p.len());
+        let mut grad = vec![0.0; params.len()];
+        objective.term(steps, &p, Some(&mut adjoint));
+        let (mut next, mut end) = (Particles::default(), Particles::default());
+        for (j, &s0) in starts.iter().enumerate().rev() {
+            let s1 = starts.get(j + 1).copied().unwrap_or(steps);
+            if s1 < steps {
+                // `next` holds the state at `s1`, where the segment must end. Each step goes from
+                // one kept state into the next one's buffer (the last into `end`), uncopied.
+                states[0] = checkpoints.pop().expect("a checkpoint per earlier segment");
+                let mut solver = Solver::new(config.clone(), &states[0])?;
+                solver.set_clock(times[s0], s0);
+                for s in s0..s1 {
+                    let (done, rest) = states.split_at_mut(s + 1 - s0);
+                    let out = match rest.first_mut() {
+                        Some(q) if s + 1 < s1 => q,
+                        _ => &mut end,
+                    };
+                    let trace = &mut traces[s - s0];
+                    let info = solver.step_traced_from(&done[s - s0], out, f64::INFINITY, trace)?;
+                    if info.dt.to_bits() != dts[s].to_bits() {
+                        return Err(AdjointError::Replay {
+                            step: s + 1,
+                            what: format!("time step {} instead of {}", info.dt, dts[s]),
+                        });
+                    }
+                }
+                if next != end {
                     return Err(AdjointError::Replay {
-                        step: s + 1,
-                        what: format!("time step {} instead of {}", info.dt, dts[s]),
+                        step: s1,
+                        what: "the particle state differs from the checkpoint".into(),
                     });
                 }
             }
-            if next != end {
-                return Err(AdjointError::Replay {
-                    step: s1,
-                    what: "the particle state differs from the checkpoint".into(),
-                });
+            for s in (s0..s1).rev() {
+                let start = &states[s - s0];
+                // The state after the step: the next traced start, or the segment's end.
+                let after = match states.get(s + 1 - s0) {
+                    Some(q) if s + 1 < s1 => q,
+                    _ if s1 == steps => &p,
+                    _ => &next,
+                };
+                let trace = &traces[s - s0];
+                reverse.reverse(start, after, trace, times[s], &mut adjoint, &mut grad);
+                objective.term(s, start, Some(&mut adjoint));
+            }
+            if s0 < s1 {
+                std::mem::swap(&mut next, &mut states[0]);
             }
         }
-        for s in (s0..s1).rev() {
-            let start = &states[s - s0];
-            // The state after the step: the next traced start, or the segment's end.
-            let after = match states.get(s + 1 - s0) {
-                Some(q) if s + 1 < s1 => q,
-                _ if s1 == steps => &p,
-                _ => &next,
-            };
-            let trace = &traces[s - s0];
-            reverse.reverse(start, after, trace, times[s], &mut adjoint, &mut grad);
-            objective.term(s, start, Some(&mut adjoint));
+        // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.
+        for (k, param) in params.iter().enumerate() {
+            if let (Acts::Initial, Param::Material(m, MaterialField::Density)) =
+                (param.acts(), param)
+            {
+                grad[k] += (0..initial.len())
+                    .filter(|&i| initial.material[i] as usize == *m)
+                    .map(|i| adjoint.mass[i] * initial.volume0[i])
+                    .sum::<f64>();
+            }
         }
-        if s0 < s1 {
-            std::mem::swap(&mut next, &mut states[0]);
-        }
-    }
-    // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.
-    for (k, param) in params.iter().enumerate() {
-        if let (Acts::Initial, Param::Material(m, MaterialField::Density)) = (param.acts(), param) {
-            grad[k] += (0..initial.len())
-                .filter(|&i| initial.material[i] as usize == *m)
-                .map(|i| adjoint.mass[i] * initial.volume0[i])
-                .sum::<f64>();
-        }
-    }
-    Ok(Gradient {
-        loss,
-        params: grad,
-        initial: adjoint,
-        steps,
-        segment: k,
-        memory: footprint.bytes(k),
+        Ok(Gradient {
+            loss,
+            params: grad,
+            initial: adjoint,
+            steps,
+            segment: k,
+            memory: footprint.bytes(k),
+        })
     })
 }

@@ -52,48 +52,35 @@ fn step_to<const D: usize>(
     particles: &mut Particles<f64, D>,
     at: FrameAt,
     summary: &mut RunSummary,
-    checkpoints: Option<&mut Checkpointer>,
-    progress: &mut Progress,
-    clock: Clock,
-) -> Result<(), Stop> {
-    loam_explicit::pool::hold(|| {
-        step_to_in_pool(solver, particles, at, summary, checkpoints, progress, clock)
-    })
-}
-
-/// [`step_to`], on a thread of the rayon pool.
-fn step_to_in_pool<const D: usize>(
-    solver: &mut Solver<f64, D>,
-    particles: &mut Particles<f64, D>,
-    at: FrameAt,
-    summary: &mut RunSummary,
     mut checkpoints: Option<&mut Checkpointer>,
     progress: &mut Progress,
     clock: Clock,
 ) -> Result<(), Stop> {
-    loop {
-        let cap = match at {
-            FrameAt::Step(s) => (solver.steps() < s).then_some(f64::INFINITY),
-            FrameAt::Time(t) => solver.next_step_cap(t),
-        };
-        // A frame whose steps are all done is written before a signal is looked at, so the
-        // frame at a checkpoint's step is never dropped while the checkpoint is kept.
-        let Some(cap) = cap else { return Ok(()) };
-        if interrupt::requested() {
-            return Err(Stop::Interrupted);
+    loam_explicit::pool::hold(|| {
+        loop {
+            let cap = match at {
+                FrameAt::Step(s) => (solver.steps() < s).then_some(f64::INFINITY),
+                FrameAt::Time(t) => solver.next_step_cap(t),
+            };
+            // A frame whose steps are all done is written before a signal is looked at, so the
+            // frame at a checkpoint's step is never dropped while the checkpoint is kept.
+            let Some(cap) = cap else { return Ok(()) };
+            if interrupt::requested() {
+                return Err(Stop::Interrupted);
+            }
+            let info = solver
+                .step(particles, cap)
+                .map_err(|e| Stop::Failed(e.to_string()))?;
+            summary.dt_min = summary.dt_min.min(info.dt);
+            summary.dt_max = summary.dt_max.max(info.dt);
+            if let Some(c) = checkpoints.as_deref_mut() {
+                c.after_step(info.step, info.time, particles)
+                    .map_err(Stop::Failed)?;
+            }
+            let wall = clock.start.elapsed().as_secs_f64();
+            progress.update(info.step, info.time, clock.end, wall, clock.from);
         }
-        let info = solver
-            .step(particles, cap)
-            .map_err(|e| Stop::Failed(e.to_string()))?;
-        summary.dt_min = summary.dt_min.min(info.dt);
-        summary.dt_max = summary.dt_max.max(info.dt);
-        if let Some(c) = checkpoints.as_deref_mut() {
-            c.after_step(info.step, info.time, particles)
-                .map_err(Stop::Failed)?;
-        }
-        let wall = clock.start.elapsed().as_secs_f64();
-        progress.update(info.step, info.time, clock.end, wall, clock.from);
-    }
+    })
 }
 
 /// The solver that takes the steps: the CPU solver on the run's particles, or the GPU solver

@@ -232,21 +232,6 @@ impl<const D: usize> ReverseStep<D> {
         adjoint: &mut ParticleAdjoint<D>,
         gradient: &mut [f64],
     ) {
-        rayon::scope(|_| self.reverse_in_pool(start, after, trace, time, adjoint, gradient));
-    }
-
-    /// [`ReverseStep::reverse`], on a thread of the current rayon pool (one hand-over per
-    /// step, as [`loam_explicit::Solver::step`]), so that its parallel phases do not each wake
-    /// the pool from outside.
-    fn reverse_in_pool(
-        &mut self,
-        start: &Particles<f64, D>,
-        after: &Particles<f64, D>,
-        trace: &StepTrace<f64, D>,
-        time: f64,
-        adjoint: &mut ParticleAdjoint<D>,
-        gradient: &mut [f64],
-    ) {
         let dt = trace.dt;
         self.locate(start);
         self.load_grid(trace);
