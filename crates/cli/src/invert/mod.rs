@@ -507,7 +507,7 @@ fn print_line<const D: usize>(inv: &Inversion<D>, history: &History, e: &Entry) 
         )
         .collect();
     println!(
-        "iter {:>4}  L {:.6e}  |g| {:.3e}  {}  {:.2} s/it  ETA {:.0} s",
+        "iter {:>4}  L {:.6e}  |g| {:.3e}  {}  {:.2} s/it  ETA ≤ {:.0} s",
         e.iteration,
         e.loss,
         e.gradient_norm,
