@@ -3,7 +3,7 @@
 use crate::blocks::{Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
 use crate::config::Config;
 use crate::error::{ConfigError, StepError};
-use crate::trace::StepTrace;
+use crate::trace::{NODES_PER_TASK, StepTrace};
 use loam_core::energy::{Energy, energy};
 use loam_core::stencil::Frame;
 use loam_core::step::{
@@ -508,18 +508,32 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         trace.sums.clear();
         trace.velocity.clear();
         trace.velocity_old.clear();
-        for (i, s) in self.sums.iter().enumerate() {
-            let (v, v_old) = (self.velocity[i], self.velocity_old[i]);
-            if *s != NodeSums::zero() || v != zero || (flip && v_old != zero) {
-                trace.index.push(i as u32);
-                trace.sums.push(*s);
-                trace.velocity.push(v);
-                if flip {
-                    trace.velocity_old.push(v_old);
-                }
-            }
-        }
         trace.nodes.clear();
+        // In parallel over the nodes; each `par_extend` keeps the nodes' order.
+        let (sums, velocity, velocity_old) = (&self.sums, &self.velocity, &self.velocity_old);
+        trace.index.par_extend(
+            (0..sums.len())
+                .into_par_iter()
+                .with_min_len(NODES_PER_TASK)
+                .filter(|&i| {
+                    sums[i] != NodeSums::zero()
+                        || velocity[i] != zero
+                        || (flip && velocity_old[i] != zero)
+                })
+                .map(|i| i as u32),
+        );
+        let index = &trace.index;
+        trace
+            .sums
+            .par_extend(index.par_iter().map(|&i| sums[i as usize]));
+        trace
+            .velocity
+            .par_extend(index.par_iter().map(|&i| velocity[i as usize]));
+        if flip {
+            trace
+                .velocity_old
+                .par_extend(index.par_iter().map(|&i| velocity_old[i as usize]));
+        }
         trace.nodes.extend(self.acted_nodes());
     }
 
@@ -798,11 +812,18 @@ fn constants_from<T: Scalar, const D: usize>(start: &Particles<T, D>, out: &mut 
         out.clone_from(start);
         return;
     }
-    out.a.clone_from(&start.a);
-    out.mass.clone_from(&start.mass);
-    out.volume0.clone_from(&start.volume0);
-    out.half_width0.clone_from(&start.half_width0);
-    out.material.clone_from(&start.material);
+    // Two halves of about the same bytes, copied at the same time.
+    rayon::join(
+        || {
+            out.a.clone_from(&start.a);
+            out.mass.clone_from(&start.mass);
+        },
+        || {
+            out.volume0.clone_from(&start.volume0);
+            out.half_width0.clone_from(&start.half_width0);
+            out.material.clone_from(&start.material);
+        },
+    );
 }
 
 /// Stops the run on NaN/Inf in any particle field or an inverted particle.

@@ -4,6 +4,10 @@
 use loam_core::Scalar;
 use loam_core::step::{NodeState, NodeSums};
 use loam_core::tensor::Vector;
+use rayon::prelude::*;
+
+/// Grid nodes per parallel task when a trace is written out or kept.
+pub(crate) const NODES_PER_TASK: usize = 1024;
 
 /// The grid of one step's first projection, as the step computed it, kept compactly (only
 /// the nodes whose values are not zero): a reverse pass reads it instead of forming the step's
@@ -62,23 +66,43 @@ pub struct GridFields<'a, T: Scalar, const D: usize> {
 
 impl<T: Scalar, const D: usize> StepTrace<T, D> {
     /// Writes the step's grid on every node into `out` (zero, or free, on the nodes not
-    /// kept): the arrays the step itself held.
+    /// kept): the arrays the step itself held. In parallel over fixed ranges of nodes, each
+    /// range finding its kept nodes by bisection of the increasing `index` and `nodes`.
     pub fn expand(&self, out: GridFields<'_, T, D>) {
-        out.sums.fill(NodeSums::zero());
-        out.velocity.fill(Vector::zeros());
-        out.velocity_old.fill(Vector::zeros());
-        out.states.fill(NodeState::default());
-        for (k, &i) in self.index.iter().enumerate() {
-            let i = i as usize;
-            out.sums[i] = self.sums[k];
-            out.velocity[i] = self.velocity[k];
-            if self.flip {
-                out.velocity_old[i] = self.velocity_old[k];
-            }
-        }
-        for &(i, state) in &self.nodes {
-            out.states[i] = state;
-        }
+        let GridFields {
+            sums,
+            velocity,
+            velocity_old,
+            states,
+        } = out;
+        let flip = self.flip;
+        sums.par_chunks_mut(NODES_PER_TASK)
+            .zip(velocity.par_chunks_mut(NODES_PER_TASK))
+            .zip(velocity_old.par_chunks_mut(NODES_PER_TASK))
+            .zip(states.par_chunks_mut(NODES_PER_TASK))
+            .enumerate()
+            .for_each(|(chunk, (((sums, velocity), velocity_old), states))| {
+                let lo = chunk * NODES_PER_TASK;
+                let hi = lo + sums.len();
+                sums.fill(NodeSums::zero());
+                velocity.fill(Vector::zeros());
+                velocity_old.fill(Vector::zeros());
+                states.fill(NodeState::default());
+                let k0 = self.index.partition_point(|&i| (i as usize) < lo);
+                let k1 = self.index.partition_point(|&i| (i as usize) < hi);
+                for k in k0..k1 {
+                    let i = self.index[k] as usize - lo;
+                    sums[i] = self.sums[k];
+                    velocity[i] = self.velocity[k];
+                    if flip {
+                        velocity_old[i] = self.velocity_old[k];
+                    }
+                }
+                let n0 = self.nodes.partition_point(|&(i, _)| i < lo);
+                for &(i, state) in self.nodes[n0..].iter().take_while(|(i, _)| *i < hi) {
+                    states[i - lo] = state;
+                }
+            });
     }
 
     /// Bytes held by the trace's buffers.

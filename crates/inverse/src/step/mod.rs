@@ -31,8 +31,8 @@
 //! `tests/adjoint.rs` checks the gradient against forward-mode duals on scenes with stick,
 //! slip and yield.
 //!
-//! Sums over particles into nodes (the scatters) run serially in particle order, and the
-//! parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
+//! Sums over particles into nodes (the scatters) run in particle order over two fixed halves of
+//! the particles, whose sums are then added per node, and the parameters' shares are summed per fixed chunk of particles or nodes and then in chunk
 //! order: the gradient has the same bits at any thread count.
 
 mod fluid_mls;
@@ -103,6 +103,9 @@ struct GridScratch<const D: usize> {
     adj_f: Vec<Vector<f64, D>>,
     adj_v_hat: Vec<Vector<f64, D>>,
     adj_v_old: Vec<Vector<f64, D>>,
+    /// The second half of a scatter's sums ([`ReverseStep::add_scatter`]).
+    half: Vec<Vector<f64, D>>,
+    half_old: Vec<Vector<f64, D>>,
 }
 
 /// One particle's share of the adjoint of the start-of-step state from the stages after P2G
@@ -161,6 +164,37 @@ fn pack_end_adjoint<const D: usize>(a: &ParticleAdjoint<D>, i: usize, out: &mut 
     out.matrix3(&a.tensor[i]);
 }
 
+/// Sums the entries of a scatter, in their order, into `adj` (and their `vⁿ` shares into
+/// `old`) after zeroing them: `adj_i = Σ_{entries at i} v̂̄ share`.
+fn sum_scatter<const D: usize>(
+    entries: &[(usize, Vector<f64, D>, Vector<f64, D>)],
+    adj: &mut [Vector<f64, D>],
+    old: Option<&mut [Vector<f64, D>]>,
+) {
+    adj.fill(Vector::zeros());
+    match old {
+        Some(old) => {
+            old.fill(Vector::zeros());
+            for &(node, a, a_old) in entries {
+                adj[node] += a;
+                old[node] += a_old;
+            }
+        }
+        None => {
+            for &(node, a, _) in entries {
+                adj[node] += a;
+            }
+        }
+    }
+}
+
+/// `a_i += b_i` on every node, in parallel.
+fn add_nodes<const D: usize>(a: &mut [Vector<f64, D>], b: &[Vector<f64, D>]) {
+    a.par_chunks_mut(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(a, b)| *a += b));
+}
+
 /// Adds per-chunk parameter shares to the gradient, in chunk order.
 fn add_parts(gradient: &mut [f64], parts: Vec<Vec<f64>>) {
     for part in parts {
@@ -210,6 +244,8 @@ impl<const D: usize> ReverseStep<D> {
                 adj_f: vec![Vector::zeros(); n],
                 adj_v_hat: vec![Vector::zeros(); n],
                 adj_v_old: vec![Vector::zeros(); n],
+                half: vec![Vector::zeros(); n],
+                half_old: vec![Vector::zeros(); n],
             },
             stencils: Vec::new(),
             scatter: Vec::new(),
@@ -358,31 +394,42 @@ impl<const D: usize> ReverseStep<D> {
             velocity_old: &mut g.v_old,
             states: &mut g.states,
         });
-        for (live, s) in g.live.iter_mut().zip(&g.sums) {
-            *live = s.m > trace.mass_floor;
-        }
+        let floor = trace.mass_floor;
+        g.live
+            .par_iter_mut()
+            .zip(g.sums.par_iter())
+            .with_min_len(CHUNK)
+            .for_each(|(live, s)| *live = s.m > floor);
     }
 
-    /// Adds a scatter into `adj` (serially, in particle order) after zeroing it, and the `vⁿ`
-    /// shares into `adj_old` when given.
+    /// Adds a scatter into `adj` after zeroing it, and the `vⁿ` shares into `adj_old` when
+    /// given. The scatter is cut into two fixed halves (by entry count, so the cut does not
+    /// depend on the thread count); each half is summed in particle order into an array of its
+    /// own (the second into `half`, `half_old`) at the same time, then `adj = first + second`
+    /// per node: the same bits at any thread count, with both halves' sums running at once.
     fn add_scatter(
         scatter: &Scatter<D>,
         adj: &mut [Vector<f64, D>],
         adj_old: Option<&mut [Vector<f64, D>]>,
+        half: &mut [Vector<f64, D>],
+        half_old: &mut [Vector<f64, D>],
     ) {
-        adj.fill(Vector::zeros());
+        let (first, second) = scatter.split_at(scatter.len() / 2);
         match adj_old {
             Some(old) => {
-                old.fill(Vector::zeros());
-                for &(node, a, a_old) in scatter {
-                    adj[node] += a;
-                    old[node] += a_old;
-                }
+                rayon::join(
+                    || sum_scatter(first, adj, Some(&mut *old)),
+                    || sum_scatter(second, half, Some(&mut *half_old)),
+                );
+                add_nodes(adj, half);
+                add_nodes(old, half_old);
             }
             None => {
-                for &(node, a, _) in scatter {
-                    adj[node] += a;
-                }
+                rayon::join(
+                    || sum_scatter(first, adj, None),
+                    || sum_scatter(second, half, None),
+                );
+                add_nodes(adj, half);
             }
         }
     }
@@ -397,6 +444,8 @@ impl<const D: usize> ReverseStep<D> {
             scatter,
             &mut g.adj_v_hat,
             flip.then_some(&mut g.adj_v_old[..]),
+            &mut g.half,
+            &mut g.half_old,
         );
         cfg.boundary
             .reflect_ghosts_adjoint(&cfg.grid, &mut g.adj_v_hat);

@@ -151,7 +151,8 @@ impl<const D: usize> ReverseStep<D> {
             .collect();
         add_parts(gradient, parts);
         let mut adj_v2 = vec![Vector::zeros(); n_nodes];
-        Self::add_scatter(&scatter, &mut adj_v2, None);
+        let mut half = vec![Vector::zeros(); n_nodes];
+        Self::add_scatter(&scatter, &mut adj_v2, None, &mut half, &mut []);
         cfg.boundary.reflect_ghosts_adjoint(grid, &mut adj_v2);
 
         // Reverse of the second projection, per live node.
