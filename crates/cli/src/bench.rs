@@ -147,11 +147,20 @@ struct Measured {
     wall: f64,
     /// Newton iterations (implicit only).
     iterations: Option<usize>,
-    /// Gradient time over forward time, the forward time and the adjoint's segment length
-    /// `K` (the gradient bench only).
-    ratio: Option<(f64, f64, usize)>,
+    /// The gradient against its forward run (the gradient bench only).
+    ratio: Option<Ratio>,
     /// The bytes of the buffers the GPU solver allocated (GPU benches only).
     device_bytes: Option<u64>,
+}
+
+/// A gradient timed against one forward run of the same steps.
+struct Ratio {
+    /// Wall time of the forward run, seconds.
+    forward: f64,
+    /// The adjoint's segment length `K`.
+    segment: usize,
+    /// The gradient's own parts.
+    phases: loam_inverse::Phases,
 }
 
 impl Measured {
@@ -258,12 +267,22 @@ pub fn bench(
             (_, false) => explicit::<f64>(b.name, n),
             (_, true) => explicit::<f32>(b.name, n),
         };
-        let note = match (m.iterations, m.ratio) {
+        let note = match (m.iterations, &m.ratio) {
             (Some(k), _) => format!("{k} Newton iterations"),
-            (_, Some((r, fwd, k))) => format!(
-                "gradient / forward {r:.2} (forward {fwd:.3} s; segments of {k} steps; peak RSS {})",
-                peak_memory()
-            ),
+            (_, Some(r)) => {
+                let p = r.phases;
+                format!(
+                    "gradient / forward {:.2} (forward {:.3} s; the gradient's forward pass {:.3} s, \
+                     recomputation {:.3} s, reverse steps {:.3} s; segments of {} steps; peak RSS {})",
+                    m.wall / r.forward,
+                    r.forward,
+                    p.forward,
+                    p.recomputed,
+                    p.reverse,
+                    r.segment,
+                    peak_memory()
+                )
+            }
             _ => String::new(),
         };
         let row = format!(
@@ -519,7 +538,11 @@ fn gradient(steps: usize, memory: Option<u64>) -> Result<Measured, loam_inverse:
         steps,
         wall,
         iterations: None,
-        ratio: Some((wall / forward, forward, g.segment)),
+        ratio: Some(Ratio {
+            forward,
+            segment: g.segment,
+            phases: g.phases,
+        }),
         device_bytes: None,
     })
 }
@@ -593,8 +616,12 @@ fn write_json(path: &Path, results: &[Measured]) -> std::io::Result<()> {
                 "wall_s": m.wall,
                 "particle_steps_per_s": m.rate(),
                 "newton_iterations": m.iterations,
-                "gradient_over_forward": m.ratio.map(|r| r.0),
-                "segment_steps": m.ratio.map(|r| r.2),
+                "gradient_over_forward": m.ratio.as_ref().map(|r| m.wall / r.forward),
+                "forward_s": m.ratio.as_ref().map(|r| r.forward),
+                "gradient_forward_pass_s": m.ratio.as_ref().map(|r| r.phases.forward),
+                "gradient_recomputation_s": m.ratio.as_ref().map(|r| r.phases.recomputed),
+                "gradient_reverse_s": m.ratio.as_ref().map(|r| r.phases.reverse),
+                "segment_steps": m.ratio.as_ref().map(|r| r.segment),
                 "device_bytes": m.device_bytes,
                 "threads": rayon::current_num_threads(),
                 "cpu": cpu_model(),

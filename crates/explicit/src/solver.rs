@@ -3,7 +3,7 @@
 use crate::blocks::{Blocks, MIN_ROWS_PER_TASK, OFF_GRID};
 use crate::config::Config;
 use crate::error::{ConfigError, StepError};
-use crate::trace::{NODES_PER_TASK, StepTrace};
+use crate::trace::{GroupTrace, StepTrace};
 use loam_core::energy::{Energy, energy};
 use loam_core::stencil::Frame;
 use loam_core::step::{
@@ -319,11 +319,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             }
             self.blocks.sort(&self.keys);
             self.mass_floor = MASS_EPS * located.max_mass;
-            self.transfer_to_grid::<TRACE>(before, dt);
+            self.transfer_to_grid::<TRACE>(before, dt, &mut trace.groups);
             dt
         };
         if TRACE {
-            self.trace_grid(trace, dt);
+            trace.dt = dt;
+            trace.mass_floor = self.mass_floor;
+            trace.flip = self.config.transfer.needs_old_grid_velocity();
         }
         if RECORD {
             self.record_nodes(record, dt);
@@ -495,53 +497,17 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .map(|(i, (&a, _))| (i, a))
     }
 
-    /// The grid of this step's first projection into `trace` (before MUSL's second projection
-    /// overwrites the velocities): the nodes whose sums or velocities are not zero, their
-    /// values, the acted nodes, `Δt` and the node floor.
-    fn trace_grid(&self, trace: &mut StepTrace<T, D>, dt: f64) {
-        let flip = self.config.transfer.needs_old_grid_velocity();
-        let zero = Vector::<T, D>::zeros();
-        trace.dt = dt;
-        trace.mass_floor = self.mass_floor;
-        trace.flip = flip;
-        trace.index.clear();
-        trace.sums.clear();
-        trace.velocity.clear();
-        trace.velocity_old.clear();
-        trace.nodes.clear();
-        // In parallel over the nodes; each `par_extend` keeps the nodes' order.
-        let (sums, velocity, velocity_old) = (&self.sums, &self.velocity, &self.velocity_old);
-        trace.index.par_extend(
-            (0..sums.len())
-                .into_par_iter()
-                .with_min_len(NODES_PER_TASK)
-                .filter(|&i| {
-                    sums[i] != NodeSums::zero()
-                        || velocity[i] != zero
-                        || (flip && velocity_old[i] != zero)
-                })
-                .map(|i| i as u32),
-        );
-        let index = &trace.index;
-        trace
-            .sums
-            .par_extend(index.par_iter().map(|&i| sums[i as usize]));
-        trace
-            .velocity
-            .par_extend(index.par_iter().map(|&i| velocity[i as usize]));
-        if flip {
-            trace
-                .velocity_old
-                .par_extend(index.par_iter().map(|&i| velocity_old[i as usize]));
-        }
-        trace.nodes.extend(self.acted_nodes());
-    }
-
     /// Stage 1, P2G of mass, momentum and internal force ([`P2g`]), then stage 2, the grid
     /// update ([`momentum_update`], [`NodeLaw::apply`]): `v_i = p_i/m_i`,
-    /// `v_i ← v_i + Δt (f_i/m_i + g)`, contact and walls. With `TRACE`, `self.sums` receives
-    /// every node's folded P2G sums (the update's inputs).
-    fn transfer_to_grid<const TRACE: bool>(&mut self, p: &Particles<T, D>, dt: f64) {
+    /// `v_i ← v_i + Δt (f_i/m_i + g)`, contact and walls. With `TRACE`, each row group keeps
+    /// its nodes of the step's grid into its entry of `trace` as its update ends
+    /// ([`GroupTrace::keep`]; the folded P2G sums, the update's inputs, wait in `self.sums`).
+    fn transfer_to_grid<const TRACE: bool>(
+        &mut self,
+        p: &Particles<T, D>,
+        dt: f64,
+        trace: &mut Vec<GroupTrace<T, D>>,
+    ) {
         let cfg = &self.config;
         let dtt = T::cst(dt);
         if self.kernels.len() != p.len() {
@@ -567,11 +533,16 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let law = NodeLaw::new(grid, boundary, &cfg.contact, self.time + dt);
         let flip = cfg.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
-        let sums: Vec<&mut [NodeSums<T, D>]> = if TRACE {
+        // With `TRACE`, per row group: its part of `self.sums` and its entry of `trace`.
+        let kept: Vec<Option<Kept<'_, T, D>>> = if TRACE {
             self.sums.resize(grid.num_nodes(), NodeSums::zero());
-            blocks.split_groups(&mut self.sums)
+            trace.resize_with(blocks.groups().len(), GroupTrace::default);
+            (blocks.split_groups(&mut self.sums).into_iter())
+                .zip(trace.iter_mut())
+                .map(Some)
+                .collect()
         } else {
-            blocks.groups().iter().map(|_| Default::default()).collect()
+            blocks.groups().iter().map(|_| None).collect()
         };
         // One pass over the row groups (closed under the wall mirrors): gather the block
         // buffers (momentum into `velocity_old`, force into `velocity` until the velocities
@@ -583,10 +554,10 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(blocks.split_groups(&mut self.velocity_old))
             .zip(blocks.split_groups(&mut self.velocity))
             .zip(blocks.split_groups(&mut self.active))
-            .zip(sums)
+            .zip(kept)
             .zip(blocks.groups().par_iter())
             .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(((((m, v_old), v), active), sums), &(r0, r1))| {
+            .for_each(|(((((m, v_old), v), active), mut kept), &(r0, r1))| {
                 let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
                 for r in r0..r1 {
                     let at = rows(r);
@@ -594,7 +565,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 }
                 let nodes = r0 * n..r1 * n;
                 boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
-                if TRACE {
+                if let Some((sums, _)) = &mut kept {
                     for (k, s) in sums.iter_mut().enumerate() {
                         *s = NodeSums {
                             m: m[k],
@@ -624,7 +595,11 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                 }
                 boundary.reflect_ghosts_in(grid, nodes.clone(), v);
                 if flip {
-                    boundary.reflect_ghosts_in(grid, nodes, v_old);
+                    boundary.reflect_ghosts_in(grid, nodes.clone(), v_old);
+                }
+                if let Some((sums, trace)) = kept {
+                    let span = (nodes.start, nodes.end);
+                    trace.keep(span, sums, v, v_old, active, floor, flip);
                 }
             });
     }
@@ -825,6 +800,9 @@ fn constants_from<T: Scalar, const D: usize>(start: &Particles<T, D>, out: &mut 
         },
     );
 }
+
+/// A row group's part of the folded P2G sums and its entry of a step's trace.
+type Kept<'a, T, const D: usize> = (&'a mut [NodeSums<T, D>], &'a mut GroupTrace<T, D>);
 
 /// Stops the run on NaN/Inf in any particle field or an inverted particle.
 fn check_particles<T: Scalar, const D: usize>(

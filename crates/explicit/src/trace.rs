@@ -6,13 +6,11 @@ use loam_core::step::{NodeState, NodeSums};
 use loam_core::tensor::Vector;
 use rayon::prelude::*;
 
-/// Grid nodes per parallel task when a trace is written out or kept.
-pub(crate) const NODES_PER_TASK: usize = 1024;
-
 /// The grid of one step's first projection, as the step computed it, kept compactly (only
 /// the nodes whose values are not zero): a reverse pass reads it instead of forming the step's
 /// grid again, so its local derivatives are taken at exactly the forward pass's values, sums
-/// and branches included.
+/// and branches included. It is kept row group by row group of the grid (the groups the grid
+/// update runs in parallel), as each group's update ends.
 #[derive(Clone, Debug)]
 pub struct StepTrace<T: Scalar, const D: usize> {
     /// The step size taken.
@@ -22,6 +20,17 @@ pub struct StepTrace<T: Scalar, const D: usize> {
     pub mass_floor: f64,
     /// Whether the transfer reads `vⁿ` (FLIP), so that it is kept.
     pub flip: bool,
+    /// The kept nodes of each row group of the grid, the groups in order: together they
+    /// cover every node once.
+    pub groups: Vec<GroupTrace<T, D>>,
+}
+
+/// The kept nodes of one row group of a step's grid (a contiguous range of flat node
+/// indices), in increasing order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroupTrace<T: Scalar, const D: usize> {
+    /// The group's flat node indices, `start..end`.
+    pub span: (usize, usize),
     /// The nodes kept (flat index, increasing): those whose sums or velocities are not zero.
     pub index: Vec<u32>,
     /// Per kept node, the P2G sums `(m_i, P_i, f_i)` after the fold of the ghosts: the node
@@ -29,8 +38,8 @@ pub struct StepTrace<T: Scalar, const D: usize> {
     pub sums: Vec<NodeSums<T, D>>,
     /// Per kept node, the updated velocity `v̂_i` (contact, walls, reflection).
     pub velocity: Vec<Vector<T, D>>,
-    /// Per kept node, the start-of-step velocity `vⁿ_i = P_i / m_i` (reflected), when `flip`;
-    /// empty otherwise.
+    /// Per kept node, the start-of-step velocity `vⁿ_i = P_i / m_i` (reflected), when the
+    /// trace's `flip`; empty otherwise.
     pub velocity_old: Vec<Vector<T, D>>,
     /// The nodes where a unilateral constraint acted (flat index, what acted and whether it
     /// stuck or slid), in increasing order; every other node that took part was free.
@@ -43,11 +52,60 @@ impl<T: Scalar, const D: usize> Default for StepTrace<T, D> {
             dt: 0.0,
             mass_floor: 0.0,
             flip: false,
+            groups: Vec::new(),
+        }
+    }
+}
+
+impl<T: Scalar, const D: usize> Default for GroupTrace<T, D> {
+    fn default() -> Self {
+        Self {
+            span: (0, 0),
             index: Vec::new(),
             sums: Vec::new(),
             velocity: Vec::new(),
             velocity_old: Vec::new(),
             nodes: Vec::new(),
+        }
+    }
+}
+
+impl<T: Scalar, const D: usize> GroupTrace<T, D> {
+    /// Keeps the nodes `span` of a step's grid, given as the group's slices: the folded P2G
+    /// sums, the velocities `v̂`, `vⁿ`, the masses and what the node law did. A node is kept
+    /// where its sums or velocities are not zero (`vⁿ` only with `flip`); a node that took
+    /// part (`m_i` above `floor`) and was not free is an acted node. The buffers are reused.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn keep(
+        &mut self,
+        span: (usize, usize),
+        sums: &[NodeSums<T, D>],
+        velocity: &[Vector<T, D>],
+        velocity_old: &[Vector<T, D>],
+        active: &[NodeState],
+        floor: f64,
+        flip: bool,
+    ) {
+        let zero = Vector::<T, D>::zeros();
+        self.span = span;
+        self.index.clear();
+        self.sums.clear();
+        self.velocity.clear();
+        self.velocity_old.clear();
+        self.nodes.clear();
+        for (k, s) in sums.iter().enumerate() {
+            let (v, v_old) = (velocity[k], velocity_old[k]);
+            if *s != NodeSums::zero() || v != zero || (flip && v_old != zero) {
+                self.index.push((span.0 + k) as u32);
+                self.sums.push(*s);
+                self.velocity.push(v);
+                if flip {
+                    self.velocity_old.push(v_old);
+                }
+            }
+            if s.m.re() > floor && !active[k].is_free() {
+                self.nodes.push((span.0 + k, active[k]));
+            }
         }
     }
 }
@@ -66,50 +124,69 @@ pub struct GridFields<'a, T: Scalar, const D: usize> {
 
 impl<T: Scalar, const D: usize> StepTrace<T, D> {
     /// Writes the step's grid on every node into `out` (zero, or free, on the nodes not
-    /// kept): the arrays the step itself held. In parallel over fixed ranges of nodes, each
-    /// range finding its kept nodes by bisection of the increasing `index` and `nodes`.
+    /// kept): the arrays the step itself held. In parallel over the row groups.
     pub fn expand(&self, out: GridFields<'_, T, D>) {
         let GridFields {
-            sums,
-            velocity,
-            velocity_old,
-            states,
+            mut sums,
+            mut velocity,
+            mut velocity_old,
+            mut states,
         } = out;
+        let mut parts = Vec::with_capacity(self.groups.len());
+        for g in &self.groups {
+            let len = g.span.1 - g.span.0;
+            let (s, rest) = std::mem::take(&mut sums).split_at_mut(len);
+            let (v, rest_v) = std::mem::take(&mut velocity).split_at_mut(len);
+            let (vo, rest_vo) = std::mem::take(&mut velocity_old).split_at_mut(len);
+            let (st, rest_st) = std::mem::take(&mut states).split_at_mut(len);
+            (sums, velocity, velocity_old, states) = (rest, rest_v, rest_vo, rest_st);
+            parts.push((g, s, v, vo, st));
+        }
         let flip = self.flip;
-        sums.par_chunks_mut(NODES_PER_TASK)
-            .zip(velocity.par_chunks_mut(NODES_PER_TASK))
-            .zip(velocity_old.par_chunks_mut(NODES_PER_TASK))
-            .zip(states.par_chunks_mut(NODES_PER_TASK))
-            .enumerate()
-            .for_each(|(chunk, (((sums, velocity), velocity_old), states))| {
-                let lo = chunk * NODES_PER_TASK;
-                let hi = lo + sums.len();
+        parts
+            .into_par_iter()
+            .for_each(|(g, sums, velocity, velocity_old, states)| {
+                let lo = g.span.0;
                 sums.fill(NodeSums::zero());
                 velocity.fill(Vector::zeros());
                 velocity_old.fill(Vector::zeros());
                 states.fill(NodeState::default());
-                let k0 = self.index.partition_point(|&i| (i as usize) < lo);
-                let k1 = self.index.partition_point(|&i| (i as usize) < hi);
-                for k in k0..k1 {
-                    let i = self.index[k] as usize - lo;
-                    sums[i] = self.sums[k];
-                    velocity[i] = self.velocity[k];
+                for (k, &i) in g.index.iter().enumerate() {
+                    let i = i as usize - lo;
+                    sums[i] = g.sums[k];
+                    velocity[i] = g.velocity[k];
                     if flip {
-                        velocity_old[i] = self.velocity_old[k];
+                        velocity_old[i] = g.velocity_old[k];
                     }
                 }
-                let n0 = self.nodes.partition_point(|&(i, _)| i < lo);
-                for &(i, state) in self.nodes[n0..].iter().take_while(|(i, _)| *i < hi) {
+                for &(i, state) in &g.nodes {
                     states[i - lo] = state;
                 }
             });
     }
 
+    /// The nodes kept, over all groups.
+    pub fn kept(&self) -> usize {
+        self.groups.iter().map(|g| g.index.len()).sum()
+    }
+
+    /// The nodes where a unilateral constraint acted, in increasing order.
+    pub fn acted(&self) -> impl Iterator<Item = (usize, NodeState)> + '_ {
+        self.groups.iter().flat_map(|g| g.nodes.iter().copied())
+    }
+
     /// Bytes held by the trace's buffers.
     pub fn bytes(&self) -> usize {
-        self.index.capacity() * size_of::<u32>()
-            + self.sums.capacity() * size_of::<NodeSums<T, D>>()
-            + (self.velocity.capacity() + self.velocity_old.capacity()) * size_of::<Vector<T, D>>()
-            + self.nodes.capacity() * size_of::<(usize, NodeState)>()
+        self.groups
+            .iter()
+            .map(|g| {
+                g.index.capacity() * size_of::<u32>()
+                    + g.sums.capacity() * size_of::<NodeSums<T, D>>()
+                    + (g.velocity.capacity() + g.velocity_old.capacity())
+                        * size_of::<Vector<T, D>>()
+                    + g.nodes.capacity() * size_of::<(usize, NodeState)>()
+            })
+            .sum::<usize>()
+            + self.groups.capacity() * size_of::<GroupTrace<T, D>>()
     }
 }

@@ -24,6 +24,7 @@ use crate::params::{Acts, MaterialField, Param};
 use crate::step::ReverseStep;
 use loam_core::Particles;
 use loam_explicit::{Config, Solver, StepTrace};
+use std::time::Instant;
 
 /// The gradient of a loss over a run.
 #[derive(Clone, Debug)]
@@ -41,6 +42,20 @@ pub struct Gradient<const D: usize> {
     pub segment: usize,
     /// The memory model's bytes at that `K` ([`Footprint::bytes`]).
     pub memory: u64,
+    /// Where the wall time went.
+    pub phases: Phases,
+}
+
+/// Wall time of a gradient's three parts, in seconds: the gradient costs
+/// `forward + recomputed + reverse`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Phases {
+    /// The forward pass: the run with its checkpoints, the loss, the last segment traced.
+    pub forward: f64,
+    /// The recomputation of every segment but the last from its checkpoint, traced.
+    pub recomputed: f64,
+    /// The reverse steps, with the loss terms' adjoints.
+    pub reverse: f64,
 }
 
 /// `L` and `dL/dθ` for a run of `steps` steps of `config` from `initial`, with respect to
@@ -78,6 +93,8 @@ pub fn gradient<const D: usize>(
         let mut traces: Vec<StepTrace<f64, D>> = Vec::with_capacity(steps - last);
         let mut times = Vec::with_capacity(steps + 1);
         let mut dts = Vec::with_capacity(steps);
+        let clock = Instant::now();
+        let mut phases = Phases::default();
         let mut loss = objective.term(0, &p, None);
         times.push(0.0);
         for s in 0..steps {
@@ -96,6 +113,7 @@ pub fn gradient<const D: usize>(
             times.push(info.time);
             loss += objective.term(s + 1, &p, None);
         }
+        phases.forward = clock.elapsed().as_secs_f64();
         // Reverse, segment by segment, the last one from the forward pass's trace.
         let mut adjoint = ParticleAdjoint::zeros(p.len());
         let mut grad = vec![0.0; params.len()];
@@ -103,6 +121,7 @@ pub fn gradient<const D: usize>(
         let (mut next, mut end) = (Particles::default(), Particles::default());
         for (j, &s0) in starts.iter().enumerate().rev() {
             let s1 = starts.get(j + 1).copied().unwrap_or(steps);
+            let clock = Instant::now();
             if s1 < steps {
                 // `next` holds the state at `s1`, where the segment must end. Each step goes from
                 // one kept state into the next one's buffer (the last into `end`), uncopied.
@@ -131,6 +150,8 @@ pub fn gradient<const D: usize>(
                     });
                 }
             }
+            let replayed = clock.elapsed().as_secs_f64();
+            phases.recomputed += replayed;
             for s in (s0..s1).rev() {
                 let start = &states[s - s0];
                 // The state after the step: the next traced start, or the segment's end.
@@ -146,6 +167,7 @@ pub fn gradient<const D: usize>(
             if s0 < s1 {
                 std::mem::swap(&mut next, &mut states[0]);
             }
+            phases.reverse += clock.elapsed().as_secs_f64() - replayed;
         }
         // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.
         for (k, param) in params.iter().enumerate() {
@@ -165,6 +187,7 @@ pub fn gradient<const D: usize>(
             steps,
             segment: k,
             memory: footprint.bytes(k),
+            phases,
         })
     })
 }

@@ -51,7 +51,7 @@ pub use checkpoints::{Checkpoints, Footprint};
 pub use deposit::{DepositProfile, Station};
 pub use error::AdjointError;
 pub use field::{Mlp, SplitMix64, VelocityField};
-pub use gradient::{Gradient, gradient};
+pub use gradient::{Gradient, Phases, gradient};
 pub use objective::{Objective, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, LevenbergMarquardt, Optimiser};
