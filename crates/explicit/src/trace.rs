@@ -87,27 +87,41 @@ impl<T: Scalar, const D: usize> GroupTrace<T, D> {
         flip: bool,
     ) {
         let zero = Vector::<T, D>::zeros();
+        let kept = |k: usize| {
+            sums[k] != NodeSums::zero() || velocity[k] != zero || (flip && velocity_old[k] != zero)
+        };
+        let acted = |k: usize| sums[k].m.re() > floor && !active[k].is_free();
+        // Counted first, so that each buffer holds exactly what the largest use of it needs
+        // (a trace is one of many kept at once; growth by doubling would hold up to twice).
+        let (n_kept, n_acted) = (0..sums.len()).fold((0, 0), |(a, b), k| {
+            (a + kept(k) as usize, b + acted(k) as usize)
+        });
         self.span = span;
-        self.index.clear();
-        self.sums.clear();
-        self.velocity.clear();
-        self.velocity_old.clear();
-        self.nodes.clear();
-        for (k, s) in sums.iter().enumerate() {
-            let (v, v_old) = (velocity[k], velocity_old[k]);
-            if *s != NodeSums::zero() || v != zero || (flip && v_old != zero) {
+        fit(&mut self.index, n_kept);
+        fit(&mut self.sums, n_kept);
+        fit(&mut self.velocity, n_kept);
+        fit(&mut self.velocity_old, if flip { n_kept } else { 0 });
+        fit(&mut self.nodes, n_acted);
+        for k in 0..sums.len() {
+            if kept(k) {
                 self.index.push((span.0 + k) as u32);
-                self.sums.push(*s);
-                self.velocity.push(v);
+                self.sums.push(sums[k]);
+                self.velocity.push(velocity[k]);
                 if flip {
-                    self.velocity_old.push(v_old);
+                    self.velocity_old.push(velocity_old[k]);
                 }
             }
-            if s.m.re() > floor && !active[k].is_free() {
+            if acted(k) {
                 self.nodes.push((span.0 + k, active[k]));
             }
         }
     }
+}
+
+/// Empties `v` and makes room for `n` entries, allocating no more than that.
+fn fit<X>(v: &mut Vec<X>, n: usize) {
+    v.clear();
+    v.reserve_exact(n);
 }
 
 /// The grid of a step on every node: what [`StepTrace::expand`] writes.
