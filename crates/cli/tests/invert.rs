@@ -429,6 +429,25 @@ fn memory_budget_keeps_the_gradient_and_refuses_what_cannot_fit() {
     );
     assert!(!values(&plain).is_empty(), "{}", text(&plain));
     assert_eq!(values(&plain), values(&roomy));
+    // The report says how: the whole run traced in one segment with the budget, shorter
+    // segments (some steps run twice) and less memory kept without it.
+    let how = |o: &Output| -> (usize, usize, usize) {
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let steps = out.split(" over ").nth(1).and_then(|r| r.split(' ').next());
+        let segment = out
+            .split("segments of ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next());
+        let kept = out
+            .split(" steps, ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next());
+        let number = |t: Option<&str>| t.and_then(|t| t.parse().ok()).expect(&out);
+        (number(steps), number(segment), number(kept))
+    };
+    let ((steps, k_plain, mb_plain), (_, k_roomy, mb_roomy)) = (how(&plain), how(&roomy));
+    assert_eq!(k_roomy, steps, "{}", text(&roomy));
+    assert!(k_plain < steps && mb_plain < mb_roomy, "{}", text(&plain));
     let small = loam(&["gradient", &file, "--memory", "1kB"]);
     let err = String::from_utf8_lossy(&small.stderr);
     assert_eq!(small.status.code(), Some(2), "{err}");

@@ -75,7 +75,6 @@ impl<T: Scalar, const D: usize> GroupTrace<T, D> {
     /// sums, the velocities `v̂`, `vⁿ`, the masses and what the node law did. A node is kept
     /// where its sums or velocities are not zero (`vⁿ` only with `flip`); a node that took
     /// part (`m_i` above `floor`) and was not free is an acted node. The buffers are reused.
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn keep(
         &mut self,
         span: (usize, usize),

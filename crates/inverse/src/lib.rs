@@ -56,6 +56,6 @@ pub use objective::{Objective, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, LevenbergMarquardt, Optimiser};
 pub use params::{Acts, MaterialField, Param};
-pub use problem::{Control, GaussNewtonModel, Problem, run_residuals, run_value};
+pub use problem::{Control, GaussNewtonModel, GradientCost, Problem, run_residuals, run_value};
 pub use step::ReverseStep;
 pub use variable::{Transform, Variable, softplus, softplus_inverse};

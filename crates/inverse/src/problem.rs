@@ -5,7 +5,7 @@
 use crate::checkpoints::Checkpoints;
 use crate::error::AdjointError;
 use crate::field::VelocityField;
-use crate::gradient::gradient;
+use crate::gradient::{Phases, gradient};
 use crate::objective::ScalarObjective;
 use crate::params::{MaterialField, Param};
 use loam_core::{Particles, Scalar};
@@ -58,6 +58,18 @@ impl Control {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+}
+
+/// What one gradient took: the adjoint's segment length `K`, its memory model's bytes
+/// ([`crate::Footprint::bytes`]) and the wall time of its parts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GradientCost {
+    /// Steps per segment between checkpoints.
+    pub segment: usize,
+    /// The memory model's bytes at that segment length.
+    pub memory: u64,
+    /// Where the wall time went.
+    pub phases: Phases,
 }
 
 /// A Gauss–Newton model of a least-squares loss `L = Σᵢ rᵢ(θ)²` at a point
@@ -197,6 +209,17 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
     /// # Errors
     /// As [`gradient`].
     pub fn gradient(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), AdjointError> {
+        self.gradient_and_cost(theta).map(|(loss, g, _)| (loss, g))
+    }
+
+    /// [`Problem::gradient`], with what the adjoint took to compute it.
+    ///
+    /// # Errors
+    /// As [`gradient`].
+    pub fn gradient_and_cost(
+        &self,
+        theta: &[f64],
+    ) -> Result<(f64, Vec<f64>, GradientCost), AdjointError> {
         let (config, particles) = self.setup(theta)?;
         let g = gradient(
             &config,
@@ -229,7 +252,12 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                 }
             }
         }
-        Ok((g.loss, derivative))
+        let cost = GradientCost {
+            segment: g.segment,
+            memory: g.memory,
+            phases: g.phases,
+        };
+        Ok((g.loss, derivative, cost))
     }
 
     /// The parameters of the step among the controls, in order.

@@ -117,7 +117,7 @@ fn failed(path: &Path, e: AdjointError) -> Outcome {
 fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
     let theta = &inv.initial;
     let start = Instant::now();
-    let (loss, grad) = match inv.problem.gradient(theta) {
+    let (loss, grad, cost) = match inv.problem.gradient_and_cost(theta) {
         Ok(g) => g,
         Err(e) => return failed(&inv.path, e),
     };
@@ -127,6 +127,18 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         inv.path.display(),
         inv.problem.run_length()
     );
+    if let Some(c) = cost {
+        let p = c.phases;
+        println!(
+            "  forward pass {:.2} s, recomputation {:.2} s, reverse steps {:.2} s; \
+             segments of {} steps, {} MB kept (--memory trades memory for recomputation)",
+            p.forward,
+            p.recomputed,
+            p.reverse,
+            c.segment,
+            c.memory.div_ceil(1_000_000)
+        );
+    }
     let rows = rows(&inv);
     let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(9);
     println!(

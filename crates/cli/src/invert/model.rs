@@ -3,7 +3,9 @@
 //! and the checks see only a loss and its gradient as functions of `θ`.
 
 use loam_inverse::implicit::{ImplicitParam, ImplicitProblem, check as implicit_check};
-use loam_inverse::{AdjointError, Control, GaussNewtonModel, Observations, Problem, check};
+use loam_inverse::{
+    AdjointError, Control, GaussNewtonModel, GradientCost, Observations, Problem, check,
+};
 
 /// The loss of an inversion as a function of its unknowns.
 pub enum Model<const D: usize> {
@@ -28,6 +30,23 @@ impl<const D: usize> Model<D> {
         match self {
             Self::Explicit(p) => p.gradient(theta),
             Self::Implicit { problem, .. } => problem.gradient(theta).map(|g| (g.loss, g.gradient)),
+        }
+    }
+
+    /// [`Model::gradient`], with what the explicit path's adjoint took (segments, memory,
+    /// time by part; `None` on the implicit path).
+    ///
+    /// # Errors
+    /// As [`Model::gradient`].
+    pub fn gradient_and_cost(
+        &self,
+        theta: &[f64],
+    ) -> Result<(f64, Vec<f64>, Option<GradientCost>), AdjointError> {
+        match self {
+            Self::Explicit(p) => p
+                .gradient_and_cost(theta)
+                .map(|(loss, g, cost)| (loss, g, Some(cost))),
+            Self::Implicit { .. } => self.gradient(theta).map(|(loss, g)| (loss, g, None)),
         }
     }
 
