@@ -20,4 +20,4 @@ pub use config::Config;
 pub use error::{ConfigError, StepError};
 pub use loam_core::Energy;
 pub use solver::{MASS_EPS, Solver, StepInfo};
-pub use trace::{GridFields, StepTrace};
+pub use trace::{GridFields, GroupTrace, StepTrace};
