@@ -3,7 +3,8 @@
 //! Exit codes: 0 success; 1 a run or a verification failed (a run on the GPU also when no
 //! GPU adapter is found); 2 the input (scene file, arguments) is invalid, or the scene would
 //! not fit in memory or run stably, or uses a feature the GPU path lacks (with `--device gpu`);
-//! 130 a run was interrupted by a signal (its summary says `interrupted`).
+//! 130 a run was interrupted by a signal (its summary says `interrupted`). A closed stdout
+//! or stderr pipe ends the process by SIGPIPE, as for other Unix tools.
 
 mod bench;
 mod check;
@@ -197,6 +198,12 @@ pub enum Outcome {
 const MAX_THREADS: usize = 1024;
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, so printing to a closed pipe (`loam verify --list | head -1`)
+    // would panic with "failed printing to stdout"; with the default action loam ends quietly
+    // as other Unix tools do. The frames, the series file and the inversion history on disk
+    // are each complete after every write, so what was written is kept. Setting a signal's
+    // action needs `unsafe`, which this workspace denies; the `sigpipe` crate holds that call.
+    sigpipe::reset();
     let cli = Cli::parse();
     if let Some(n) = cli.threads.filter(|&n| n > MAX_THREADS) {
         let cores = std::thread::available_parallelism().map_or(1, |c| c.get());

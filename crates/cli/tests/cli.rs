@@ -1030,3 +1030,22 @@ fn checkpoints_are_refused_for_implicit_scenes() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("for explicit runs"));
 }
+
+/// A reader that goes away (`loam verify --list | head -0`) ends loam quietly by SIGPIPE, as
+/// for other Unix tools, instead of a panic about a failed print: stdout is a pipe whose read
+/// end is closed before loam starts, so its first line meets a broken pipe.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_pipe_ends_loam_by_sigpipe_without_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    let out = Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args(["verify", "--list"])
+        .stdout(writer)
+        .output()
+        .expect("the loam binary runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.signal(), Some(13), "{:?}: {stderr}", out.status);
+}

@@ -409,10 +409,6 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
     let mut fresh = !resume;
     let reason = loop {
         let last = history.entries.last().expect("the first entry").clone();
-        if fresh {
-            print_line(&inv, &history, &last);
-        }
-        fresh = true;
         let checkpoint = Checkpoint {
             file: key.clone(),
             optimiser: optimiser.clone(),
@@ -427,6 +423,12 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
+        // Printed after it is saved: a line on the screen is an iteration on disk, also when
+        // the reader of stdout goes away (SIGPIPE) or Ctrl-C follows.
+        if fresh {
+            print_line(&inv, &history, &last);
+        }
+        fresh = true;
         if last.iteration >= stop.max_iterations {
             break format!("reached stop.max_iterations = {}", stop.max_iterations);
         }
