@@ -1,6 +1,6 @@
-//! `loam run --device gpu` and `solver.device`: a GPU run writes the output of a CPU run, a
-//! feature the GPU path lacks is refused with its field, and without an adapter the run says
-//! how to get one.
+//! `loam run --device gpu` and `solver.device`: a GPU run writes the output of a CPU run and
+//! checkpoints and resumes as one does, a feature the GPU path lacks is refused with its
+//! field, and without an adapter the run says how to get one.
 //!
 //! Under `CI=true` a missing adapter fails the tests that run on the GPU; elsewhere they say
 //! they are skipped and pass (install `mesa-vulkan-drivers` for a software adapter).
@@ -272,13 +272,89 @@ fn a_feature_the_gpu_lacks_is_refused_with_its_field() {
         "{stderr}"
     );
     assert!(!dir.path().join("gpu").exists());
-    let out = run(
-        dir.path(),
-        "gpu",
-        &scene("", FIXED),
-        &["--device", "gpu", "--checkpoint-every", "10"],
-    );
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("--checkpoint-every"), "{stderr}");
+}
+
+/// A disk obstacle moving into the water column's face, then the `[loads]` header it is put
+/// before.
+const MOVING_DISK: &str = r#"[[obstacles]]
+shape = "cylinder"
+centre = [0.55, 0.1]
+radius = 0.03
+velocity = [-0.2, 0.0]
+
+[loads]"#;
+
+/// `--checkpoint-every` and `--resume` on the GPU, with the gather (whose sums have the same
+/// bits on every run): a run saves the particles at the latest multiple of the interval, and
+/// the run continued from there writes the frames after it again byte for byte, with a fixed
+/// step (the device's step counter, which the moving disk's contact reads the time from, is
+/// restored) and with an adaptive one (the host's clock is). The continued run's summary says
+/// where it resumed.
+#[test]
+fn a_gpu_run_resumed_from_its_checkpoint_rewrites_the_later_frames_with_the_same_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let adaptive = r#"{ type = "adaptive", cfl = 0.4, max_dt = 1e-4 }"#;
+    for (name, time_step, every, saved) in [
+        ("fixed", FIXED, "120", 240),
+        ("adaptive", adaptive, "70", 140),
+    ] {
+        // 300 steps of 6e-5 s (fixed), 180 of at most 1e-4 s (adaptive): frames at 0, half
+        // way and the end, the last one after the checkpoint.
+        // A disk pushed into the water's face at 0.2 m/s: contact acts where the disk is at
+        // the end of each step, which needs the clock.
+        let text = scene("device = \"gpu\"", time_step)
+            .replace("end_time = 0.09", "end_time = 0.018")
+            .replace("[loads]", MOVING_DISK);
+        let first = run(
+            dir.path(),
+            name,
+            &text,
+            &["--p2g", "gather", "--checkpoint-every", every],
+        );
+        if no_adapter(&first) {
+            return;
+        }
+        let stderr = String::from_utf8_lossy(&first.stderr);
+        assert!(first.status.success(), "{name}: {stderr}");
+        let out = dir.path().join(name);
+        let summary = || -> serde_json::Value {
+            serde_json::from_str(
+                &std::fs::read_to_string(out.join("summary.json")).expect("summary"),
+            )
+            .expect("json")
+        };
+        let steps = summary()["steps"].as_u64().expect("steps");
+        assert_eq!(
+            summary()["checkpoint"]["step"].as_u64(),
+            Some(saved),
+            "{name}: {steps} steps"
+        );
+        assert!(
+            steps > saved,
+            "{name}: the run ends after its last checkpoint"
+        );
+        let last = std::fs::read(out.join("frame_0002.vtu")).expect("last frame");
+        let resumed = loam(&[
+            "run",
+            "--resume",
+            out.to_str().expect("utf-8"),
+            "--quiet",
+            "--p2g",
+            "gather",
+        ]);
+        let stderr = String::from_utf8_lossy(&resumed.stderr);
+        assert!(resumed.status.success(), "{name}: {stderr}");
+        assert!(
+            std::fs::read(out.join("frame_0002.vtu")).expect("last frame") == last,
+            "{name}: the frame after the checkpoint differs from the first run's"
+        );
+        let second = summary();
+        assert_eq!(second["status"], "completed");
+        assert_eq!(second["steps"].as_u64(), Some(steps), "{name}");
+        assert_eq!(
+            second["resumed_from"]["step"].as_u64(),
+            Some(saved),
+            "{name}"
+        );
+    }
 }

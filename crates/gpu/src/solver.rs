@@ -31,6 +31,8 @@ const MAX_IDS: usize = 16;
 const FLAG_TIME_STEP: usize = 5;
 const FLAG_OBSTACLE: usize = FLAG_KINDS * (1 + MAX_IDS);
 const FLAG_STEP: usize = FLAG_OBSTACLE + 1;
+/// The clock: the steps begun, which a fixed step's contact reads its time from.
+const CLOCK: usize = FLAG_STEP + 1;
 const FLAG_WORDS: usize = FLAG_OBSTACLE + 3;
 /// Where the largest speed per material starts in the flags buffer (after the clock).
 const SPEEDS: usize = FLAG_WORDS;
@@ -310,6 +312,32 @@ impl<const D: usize> GpuSolver<D> {
             steps: 0,
             time: 0.0,
         })
+    }
+
+    /// Sets the clock of a run continued from a saved state (the solver built from its
+    /// particles): `steps` steps taken, simulated time `time`, as
+    /// `loam_explicit::Solver::set_clock`. The device's step counter, from which a fixed
+    /// step's contact takes the time (`end_time` in `common.wgsl`), is set too, so the
+    /// continued run takes the steps the run that never stopped takes.
+    ///
+    /// # Errors
+    /// [`GpuError::Unsupported`] for more steps than the device's 32-bit counter holds.
+    pub fn set_clock(&mut self, time: f64, steps: usize) -> Result<(), GpuError> {
+        let counter = u32::try_from(steps).map_err(|_| GpuError::Unsupported {
+            field: "solver.end_time".into(),
+            what: format!(
+                "a run of {steps} steps (the step counter holds {})",
+                u32::MAX
+            ),
+        })?;
+        self.gpu.queue.write_buffer(
+            &self.flags,
+            (4 * CLOCK) as u64,
+            bytemuck::bytes_of(&counter),
+        );
+        self.steps = steps;
+        self.time = time;
+        Ok(())
     }
 
     /// Steps taken.

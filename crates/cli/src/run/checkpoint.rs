@@ -68,6 +68,17 @@ impl Checkpointer {
         })
     }
 
+    /// Steps from `step` to the next step at which a state is saved (a multiple of the
+    /// interval, after `step`).
+    pub fn steps_to_next(&self, step: usize) -> usize {
+        self.every - step % self.every
+    }
+
+    /// Whether the state after step `step` is saved.
+    pub fn due(&self, step: usize) -> bool {
+        step.is_multiple_of(self.every)
+    }
+
     /// After step `step` at `time`: writes the state when `step` is a multiple of the
     /// interval (replacing the previous one only once the new one is complete).
     pub fn after_step<const D: usize>(
@@ -76,7 +87,7 @@ impl Checkpointer {
         time: f64,
         particles: &Particles<f64, D>,
     ) -> Result<(), String> {
-        if !step.is_multiple_of(self.every) {
+        if !self.due(step) {
             return Ok(());
         }
         let header = CheckpointHeader {

@@ -117,10 +117,12 @@ impl<const D: usize> Engine<D> {
     ) -> Result<(), Stop> {
         match (self, at) {
             (Self::Cpu(s), _) => step_to(s, particles, at, summary, checkpoints, progress, clock),
-            (Self::Gpu(s), _) => gpu::step_to(s, particles, at, summary, |step, time| {
-                let wall = clock.start.elapsed().as_secs_f64();
-                progress.update(step, time, clock.end, wall, clock.from);
-            }),
+            (Self::Gpu(s), _) => {
+                gpu::step_to(s, particles, at, summary, checkpoints, |step, time| {
+                    let wall = clock.start.elapsed().as_secs_f64();
+                    progress.update(step, time, clock.end, wall, clock.from);
+                })
+            }
         }
     }
 }
@@ -183,19 +185,19 @@ pub fn run<const D: usize>(
     let mut engine = match device {
         Device::Cpu => Engine::Cpu(Box::new(solver)),
         Device::Gpu => {
-            if start.checkpoints.is_some() || start.resume.is_some() {
-                eprintln!(
-                    "error: {}: --checkpoint-every and --resume are not supported on the GPU yet \
-                     (run with --device cpu)",
-                    target.scene.display()
-                );
+            drop(solver);
+            let from = restart.as_ref().map_or(&built.particles, |r| &r.0);
+            let mut solver = match gpu::open(&config, from, options.p2g) {
+                Ok(s) => s,
+                Err(outcome) => return outcome,
+            };
+            if let Some((_, time, steps)) = &restart
+                && let Err(e) = solver.set_clock(*time, *steps)
+            {
+                eprintln!("error: {e}");
                 return Outcome::BadInput;
             }
-            drop(solver);
-            match gpu::open(&config, &built.particles, options.p2g) {
-                Ok(s) => Engine::Gpu(Box::new(s)),
-                Err(outcome) => return outcome,
-            }
+            Engine::Gpu(Box::new(solver))
         }
     };
     let rec = match &start.resume {
@@ -223,6 +225,7 @@ pub fn run<const D: usize>(
     let (mut particles, from) = match restart {
         None => (built.particles, (0, 0.0)),
         Some((particles, time, steps)) => {
+            // (The GPU solver's clock was set when it was opened.)
             if let Engine::Cpu(solver) = &mut engine {
                 solver.set_clock(time, steps);
             }

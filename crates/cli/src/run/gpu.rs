@@ -1,8 +1,12 @@
 //! Explicit runs on the GPU (`solver.device = "gpu"` or `--device gpu`): the steps run on the
-//! device in f32 ([`loam_gpu::GpuSolver`]) and the particles come back only at the frames,
-//! widened to f64 for the same frame and summary output as a CPU run.
+//! device in f32 ([`loam_gpu::GpuSolver`]) and the particles come back only at the frames
+//! and the checkpoints, widened to f64 for the same frame, summary and checkpoint files as a
+//! CPU run. A run continued from a checkpoint uploads the saved particles (f32 values
+//! widened, so narrowed back exactly) and sets the device's clock; with the gather P2G it
+//! has the same bits as the run that never stopped.
 
 use super::Stop;
+use super::checkpoint::Checkpointer;
 use super::explicit::FrameAt;
 use crate::Outcome;
 use loam_core::Particles;
@@ -61,12 +65,15 @@ pub fn open<const D: usize>(
 /// Steps to the frame point `at` (a step, with a fixed step; a time, with an adaptive one),
 /// in runs of at most [`CHECK_EVERY`] steps (each ends with the stability flags read back),
 /// looking for a signal and reporting progress between runs; then reads the particles back
-/// into `particles`. `report(step, time)` draws the progress.
+/// into `particles`. `report(step, time)` draws the progress. With `checkpoints`, a run also
+/// ends at each step where a state is saved, and the particles are read back and saved there
+/// (`loam run --checkpoint-every`, as on the CPU).
 pub fn step_to<const D: usize>(
     solver: &mut GpuSolver<D>,
     particles: &mut Particles<f64, D>,
     at: FrameAt,
     summary: &mut RunSummary,
+    mut checkpoints: Option<&mut Checkpointer>,
     mut report: impl FnMut(usize, f64),
 ) -> Result<(), Stop> {
     loop {
@@ -80,15 +87,27 @@ pub fn step_to<const D: usize>(
         if super::interrupt::requested() {
             return Err(Stop::Interrupted);
         }
+        let run = checkpoints.as_deref().map_or(CHECK_EVERY, |c| {
+            c.steps_to_next(solver.steps()).min(CHECK_EVERY)
+        });
         let stepped = match at {
-            FrameAt::Step(target) => solver.advance((target - solver.steps()).min(CHECK_EVERY)),
-            FrameAt::Time(t) => solver.advance_toward(t, CHECK_EVERY).map(|_| ()),
+            FrameAt::Step(target) => solver.advance((target - solver.steps()).min(run)),
+            FrameAt::Time(t) => solver.advance_toward(t, run).map(|_| ()),
         };
         stepped
             .map_err(|e| Stop::Failed(format!("{e} (t = {:.6e} s, on the GPU)", solver.time())))?;
         let (lo, hi) = solver.dt_range();
         summary.dt_min = summary.dt_min.min(lo);
         summary.dt_max = summary.dt_max.max(hi);
+        if let Some(c) = checkpoints.as_deref_mut()
+            && c.due(solver.steps())
+        {
+            solver
+                .read_particles(particles)
+                .map_err(|e| Stop::Failed(e.to_string()))?;
+            c.after_step(solver.steps(), solver.time(), particles)
+                .map_err(Stop::Failed)?;
+        }
         report(solver.steps(), solver.time());
     }
     solver
