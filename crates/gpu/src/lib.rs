@@ -6,15 +6,14 @@
 //! velocity `v_iⁿ = p_i / m_i` beside `v_i`), USL or MUSL, the
 //! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
 //! Coulomb friction segments on the faces, rigid obstacles (boxes and cylinders, fixed or
-//! moving, frictionless or Coulomb), the weakly compressible fluid, Neo-Hookean and Hencky
-//! hyperelasticity, Drucker–Prager plasticity (its Jaumann update and closed-form return with
+//! moving, frictionless or Coulomb), the weakly compressible fluid, small-strain linear
+//! elasticity, Neo-Hookean and Hencky hyperelasticity, Drucker–Prager plasticity (its Jaumann update and closed-form return with
 //! the tension cutoff), fixed and adaptive time steps. Particles and grid
 //! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
 //! the particles when asked.
 //!
 //! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
-//! linear elasticity and J2 plasticity, shapes other than the quadratic B-spline, more than 16
-//! obstacles.
+//! J2 plasticity, shapes other than the quadratic B-spline, more than 16 obstacles.
 
 mod device;
 mod error;

@@ -3,7 +3,7 @@
 
 use crate::error::GpuError;
 use bytemuck::{Pod, Zeroable};
-use loam_core::constitutive::{Lame, Material, Model};
+use loam_core::constitutive::{Hencky, Lame, LinearElastic, Material, Model, NeoHookean};
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
 use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
@@ -62,7 +62,8 @@ fn model_code(model: &Model<f32>) -> u32 {
         Model::NeoHookean(_) => 1,
         Model::Hencky(_) => 2,
         Model::DruckerPrager(_) => 3,
-        Model::LinearElastic(_) | Model::J2(_) => unreachable!("refused by `check`"),
+        Model::LinearElastic(_) => 4,
+        Model::J2(_) => unreachable!("refused by `check`"),
     }
 }
 
@@ -121,10 +122,11 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuEr
         ));
     }
     for (k, m) in config.materials.iter().enumerate() {
-        if let Model::LinearElastic(_) | Model::J2(_) = m.model {
+        if let Model::J2(_) = m.model {
             return Err(unsupported(
                 &format!("materials[{k}].model"),
-                "a model other than `fluid`, `neo_hookean`, `hencky` or `drucker_prager`",
+                "`j2` (the GPU has `fluid`, `linear_elastic`, `neo_hookean`, `hencky` and \
+                 `drucker_prager`)",
             ));
         }
     }
@@ -213,8 +215,11 @@ fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
                 [0.0, c, 0.0, 0.0],
             ]
         }
-        Model::NeoHookean(m) => [elastic(&m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
-        Model::Hencky(m) => [elastic(&m.lame), [0.0; 4], [0.0, c, 0.0, 0.0]],
+        Model::NeoHookean(NeoHookean { lame })
+        | Model::Hencky(Hencky { lame })
+        | Model::LinearElastic(LinearElastic { lame }) => {
+            [elastic(lame), [0.0; 4], [0.0, c, 0.0, 0.0]]
+        }
         Model::DruckerPrager(m) => {
             let (sigma_t, q_c) = m.corner();
             [
@@ -223,7 +228,7 @@ fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
                 [m.alpha_psi(), c, 0.0, 0.0],
             ]
         }
-        Model::LinearElastic(_) | Model::J2(_) => unreachable!("refused by `check`"),
+        Model::J2(_) => unreachable!("refused by `check`"),
     }
 }
 

@@ -368,6 +368,18 @@ fn block_drop_2d_neo_hookean_usl_mls() {
     parity::<2>(&scenes::block_drop_2d("neo_hookean"), "usl", "mls", 700);
 }
 
+/// The same drop with small-strain linear elasticity (`σ = λ tr ε I + 2μ ε`,
+/// `ε = ½(F + Fᵀ) − I`).
+#[test]
+fn block_drop_2d_linear_elastic_musl_apic() {
+    parity::<2>(
+        &scenes::block_drop_2d("linear_elastic"),
+        "musl",
+        "apic",
+        700,
+    );
+}
+
 /// The same drop with Hencky elasticity (its logarithm through the eigen-decomposition).
 #[test]
 fn block_drop_2d_hencky_musl_apic() {
@@ -429,11 +441,15 @@ fn unsupported_features_name_their_field() {
     }
 }
 
-/// The models without a GPU update (linear elasticity, J2) are refused before any device is
-/// opened, naming the material's field.
+/// The model without a GPU update (J2) is refused before any device is opened, naming the
+/// material's field.
 #[test]
 fn unsupported_models_name_their_field() {
-    let (config, _) = scene::<2>(&scenes::block_drop_2d("linear_elastic"), "musl", "apic");
+    let j2 = SceneText {
+        material: solid("j2", 1000.0, 1.0e5, "yield_stress = 1.0e4"),
+        ..scenes::block_drop_2d("")
+    };
+    let (config, _) = scene::<2>(&j2, "musl", "apic");
     match GpuSolver::supports(&config.lift()) {
         Err(GpuError::Unsupported { field, .. }) => assert_eq!(field, "materials[0].model"),
         other => panic!("expected materials[0].model to be refused, got {other:?}"),

@@ -1,6 +1,7 @@
 // The constitutive updates of the particle end, per material as loam-core's
-// `Material::update_region` dispatches them: the weakly compressible fluid, Neo-Hookean and
-// Hencky hyperelasticity, and Drucker–Prager plasticity with its return mapping
+// `Material::update_region` dispatches them: the weakly compressible fluid, small-strain
+// linear elasticity, Neo-Hookean and Hencky hyperelasticity, and Drucker–Prager plasticity
+// with its return mapping
 // (loam-core's constitutive/*.rs, path by path, in f32). Launched by step/mod.rs in front of
 // g2p.wgsl.
 //
@@ -18,6 +19,7 @@ const MODEL_FLUID: u32 = 0u;
 const MODEL_NEO_HOOKEAN: u32 = 1u;
 const MODEL_HENCKY: u32 = 2u;
 const MODEL_DRUCKER_PRAGER: u32 = 3u;
+const MODEL_LINEAR_ELASTIC: u32 = 4u;
 
 const IDENTITY: mat3x3<f32> = mat3x3<f32>(
     vec3<f32>(1.0, 0.0, 0.0),
@@ -117,7 +119,14 @@ fn fluid_stress(m: vec4<f32>, f: mat3x3<f32>, l: mat3x3<f32>) -> mat3x3<f32> {
     return dev * (m.z * 2.0) + iso;
 }
 
-// ---- hyperelasticity (constitutive/neo_hookean.rs, hencky.rs) ----
+// ---- elasticity (constitutive/linear_elastic.rs, neo_hookean.rs, hencky.rs) ----
+
+// Small-strain linear elasticity on ε = ½(F + Fᵀ) − I: σ = λ tr(ε) I + 2μ ε, in the CPU's
+// order of operations.
+fn linear_elastic_stress(e: vec4<f32>, f: mat3x3<f32>) -> mat3x3<f32> {
+    let eps = (f + transpose(f)) * 0.5 - IDENTITY;
+    return IDENTITY * (e.z * trace3(eps)) + eps * (e.y * 2.0);
+}
 
 // Neo-Hookean: σ = τ / J, τ = μ (F Fᵀ − I) + λ ln J I.
 fn neo_hookean_stress(e: vec4<f32>, f: mat3x3<f32>) -> mat3x3<f32> {
@@ -303,6 +312,8 @@ fn update_stress(m: u32, f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>) -
     // registers in every scene's kernel.
     if has_model(MODEL_NEO_HOOKEAN) && model == MODEL_NEO_HOOKEAN {
         out.sigma = neo_hookean_stress(e, f);
+    } else if has_model(MODEL_LINEAR_ELASTIC) && model == MODEL_LINEAR_ELASTIC {
+        out.sigma = linear_elastic_stress(e, f);
     } else if has_model(MODEL_HENCKY) && model == MODEL_HENCKY {
         out.sigma = hencky_stress(e, f);
     } else if has_model(MODEL_DRUCKER_PRAGER) && model == MODEL_DRUCKER_PRAGER {
