@@ -15,6 +15,7 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// Idle polls of a kept worker before it pauses between them (a few milliseconds): a run
 /// whose serial part is long (writing a frame) does not keep a core busy.
@@ -25,7 +26,11 @@ const POLLS_BEFORE_PAUSE: u32 = 2_000;
 const SPINS_PER_POLL: u32 = 64;
 
 /// The pause of a kept worker that has found nothing for [`POLLS_BEFORE_PAUSE`] polls.
-const PAUSE: std::time::Duration = std::time::Duration::from_micros(200);
+const PAUSE: Duration = Duration::from_micros(200);
+
+/// The longest a kept worker's job runs before it hands itself back to the pool (see
+/// [`keep_awake`]).
+const SLICE: Duration = Duration::from_millis(2);
 
 /// Runs `f` (a series of steps) on a thread of the current rayon pool while the pool's other
 /// threads wait for work awake instead of asleep, and returns its result. Called from a
@@ -52,7 +57,7 @@ fn hold_until<R: Send>(done: Arc<AtomicBool>, f: impl FnOnce() -> R + Send) -> R
         let caller = rayon::current_thread_index();
         rayon::spawn_broadcast(move |ctx| {
             if Some(ctx.index()) != caller {
-                keep_awake(&flag);
+                keep_awake(Arc::clone(&flag), 0);
             }
         });
         f()
@@ -69,10 +74,24 @@ impl Drop for EndOnDrop {
     }
 }
 
-/// Takes the pool's pending jobs until `done`, pausing briefly after a long idle stretch.
-fn keep_awake(done: &AtomicBool) {
-    let mut idle = 0u32;
+/// Takes the pool's pending jobs until `done`, pausing briefly after a long idle stretch
+/// (`idle` polls found nothing so far).
+///
+/// The loop is a job of the pool, so a worker can also start it *inside* another job: a job
+/// it stole waits for its other half, and the wait takes the next pending job, which may be
+/// this loop (of this run, or of another run held at the same time from another thread). A
+/// loop that ran until its run ends would then bury the stolen job under it, and a run
+/// waiting for that job would never end: two runs held at once from two threads did wait on
+/// each other for ever that way. So each job of the loop runs for at most [`SLICE`], then
+/// queues its continuation on this worker (`rayon::spawn` from a worker pushes onto its own
+/// deque, which it takes from first) and returns, and the job under it goes on.
+fn keep_awake(done: Arc<AtomicBool>, mut idle: u32) {
+    let start = Instant::now();
     while !done.load(Ordering::Acquire) {
+        if start.elapsed() >= SLICE {
+            rayon::spawn(move || keep_awake(done, idle));
+            return;
+        }
         match rayon::yield_now() {
             Some(rayon::Yield::Executed) => idle = 0,
             _ if idle < POLLS_BEFORE_PAUSE => {
@@ -90,7 +109,6 @@ fn keep_awake(done: &AtomicBool) {
 mod tests {
     use super::*;
     use rayon::prelude::*;
-    use std::time::{Duration, Instant};
 
     /// Waits until no kept worker holds `done` any more (each holds the broadcast's clone
     /// until it leaves), failing after `limit`.
@@ -116,6 +134,47 @@ mod tests {
         // A kept worker polls the flag between jobs and pauses at most `PAUSE`; a second is
         // several thousand times that.
         assert!(released(&done, Duration::from_secs(1)));
+    }
+
+    /// Runs held at once from two threads outside the pool (as concurrent tests hold them),
+    /// with plain parallel loops from a third thread besides: many short runs of a few
+    /// parallel phases each (nested joins), so that runs start and end while the other
+    /// thread's kept workers are busy. Every run finishes with the sums of the plain loops.
+    #[test]
+    fn runs_held_at_once_from_several_threads_all_finish() {
+        let phase = |seed: u64| {
+            (0..4_000u32)
+                .into_par_iter()
+                .with_min_len(64)
+                .map(|i| (u64::from(i) ^ seed).wrapping_mul(2_654_435_761) % 1_000)
+                .sum::<u64>()
+        };
+        let work = move |seed: u64, held: bool| {
+            (0..2_000u64)
+                .map(|r| {
+                    let run = || (0..4).map(|k| phase(seed + r + k)).sum::<u64>();
+                    if held { hold(run) } else { run() }
+                })
+                .sum::<u64>()
+        };
+        let expected: Vec<u64> = (0..3).map(|seed| work(seed, false)).collect();
+        let (tx, rx) = std::sync::mpsc::channel();
+        for seed in 0..3u64 {
+            let tx = tx.clone();
+            std::thread::spawn(move || {
+                tx.send((seed, work(seed, seed != 2)))
+                    .expect("the test waits");
+            });
+        }
+        let mut got = [None; 3];
+        for _ in 0..3 {
+            // The runs take a second or two; a minute means they wait on each other for ever.
+            let (seed, sum) = rx
+                .recv_timeout(Duration::from_secs(60))
+                .expect("every run finishes (no deadlock between held runs)");
+            got[seed as usize] = Some(sum);
+        }
+        assert_eq!(got.map(|g| g.expect("a result")).to_vec(), expected);
     }
 
     #[test]
