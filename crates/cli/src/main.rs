@@ -165,7 +165,7 @@ enum Command {
 enum Device {
     /// The CPU solver (all features, f64 or f32).
     Cpu,
-    /// The GPU solver of `loam-gpu` (f32; fluid, linear elastic, Neo-Hookean, Hencky and
+    /// The GPU solver of `loam-gpu` (f32; fluid, linear elastic, Neo-Hookean, Hencky, J2 and
     /// Drucker–Prager scenes with walls, friction segments and obstacles).
     Gpu,
 }

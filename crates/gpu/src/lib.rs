@@ -7,13 +7,14 @@
 //! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
 //! Coulomb friction segments on the faces, rigid obstacles (boxes and cylinders, fixed or
 //! moving, frictionless or Coulomb), the weakly compressible fluid, small-strain linear
-//! elasticity, Neo-Hookean and Hencky hyperelasticity, Drucker–Prager plasticity (its Jaumann update and closed-form return with
-//! the tension cutoff), fixed and adaptive time steps. Particles and grid
+//! elasticity, Neo-Hookean and Hencky hyperelasticity, J2 plasticity in Hencky strain space
+//! (its state rebuilt from the stress), Drucker–Prager plasticity (its Jaumann update and
+//! closed-form return with the tension cutoff), fixed and adaptive time steps. Particles and grid
 //! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
 //! the particles when asked.
 //!
 //! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
-//! J2 plasticity, shapes other than the quadratic B-spline, more than 16 obstacles.
+//! shapes other than the quadratic B-spline, more than 16 obstacles.
 
 mod device;
 mod error;

@@ -63,7 +63,7 @@ fn model_code(model: &Model<f32>) -> u32 {
         Model::Hencky(_) => 2,
         Model::DruckerPrager(_) => 3,
         Model::LinearElastic(_) => 4,
-        Model::J2(_) => unreachable!("refused by `check`"),
+        Model::J2(_) => 5,
     }
 }
 
@@ -120,15 +120,6 @@ pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuEr
             &format!("obstacles[{MAX_OBSTACLES}]"),
             &format!("more than {MAX_OBSTACLES} obstacles"),
         ));
-    }
-    for (k, m) in config.materials.iter().enumerate() {
-        if let Model::J2(_) = m.model {
-            return Err(unsupported(
-                &format!("materials[{k}].model"),
-                "`j2` (the GPU has `fluid`, `linear_elastic`, `neo_hookean`, `hencky` and \
-                 `drucker_prager`)",
-            ));
-        }
     }
     Ok(())
 }
@@ -228,7 +219,16 @@ fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
                 [m.alpha_psi(), c, 0.0, 0.0],
             ]
         }
-        Model::J2(_) => unreachable!("refused by `check`"),
+        Model::J2(m) => [
+            [
+                code,
+                m.lame.mu,
+                m.lame.lambda,
+                m.lame.lambda + m.lame.mu * (2.0 / 3.0),
+            ],
+            [m.yield_stress, m.hardening, 0.0, 0.0],
+            [0.0, c, 0.0, 0.0],
+        ],
     }
 }
 

@@ -5,8 +5,8 @@ use crate::device::{Atomics, Gpu};
 use crate::error::GpuError;
 use crate::params::{self, Params};
 use crate::step::{Kernels, Variant, WORKGROUP};
-use loam_core::constitutive::{DruckerPrager, Model};
-use loam_core::tensor::{Tensor, Vector};
+use loam_core::constitutive::Model;
+use loam_core::tensor::{Tensor, Vector, det};
 use loam_core::{Boundary, Grid, Particles, Scalar, TimeStep, WallKind};
 use loam_explicit::Config;
 use nalgebra::Matrix3;
@@ -52,9 +52,9 @@ pub struct GpuSolver<const D: usize> {
     acc: wgpu::Buffer,
     /// The bytes of every buffer the solver allocated on the device.
     device_bytes: u64,
-    /// Per material, the Drucker–Prager model (whose state tensor, `I + 2 C⁻¹:σ`, the
-    /// read-back rebuilds from the stress).
-    drucker_prager: Vec<Option<DruckerPrager<f32>>>,
+    /// Per material, its model: the read-back rebuilds the state tensor of Drucker–Prager
+    /// (`I + 2 C⁻¹:σ`) and J2 (`bₑ = exp(2 C⁻¹:τ)`) from the stress.
+    models: Vec<Model<f32>>,
     grid: Grid<D>,
     boundary: Boundary<D>,
     particles: usize,
@@ -281,14 +281,7 @@ impl<const D: usize> GpuSolver<D> {
             flags,
             acc,
             device_bytes,
-            drucker_prager: config
-                .materials
-                .iter()
-                .map(|m| match &m.model {
-                    Model::DruckerPrager(dp) => Some(*dp),
-                    _ => None,
-                })
-                .collect(),
+            models: config.materials.iter().map(|m| m.model.clone()).collect(),
             grid: config.grid.clone(),
             boundary: config.boundary,
             particles: n,
@@ -637,8 +630,9 @@ impl<const D: usize> GpuSolver<D> {
     /// into `particles` (the particles the solver was built from, in f32 or widened to another
     /// scalar type such as f64 for output); once a step is taken, a Drucker–Prager particle's
     /// state tensor is `I + 2 C⁻¹:σ` of its stress, as the CPU's return mapping leaves it
-    /// (computed in f32 by `DruckerPrager::compliance`). Their other fields are left as they
-    /// are.
+    /// (computed in f32 by `DruckerPrager::compliance`), and a J2 particle's is
+    /// `bₑ = exp(2 C⁻¹:(det F σ))` (`J2::elastic_left_cauchy_green`). Their other fields are
+    /// left as they are.
     pub fn read_particles<T: Scalar>(
         &self,
         particles: &mut Particles<T, D>,
@@ -658,10 +652,18 @@ impl<const D: usize> GpuSolver<D> {
             let stress = Matrix3::new(s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2]);
             particles.stress[i] = stress.map(t);
             particles.state[i].plastic_strain = t(mat[9 * n + i]);
-            if let Some(dp) = &self.drucker_prager[particles.material[i] as usize]
-                && self.steps > 0
-            {
-                let tensor = Matrix3::identity() + dp.compliance(&stress) * 2.0;
+            let tensor = match &self.models[particles.material[i] as usize] {
+                _ if self.steps == 0 => None,
+                Model::DruckerPrager(dp) => {
+                    Some(Matrix3::identity() + dp.compliance(&stress) * 2.0)
+                }
+                Model::J2(j2) => {
+                    let f = Tensor::<f32, D>::from_fn(|r, c| def[i * D * D + r * D + c]);
+                    Some(j2.elastic_left_cauchy_green(&(stress * det(&f))))
+                }
+                _ => None,
+            };
+            if let Some(tensor) = tensor {
                 particles.state[i].tensor = tensor.map(t);
             }
         }

@@ -129,6 +129,14 @@ impl<T: Scalar> J2<T> {
         (tau / det::<T, 3>(kin.f), region)
     }
 
+    /// The elastic left Cauchy–Green tensor that a Kirchhoff stress stands for,
+    /// `bₑ = exp(2 ε)` with `ε = C⁻¹:τ` the Hencky strain of [`Lame::strain`]: the state
+    /// that [`J2::return_map`] leaves with the stress `τ`, rebuilt from it (the GPU path keeps
+    /// the stress only).
+    pub fn elastic_left_cauchy_green(&self, tau: &Matrix3<T>) -> Matrix3<T> {
+        symmetric_fn(&(self.lame.strain(tau) * T::cst(2.0)), &Exp)
+    }
+
     /// Elastic stored energy per unit reference volume of a state,
     /// `ψ = μ ε:ε + ½λ (tr ε)²` with `ε = ½ ln bₑ`.
     pub fn stored_energy(&self, state: &MaterialState<T>) -> T {

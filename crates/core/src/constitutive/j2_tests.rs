@@ -443,3 +443,28 @@ fn material_dispatch_of_j2() {
         Hencky { lame }.energy_density(&f)
     );
 }
+
+/// The state rebuilt from the stress is the state the return mapping left, after an elastic
+/// and after a plastic step: `bₑ = exp(2 C⁻¹:τ)` inverts `τ = C:(½ ln bₑ)`. Tolerance: the
+/// round trip through two eigen-decompositions (`ln`, then `exp`) in f64, 1e-12 of ‖bₑ‖.
+#[test]
+fn the_state_rebuilt_from_the_stress_is_the_returned_state() {
+    let m = j2(2.0e5);
+    for (delta_f, what) in [(delta_f_3d(), "3D"), (delta_f_2d(), "2D")] {
+        for (start, region) in [
+            (MaterialState::default(), "from rest"),
+            (plastic_history(&m), "plastic history"),
+        ] {
+            let (tau, state, _) = m.return_map(&delta_f, &start);
+            let rebuilt = m.elastic_left_cauchy_green(&tau);
+            let err = (rebuilt - state.tensor).norm() / state.tensor.norm();
+            assert!(err < 1e-12, "{what}, {region}: relative error {err:e}");
+        }
+    }
+    // The stress of the rebuilt state is the stress it was rebuilt from.
+    let tau = m
+        .lame
+        .stress(&matrix![0.01, 0.002, 0.0; 0.002, -0.004, 0.001; 0.0, 0.001, 0.003]);
+    let eps = symmetric_fn(&m.elastic_left_cauchy_green(&tau), &Log) * 0.5;
+    assert!((m.lame.stress(&eps) - tau).norm() < 1e-9 * tau.norm());
+}

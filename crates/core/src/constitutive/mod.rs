@@ -54,6 +54,16 @@ impl<T: Scalar> Lame<T> {
         eps * (self.mu * T::cst(2.0)) + Matrix3::identity() * (self.lambda * eps.trace())
     }
 
+    /// The strain of a symmetric stress under [`Lame::stress`], its inverse:
+    /// `ε = dev τ / (2μ) + tr τ / (3 (3λ + 2μ)) I`.
+    pub fn strain(&self, tau: &Matrix3<T>) -> Matrix3<T> {
+        let tr = tau.trace();
+        let dev = tau - Matrix3::identity() * (tr / T::cst(3.0));
+        dev / (self.mu * T::cst(2.0))
+            + Matrix3::identity()
+                * (tr / ((self.lambda * T::cst(3.0) + self.mu * T::cst(2.0)) * T::cst(3.0)))
+    }
+
     /// The quadratic energy `μ ε:ε + ½λ (tr ε)²` whose derivative is [`Lame::stress`].
     pub fn energy(&self, eps: &Matrix3<T>) -> T {
         let tr = eps.trace();

@@ -1,13 +1,14 @@
 // The constitutive updates of the particle end, per material as loam-core's
 // `Material::update_region` dispatches them: the weakly compressible fluid, small-strain
-// linear elasticity, Neo-Hookean and Hencky hyperelasticity, and Drucker–Prager plasticity
-// with its return mapping
+// linear elasticity, Neo-Hookean and Hencky hyperelasticity, J2 plasticity in Hencky strain
+// space, and Drucker–Prager plasticity with its return mapping
 // (loam-core's constitutive/*.rs, path by path, in f32). Launched by step/mod.rs in front of
 // g2p.wgsl.
 //
 // A material is MATERIAL_ENTRIES entries of `table` (params.rs writes them):
 //   0: (model, μ, λ, K = λ + ⅔μ)
-//   1: fluid: (K, γ, η, γ as a whole number ≤ 64 or 0); Drucker–Prager: (α, k, σ_t, q_c)
+//   1: fluid: (K, γ, η, γ as a whole number ≤ 64 or 0); Drucker–Prager: (α, k, σ_t, q_c);
+//      J2: (σ_y, H, 0, 0), and K = λ + ⅔μ in entry 0's w
 //   2: (α_ψ (Drucker–Prager, else 0), c, 0, 0), c the elastic wave speed of the material
 //      (`Material::wave_speed`, the fixed step's stability bound h / (c + |v|) in p2g.wgsl)
 // The Drucker–Prager constants are the CPU's own f32 values (`DruckerPrager::alpha`, `k`,
@@ -20,6 +21,7 @@ const MODEL_NEO_HOOKEAN: u32 = 1u;
 const MODEL_HENCKY: u32 = 2u;
 const MODEL_DRUCKER_PRAGER: u32 = 3u;
 const MODEL_LINEAR_ELASTIC: u32 = 4u;
+const MODEL_J2: u32 = 5u;
 
 const IDENTITY: mat3x3<f32> = mat3x3<f32>(
     vec3<f32>(1.0, 0.0, 0.0),
@@ -221,6 +223,51 @@ fn hencky_stress(e: vec4<f32>, f: mat3x3<f32>) -> mat3x3<f32> {
     return divided(lame_stress(e, eps), det3(f));
 }
 
+// ---- J2 (constitutive/j2.rs) ----
+
+// Q diag(g(λ_k)) Qᵀ of a symmetric matrix with eigenvalues λ and eigenvectors Q: the
+// logarithm (`natural_log`) or, with `exponential`, the exponential of each eigenvalue.
+fn spectral(a: mat3x3<f32>, exponential: bool) -> mat3x3<f32> {
+    let eig = symmetric_eigen(a);
+    var g = eig.values;
+    for (var k = 0u; k < 3u; k++) {
+        g[k] = select(natural_log(g[k]), exp(g[k]), exponential);
+    }
+    let d = mat3x3<f32>(vec3<f32>(g.x, 0.0, 0.0), vec3<f32>(0.0, g.y, 0.0), vec3<f32>(0.0, 0.0, g.z));
+    return eig.q * d * transpose(eig.q);
+}
+
+// Simo's return in Hencky strain space (`J2::return_map`) from the stress σₙ at the start of
+// the step, of a particle whose det F was `j_n` then. The CPU keeps the elastic left
+// Cauchy–Green tensor bₑ as the state; the GPU has no buffer for it and rebuilds it from the
+// stress, as it rebuilds the Drucker–Prager state: τₙ = jₙ σₙ, εₙ = C⁻¹:τₙ (the Hencky law
+// inverted), bₑ = exp(2 εₙ), the same tensor up to f32 round-off. Then the trial
+// bₑᵗʳ = ΔF bₑ ΔFᵀ (symmetrised), εᵗʳ = ½ ln bₑᵗʳ, τᵗʳ = 2μ εᵗʳ + λ tr(εᵗʳ) I, the yield
+// function f = ‖dev τᵗʳ‖ − √(2/3) (σ_y + H ε̄ᵖ), and for f > 0 the radial return
+// Δγ = f / (2μ + ⅔H), τ = τᵗʳ − 2μ Δγ n, ε̄ᵖ += √(2/3) Δγ; σ = τ / det F.
+fn j2_update(e: vec4<f32>, surface: vec4<f32>, f: mat3x3<f32>, delta_f: mat3x3<f32>, j_n: f32, sigma_n: mat3x3<f32>, plastic_strain: f32) -> Returned {
+    let b_n = spectral(dp_compliance(e, sigma_n * j_n) * 2.0, true);
+    let b = delta_f * b_n * transpose(delta_f);
+    let b_trial = (b + transpose(b)) * 0.5;
+    let eps_trial = spectral(b_trial, false) * 0.5;
+    let tau_trial = lame_stress(e, eps_trial);
+    let s = tau_trial - IDENTITY * (trace3(tau_trial) / 3.0);
+    let s_norm = frobenius(s);
+    let yield_f = s_norm - (surface.x + surface.y * plastic_strain) * sqrt(2.0 / 3.0);
+    var out: Returned;
+    out.plastic = 0.0;
+    if yield_f <= 0.0 || s_norm == 0.0 {
+        out.sigma = divided(tau_trial, det3(f));
+        return out;
+    }
+    let two_mu = e.y * 2.0;
+    let dgamma = yield_f / (two_mu + surface.y * (2.0 / 3.0));
+    let n = divided(s, s_norm);
+    out.sigma = divided(tau_trial - n * (two_mu * dgamma), det3(f));
+    out.plastic = dgamma * sqrt(2.0 / 3.0);
+    return out;
+}
+
 // ---- Drucker–Prager (constitutive/drucker_prager.rs) ----
 
 // The elastic trial σᵗʳ = Q σₙ Qᵀ + C:(Δt D), Q = I + 2 (A + A²)/(1 + ½‖A‖²), A = ½ Δt W
@@ -300,9 +347,11 @@ struct Updated {
 }
 
 // The constitutive update of material `m` at the end of a step: F is the new deformation
-// gradient, L the velocity gradient, σₙ the stress at the start of the step (3×3 with a zero
-// out-of-plane row and column of L and F_zz = 1 in 2D, as loam-core's `to3` embeds them).
-fn update_stress(m: u32, f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>) -> Updated {
+// gradient, ΔF = I + Δt L the step's relative one, L the velocity gradient, and σₙ, det Fₙ
+// and ε̄ᵖ the stress, the volume ratio and the equivalent plastic strain at the start of the
+// step (3×3 with a zero out-of-plane row and column of L and F_zz = 1 in 2D, as loam-core's
+// `to3` embeds them).
+fn update_stress(m: u32, f: mat3x3<f32>, delta_f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>, j_n: f32, plastic_strain: f32) -> Updated {
     let e = material_entry(m, 0u);
     var out: Updated;
     out.plastic = 0.0;
@@ -316,6 +365,10 @@ fn update_stress(m: u32, f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>) -
         out.sigma = linear_elastic_stress(e, f);
     } else if has_model(MODEL_HENCKY) && model == MODEL_HENCKY {
         out.sigma = hencky_stress(e, f);
+    } else if has_model(MODEL_J2) && model == MODEL_J2 {
+        let r = j2_update(e, material_entry(m, 1u), f, delta_f, j_n, sigma_n, plastic_strain);
+        out.sigma = r.sigma;
+        out.plastic = r.plastic;
     } else if has_model(MODEL_DRUCKER_PRAGER) && model == MODEL_DRUCKER_PRAGER {
         let trial = dp_trial(e, sigma_n, l * prm.dt);
         let r = dp_return(e, material_entry(m, 1u), material_entry(m, 2u).x, trial);
