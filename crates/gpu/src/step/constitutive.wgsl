@@ -233,7 +233,11 @@ fn spectral(a: mat3x3<f32>, exponential: bool) -> mat3x3<f32> {
     for (var k = 0u; k < 3u; k++) {
         g[k] = select(natural_log(g[k]), exp(g[k]), exponential);
     }
-    let d = mat3x3<f32>(vec3<f32>(g.x, 0.0, 0.0), vec3<f32>(0.0, g.y, 0.0), vec3<f32>(0.0, 0.0, g.z));
+    let d = mat3x3<f32>(
+        vec3<f32>(g.x, 0.0, 0.0),
+        vec3<f32>(0.0, g.y, 0.0),
+        vec3<f32>(0.0, 0.0, g.z),
+    );
     return eig.q * d * transpose(eig.q);
 }
 
@@ -245,7 +249,15 @@ fn spectral(a: mat3x3<f32>, exponential: bool) -> mat3x3<f32> {
 // bₑᵗʳ = ΔF bₑ ΔFᵀ (symmetrised), εᵗʳ = ½ ln bₑᵗʳ, τᵗʳ = 2μ εᵗʳ + λ tr(εᵗʳ) I, the yield
 // function f = ‖dev τᵗʳ‖ − √(2/3) (σ_y + H ε̄ᵖ), and for f > 0 the radial return
 // Δγ = f / (2μ + ⅔H), τ = τᵗʳ − 2μ Δγ n, ε̄ᵖ += √(2/3) Δγ; σ = τ / det F.
-fn j2_update(e: vec4<f32>, surface: vec4<f32>, f: mat3x3<f32>, delta_f: mat3x3<f32>, j_n: f32, sigma_n: mat3x3<f32>, plastic_strain: f32) -> Returned {
+fn j2_update(
+    e: vec4<f32>,
+    surface: vec4<f32>,
+    f: mat3x3<f32>,
+    delta_f: mat3x3<f32>,
+    j_n: f32,
+    sigma_n: mat3x3<f32>,
+    plastic_strain: f32,
+) -> Returned {
     let b_n = spectral(dp_compliance(e, sigma_n * j_n) * 2.0, true);
     let b = delta_f * b_n * transpose(delta_f);
     let b_trial = (b + transpose(b)) * 0.5;
@@ -323,15 +335,15 @@ fn dp_return(e: vec4<f32>, surface: vec4<f32>, alpha_psi: f32, trial: mat3x3<f32
         if q >= q_c {
             let p = p_tr - bulk * alpha_psi * dgamma * 3.0;
             out.sigma = s_tr * (q / q_tr) + IDENTITY * p;
-                shear = true;
+            shear = true;
         }
     }
     if !shear {
         if q_tr <= q_c {
             out.sigma = s_tr + IDENTITY * sigma_t;
-            } else {
+        } else {
             out.sigma = s_tr * (q_c / q_tr) + IDENTITY * sigma_t;
-            }
+        }
     }
     let deps_p = dp_compliance(e, trial) - dp_compliance(e, out.sigma);
     out.plastic = frobenius(deps_p) * sqrt(2.0 / 3.0);
@@ -351,7 +363,15 @@ struct Updated {
 // and ε̄ᵖ the stress, the volume ratio and the equivalent plastic strain at the start of the
 // step (3×3 with a zero out-of-plane row and column of L and F_zz = 1 in 2D, as loam-core's
 // `to3` embeds them).
-fn update_stress(m: u32, f: mat3x3<f32>, delta_f: mat3x3<f32>, l: mat3x3<f32>, sigma_n: mat3x3<f32>, j_n: f32, plastic_strain: f32) -> Updated {
+fn update_stress(
+    m: u32,
+    f: mat3x3<f32>,
+    delta_f: mat3x3<f32>,
+    l: mat3x3<f32>,
+    sigma_n: mat3x3<f32>,
+    j_n: f32,
+    plastic_strain: f32,
+) -> Updated {
     let e = material_entry(m, 0u);
     var out: Updated;
     out.plastic = 0.0;

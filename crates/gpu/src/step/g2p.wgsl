@@ -106,7 +106,9 @@ fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
         delta_f[2][2] = 1.0;
     }
     f = delta_f * f;
-    let updated = update_stress(material_of(i), f, delta_f, l, load_stress(i), det3(f_n), plastic_strain_of(i));
+    let updated = update_stress(
+        material_of(i), f, delta_f, l, load_stress(i), det3(f_n), plastic_strain_of(i)
+    );
     let stress = updated.sigma;
     store_vec(x_at(), i, x);
     store_vec(v_at(), i, v);
