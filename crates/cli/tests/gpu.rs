@@ -256,22 +256,36 @@ fn the_scene_can_ask_for_the_gpu() {
 }
 
 /// A feature the GPU path lacks is refused before the run with exit 2, naming the field,
-/// with or without an adapter; nothing is written.
+/// with or without an adapter; nothing is written. Here: 17 obstacles (the GPU keeps the
+/// obstacles that acted on a node in 16 bits of its state word), small disks in a row above
+/// the water.
 #[test]
 fn a_feature_the_gpu_lacks_is_refused_with_its_field() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let cubic = scene("", FIXED).replace(
-        "cell_size = 0.02",
-        "cell_size = 0.02\nshape_function = \"cubic_bspline\"",
-    );
-    let out = run(dir.path(), "gpu", &cubic, &["--device", "gpu"]);
+    let disks: String = (0..17)
+        .map(|k| {
+            let x = 0.6 + 0.08 * k as f64;
+            format!(
+                "[[obstacles]]\nshape = \"cylinder\"\ncentre = [{x:.2}, 0.35]\nradius = 0.02\n\n"
+            )
+        })
+        .collect();
+    let crowded = scene("", FIXED).replace("[loads]", &format!("{disks}[loads]"));
+    let out = run(dir.path(), "gpu", &crowded, &["--device", "gpu"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("grid.shape_function") && stderr.contains("not supported on the GPU yet"),
+        stderr.contains("obstacles[16]") && stderr.contains("not supported on the GPU yet"),
         "{stderr}"
     );
     assert!(!dir.path().join("gpu").exists());
+    // The CPU runs the same scene.
+    let cpu = run(dir.path(), "cpu", &crowded, &["--device", "cpu"]);
+    assert!(
+        cpu.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cpu.stderr)
+    );
 }
 
 /// A disk obstacle moving into the water column's face, then the `[loads]` header it is put

@@ -1,7 +1,9 @@
 //! The explicit MPM step of loam on a GPU, through wgpu (Vulkan, Metal, DX12), in f32.
 //!
 //! [`GpuSolver`] runs the same step as `loam_explicit::Solver` with `T = f32` (the test
-//! oracle): quadratic B-spline stencil, PIC / FLIP / APIC / TPIC / MLS transfers (FLIP:
+//! oracle): every shape function (linear hat, uGIMP and cpGIMP, quadratic and cubic
+//! B-splines; the scene's 1D weights compiled into the kernels), PIC / FLIP / APIC / TPIC /
+//! MLS transfers (FLIP:
 //! `v_p ← α (v_p + Σ w (v_i − v_iⁿ)) + (1 − α) Σ w v_i`, the grid keeping the start-of-step
 //! velocity `v_iⁿ = p_i / m_i` beside `v_i`), USL or MUSL, the
 //! domain walls (fixed, slip, no-slip; bilateral through mirrored ghost layers, or separable),
@@ -13,8 +15,8 @@
 //! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
 //! the particles when asked.
 //!
-//! Not yet on the GPU (a scene using them gets [`GpuError::Unsupported`] naming the field):
-//! shapes other than the quadratic B-spline, more than 16 obstacles.
+//! Not yet on the GPU (a scene using it gets [`GpuError::Unsupported`] naming the field):
+//! more than 16 obstacles.
 
 mod device;
 mod error;

@@ -7,7 +7,7 @@ use loam_core::constitutive::{Hencky, Lame, LinearElastic, Material, Model, NeoH
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
 use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
-use loam_core::{Scheme, Shape, TimeStep, Transfer, WallKind};
+use loam_core::{Scheme, TimeStep, Transfer, WallKind};
 use loam_explicit::{Config, MASS_EPS};
 
 /// The uniform block of `common.wgsl` (`struct Params`), field for field.
@@ -107,12 +107,16 @@ fn wall_code(kind: WallKind, separable: bool) -> u32 {
     k | if separable { 16 } else { 0 }
 }
 
-/// Checks that the GPU path runs `config`.
+/// Checks that the GPU path runs `config`: at most [`MAX_OBSTACLES`] obstacles, and MLS-MPM
+/// only with a B-spline (as the CPU's `Config::validate` requires).
 pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuError> {
-    if config.shape != Shape::QuadraticBspline {
+    if config.transfer == Transfer::Mls && config.shape.apic_inverse_inertia().is_none() {
         return Err(unsupported(
-            "grid.shape_function",
-            &format!("{:?} (only quadratic_bspline)", config.shape),
+            "solver.transfer",
+            &format!(
+                "mls with the {:?} shape function (MLS-MPM needs a B-spline)",
+                config.shape
+            ),
         ));
     }
     if config.contact.obstacles.len() > MAX_OBSTACLES {
@@ -162,11 +166,12 @@ pub(crate) fn params<const D: usize>(
     p.inv_h = (1.0 / grid.h) as f32;
     p.dt = dt as f32;
     p.mass_floor = (MASS_EPS * max_mass) as f32;
-    // 1/(κ h²) with κ = 1/4 for the quadratic B-spline.
-    p.apic_scale = (Shape::QuadraticBspline
+    // 1/(κ h²): κ = 1/4 for the quadratic B-spline, 1/3 for the cubic; the hat and GIMP take
+    // APIC's C from the velocity gradient instead (g2p.wgsl's `affine_of`).
+    p.apic_scale = config
+        .shape
         .apic_inverse_inertia()
-        .expect("a B-spline")
-        / (grid.h * grid.h)) as f32;
+        .map_or(0.0, |k| (k / (grid.h * grid.h)) as f32);
     p.depth = (PROJECTION_DEPTH * grid.h) as f32;
     p.particles = particles as u32;
     p.pad = grid.pad as u32;

@@ -142,11 +142,13 @@ impl<const D: usize> GpuSolver<D> {
         // place its scatter (`PAYLOAD` words).
         prm.bins = (SPEEDS + config.materials.len()) as u32;
         let bin_words = if gpu.atomics() == Atomics::Gather {
-            let payload = if config.transfer == loam_core::Transfer::Mls {
-                16
+            // bins.wgsl's `PAYLOAD`.
+            let force = if config.transfer == loam_core::Transfer::Mls {
+                0
             } else {
-                22
+                6
             };
+            let payload = 16 + force + if config.shape.is_gimp() { 3 } else { 0 };
             (nodes + 1) + (nodes + 1).div_ceil(WORKGROUP as usize) + (3 + payload) * n
         } else {
             0
@@ -158,12 +160,13 @@ impl<const D: usize> GpuSolver<D> {
             musl: params::is_musl(config),
             subgroups: gpu.subgroups(),
             models: params::models(config),
+            shape: config.shape,
         };
         let mut kin = Vec::with_capacity(3 * D * n);
         flat_vectors(&particles.x, &mut kin);
         flat_vectors(&particles.v, &mut kin);
         flat_vectors(&particles.x, &mut kin);
-        let mut mat = Vec::with_capacity(9 * n);
+        let mut mat = Vec::with_capacity((10 + D) * n);
         for s in &particles.stress {
             mat.extend([
                 s[(0, 0)],
@@ -178,6 +181,9 @@ impl<const D: usize> GpuSolver<D> {
         mat.extend(&particles.volume0);
         mat.extend(particles.material.iter().map(|&m| f32::from_bits(m)));
         mat.extend(particles.state.iter().map(|s| s.plastic_strain));
+        if config.shape.is_gimp() {
+            flat_vectors(&particles.half_width0, &mut mat);
+        }
         let table = params::table(config);
         // Each buffer with the scene field that sizes it: the particles' by the bodies, the
         // grid's by the cell size; the gather's bins mostly by the particles.

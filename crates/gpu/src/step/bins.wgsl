@@ -14,7 +14,7 @@
 //    deterministic;
 // 5. `bin_payload` writes each binned particle's scatter (`payload`) at its place, so that the
 //    gather reads it from consecutive words instead of forming it for each of the particle's
-//    3^D nodes (MUSL's second transfer rewrites the momentum part: `bin_payload_second`).
+//    B^D nodes (MUSL's second transfer rewrites the momentum part: `bin_payload_second`).
 //
 // Words from `prm.bins` on: the N + 1 counts (then the starts; the last is the total), the
 // tiles' totals (then starts), per particle its key, its slot and the sorted indices, then
@@ -56,9 +56,10 @@ fn word(at: u32) -> u32 {
     return atomicLoad(&flags[at]);
 }
 
-// A place's scatter: x (3), m (1), m v (3), m C (9, by columns) and, but for MLS-MPM, −σ V
-// (6: xx, yy, zz, xy, xz, yz).
-const PAYLOAD: u32 = select(22u, 16u, TRANSFER == TRANSFER_MLS);
+// A place's scatter: x (3), m (1), m v (3), m C (9, by columns), but for MLS-MPM −σ V
+// (6: xx, yy, zz, xy, xz, yz), and for GIMP the particle's half-lengths (3).
+const HALF_WIDTH_WORD: u32 = select(22u, 16u, TRANSFER == TRANSFER_MLS);
+const PAYLOAD: u32 = HALF_WIDTH_WORD + select(0u, 3u, GIMP);
 
 fn payload_at(q: u32) -> u32 {
     return order_at(prm.particles) + q * PAYLOAD;
@@ -95,7 +96,11 @@ fn put_momentum(q: u32, mv: vec3<f32>, mc: mat3x3<f32>) {
 fn placed(q: u32) -> Scatter {
     let at = payload_at(q);
     var sc: Scatter;
-    sc.st = stencil(load_words(at));
+    var hw = vec3<f32>(0.0);
+    if GIMP {
+        hw = load_words(at + HALF_WIDTH_WORD);
+    }
+    sc.st = stencil(load_words(at), hw);
     sc.m = load_word(at + 3u);
     sc.mv = load_words(at + 4u);
     for (var c = 0u; c < 3u; c++) {
@@ -242,9 +247,13 @@ fn bin_payload(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     for (var q = gid.x; q < placed_count; q += stride(groups)) {
         let p = word(order_at(q));
         let x = load_vec(x_at(), p);
-        let sc = payload(p, stencil(x), load_vec(v_at(), p));
+        let hw = half_width(p);
+        let sc = payload(p, stencil(x, hw), load_vec(v_at(), p));
         let at = payload_at(q);
         store_words(at, x);
+        if GIMP {
+            store_words(at + HALF_WIDTH_WORD, hw);
+        }
         store_word(at + 3u, sc.m);
         put_momentum(q, sc.mv, sc.mc);
         if TRANSFER != TRANSFER_MLS {

@@ -1,10 +1,13 @@
-// Shared by every kernel of the explicit step: the bindings, the quadratic B-spline stencil,
-// particle and node accessors, the wall law and the stability flags.
+// Shared by every kernel of the explicit step: the bindings, the stencil, particle and node
+// accessors, the wall law and the stability flags.
 //
-// The launcher prepends the constants `D` (dimension), `NK` (stencil rows along z: 3 in 3D,
+// The launcher prepends the constants `D` (dimension), `NK` (stencil rows along z: B in 3D,
 // 1 in 2D), `S` (accumulator entries per node, 1 + 2D), `WG` (workgroup size), `TRANSFER`,
 // `MUSL`, `AXIS` (for the per-axis ghost passes), `MODELS` (bit `MODEL_*` of constitutive.wgsl
-// set for each model the scene's materials have) and the accumulator binding with its
+// set for each model the scene's materials have), `GIMP` and `CPGIMP` (the shape is of the
+// GIMP family; its half-length stretches with F), the shape file (shape_*.wgsl: the support
+// width `B`, the vector `Wv` of one axis' B factors, `BSPLINE` and the 1D factors `axis`)
+// and the accumulator binding with its
 // `acc_add` / `acc_load` / `acc_store` (native f32 atomics, or a compare-exchange loop on the
 // f32 bits where the adapter has none).
 //
@@ -63,7 +66,7 @@ struct Params {
     inv_h: f32,
     dt: f32,
     mass_floor: f32,
-    // 1/κ h², the inverse of the APIC inertia tensor of the quadratic B-spline.
+    // 1/κ h², the inverse of the APIC inertia tensor of the B-splines (zero for the hat and GIMP).
     apic_scale: f32,
     // How far past a separable wall a particle is projected back onto it.
     depth: f32,
@@ -96,7 +99,7 @@ struct Params {
 // Deformation gradient F, D² per particle (row-major).
 @group(0) @binding(3) var<storage, read_write> def: array<f32>;
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
-// bits), equivalent plastic strain (n).
+// bits), equivalent plastic strain (n), and for GIMP the reference half-lengths (D n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
 // Node velocities (D N), then the wall bits that acted on each node (N, u32 bits), then for
 // FLIP the start-of-step velocities v_iⁿ = p_i / m_i (D N).
@@ -285,14 +288,15 @@ fn node_flat(idx: vec3<u32>) -> u32 {
     return idx.x + prm.nodes.x * (idx.y + prm.nodes.y * idx.z);
 }
 
-// ---- the quadratic B-spline stencil ----
+// ---- the stencil ----
 
-// The 1D factors of one axis: weights, their derivatives and the offsets x_i − x_p of the
-// three nodes from `base`.
+// The 1D factors of one axis: weights, their derivatives and the offsets x_i − x_p of the B
+// nodes from `base` (the shape file in front, shape_*.wgsl, defines B, the vector `Wv` of B
+// entries and `axis`, which forms them).
 struct Axis {
-    w: vec3<f32>,
-    dw: vec3<f32>,
-    o: vec3<f32>,
+    w: Wv,
+    dw: Wv,
+    o: Wv,
     base: i32,
 }
 
@@ -304,42 +308,68 @@ struct Stencil {
     on_grid: bool,
 }
 
-fn quadratic(xi: f32) -> Axis {
-    let base = i32(floor(xi - 0.5));
-    let f = xi - f32(base);
-    let a = 1.5 - f;
-    let m = f - 1.0;
-    let p = f - 0.5;
-    var r: Axis;
-    r.base = base;
-    r.w = vec3<f32>(0.5 * a * a, 0.75 - m * m, 0.5 * p * p);
-    r.dw = vec3<f32>(-a * prm.inv_h, -2.0 * m * prm.inv_h, p * prm.inv_h);
-    r.o = (vec3<f32>(f32(base), f32(base + 1), f32(base + 2)) - xi) * prm.h;
-    return r;
-}
-
-fn stencil(x: vec3<f32>) -> Stencil {
+// The stencil of a particle at `x` with half-lengths `hw` per axis (GIMP's; other shapes
+// ignore them).
+fn stencil(x: vec3<f32>, hw: vec3<f32>) -> Stencil {
     var st: Stencil;
     st.on_grid = true;
     // The z axis of a 2D stencil: one row of weight 1.
-    st.ax[2].w = vec3<f32>(1.0, 0.0, 0.0);
-    st.ax[2].dw = vec3<f32>(0.0);
-    st.ax[2].o = vec3<f32>(0.0);
+    st.ax[2].w = Wv(0.0);
+    st.ax[2].w[0] = 1.0;
+    st.ax[2].dw = Wv(0.0);
+    st.ax[2].o = Wv(0.0);
     st.ax[2].base = 0;
     var idx = vec3<u32>(0u);
     for (var a = 0u; a < D; a++) {
         let xi = (x[a] - prm.origin[a]) * prm.inv_h;
-        st.ax[a] = quadratic(xi);
+        st.ax[a] = axis(xi, hw[a] * prm.inv_h);
         let b = st.ax[a].base;
         // Also false for a NaN coordinate, whose base is unspecified.
-        st.on_grid = st.on_grid && b >= 0 && b + 3 <= i32(prm.nodes[a]) && xi == xi;
+        st.on_grid = st.on_grid && b >= 0 && b + i32(B) <= i32(prm.nodes[a]) && xi == xi;
         idx[a] = u32(max(b, 0));
     }
     st.first = node_flat(idx);
     return st;
 }
 
-// One row of the stencil: nodes first + i (i < 3) at fixed (j, k), with the factors of the
+// Particle `i`'s half-length per axis for GIMP, zero for the other shapes: the reference
+// half-length l⁰ (after the particle fields in `mat`), which cpGIMP stretches by the length of
+// the deformed material axis, l_a = l⁰_a ‖F e_a‖, clamped to [10⁻⁶ h, h/2] (loam-core's
+// `particle_half_width`; F is the start-of-step one wherever a stencil is formed).
+fn half_width(i: u32) -> vec3<f32> {
+    var l = vec3<f32>(0.0);
+    if !GIMP {
+        return l;
+    }
+    for (var a = 0u; a < D; a++) {
+        l[a] = mat[10u * prm.particles + i * D + a];
+    }
+    if CPGIMP {
+        let f = load_f(i);
+        for (var a = 0u; a < D; a++) {
+            var c2 = 0.0;
+            for (var b = 0u; b < D; b++) {
+                c2 += f[a][b] * f[a][b];
+            }
+            let s = l[a] * sqrt(c2);
+            if s > 0.5 * prm.h {
+                l[a] = 0.5 * prm.h;
+            } else if s < 1e-6 * prm.h {
+                l[a] = 1e-6 * prm.h;
+            } else {
+                l[a] = s;
+            }
+        }
+    }
+    return l;
+}
+
+// Particle `i`'s stencil at `x`.
+fn particle_stencil(i: u32, x: vec3<f32>) -> Stencil {
+    return stencil(x, half_width(i));
+}
+
+// One row of the stencil: nodes first + i (i < B) at fixed (j, k), with the factors of the
 // axes above 0.
 struct Row {
     index: u32,

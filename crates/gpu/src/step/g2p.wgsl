@@ -22,13 +22,13 @@ fn gather(st: Stencil) -> Gathered {
     g.dv = vec3<f32>(0.0);
     let ax0 = st.ax[0];
     for (var k = 0u; k < NK; k++) {
-        for (var j = 0u; j < 3u; j++) {
+        for (var j = 0u; j < B; j++) {
             let r = row(st, j, k);
             var s = vec3<f32>(0.0);
             var so = vec3<f32>(0.0);
             var sd = vec3<f32>(0.0);
             var sf = vec3<f32>(0.0);
-            for (var n = 0u; n < 3u; n++) {
+            for (var n = 0u; n < B; n++) {
                 let vi = node_v(r.index + n);
                 let nv = vi * ax0.w[n];
                 s += nv;
@@ -53,12 +53,14 @@ fn gather(st: Stencil) -> Gathered {
     return g;
 }
 
-// The particle's new affine velocity C.
+// The particle's new affine velocity C: APIC's (and MLS-MPM's) Σ w v (x_i − x_p)ᵀ / (κ h²)
+// for the B-splines, the gradient Σ v ∇wᵀ for TPIC and for APIC with the hat and GIMP (whose
+// inertia tensor is not κ h² I).
 fn affine_of(g: Gathered) -> mat3x3<f32> {
-    if TRANSFER == TRANSFER_APIC || TRANSFER == TRANSFER_MLS {
+    if (TRANSFER == TRANSFER_APIC || TRANSFER == TRANSFER_MLS) && BSPLINE {
         return g.affine;
     }
-    if TRANSFER == TRANSFER_TPIC {
+    if TRANSFER == TRANSFER_TPIC || TRANSFER == TRANSFER_APIC {
         return g.grad_v;
     }
     return mat3x3<f32>();
@@ -147,7 +149,7 @@ fn end_particle(i: u32, x0: vec3<f32>, v0: vec3<f32>, l: mat3x3<f32>) {
 fn g2p_usl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var i = gid.x; i < prm.particles; i += stride(groups)) {
         let x = load_vec(x_at(), i);
-        let st = stencil(x);
+        let st = particle_stencil(i, x);
         if !st.on_grid {
             continue;
         }
@@ -164,7 +166,7 @@ fn g2p_usl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
 fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var i = gid.x; i < prm.particles; i += stride(groups)) {
         let x = load_vec(x_at(), i);
-        let st = stencil(x);
+        let st = particle_stencil(i, x);
         if !st.on_grid {
             continue;
         }
@@ -183,13 +185,13 @@ fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
         let mv = v * m;
         let ax0 = st.ax[0];
         for (var k = 0u; k < NK; k++) {
-            for (var j = 0u; j < 3u; j++) {
+            for (var j = 0u; j < B; j++) {
                 let r = row(st, j, k);
                 var p_row = mv;
                 for (var col = 1u; col < D; col++) {
                     p_row += mc[col] * r.offset[col];
                 }
-                for (var n = 0u; n < 3u; n++) {
+                for (var n = 0u; n < B; n++) {
                     let p = (p_row + mc[0] * ax0.o[n]) * (ax0.w[n] * r.weight);
                     for (var a = 0u; a < D; a++) {
                         acc_add(acc_at(r.index + n, 1u + a), p[a]);
@@ -205,7 +207,7 @@ fn g2p_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
 @compute @workgroup_size(WG)
 fn end_musl(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     for (var i = gid.x; i < prm.particles; i += stride(groups)) {
-        let st = stencil(load_vec(x_at(), i));
+        let st = particle_stencil(i, load_vec(x_at(), i));
         if !st.on_grid {
             continue;
         }

@@ -1,7 +1,9 @@
 //! The kernels of one explicit step and the order they run in.
 //!
-//! `common.wgsl` (bindings, the quadratic B-spline stencil, the wall law, the flags and the
-//! clock) and `contact.wgsl` (friction segments, obstacles) go in front of each kernel file,
+//! The scene's shape file (`shape_linear.wgsl`, `shape_gimp.wgsl`, `shape_quadratic.wgsl`,
+//! `shape_cubic.wgsl`: the support width and the 1D weights), `common.wgsl` (bindings, the
+//! stencil, the wall law, the flags and the clock) and `contact.wgsl` (friction segments,
+//! obstacles) go in front of each kernel file,
 //! and `constitutive.wgsl` (the stress updates, the materials' table) in front of `p2g.wgsl`
 //! and `g2p.wgsl`,
 //! after a header of constants: the dimension, the transfer, the
@@ -25,6 +27,8 @@
 //!    from the bins), `fold`
 //!    (momentum only), `second_velocity`, `reflect`, then `end_musl`.
 
+use loam_core::{Shape, ShapeFunction};
+
 use crate::device::Atomics;
 
 /// Threads per workgroup of every kernel.
@@ -43,6 +47,10 @@ const P2G_GATHER: &str = include_str!("p2g_gather.wgsl");
 const GRID: &str = include_str!("grid.wgsl");
 const G2P: &str = include_str!("g2p.wgsl");
 const CONSTITUTIVE: &str = include_str!("constitutive.wgsl");
+const SHAPE_LINEAR: &str = include_str!("shape_linear.wgsl");
+const SHAPE_GIMP: &str = include_str!("shape_gimp.wgsl");
+const SHAPE_QUADRATIC: &str = include_str!("shape_quadratic.wgsl");
+const SHAPE_CUBIC: &str = include_str!("shape_cubic.wgsl");
 
 /// What a step's kernels are compiled for.
 #[derive(Clone, Copy, Debug)]
@@ -58,6 +66,8 @@ pub(crate) struct Variant {
     /// The models of the scene's materials (`params::models`: bit `MODEL_*` of
     /// constitutive.wgsl set for each).
     pub models: u32,
+    /// The shape function (which shape file goes in front of common.wgsl).
+    pub shape: Shape,
 }
 
 impl Variant {
@@ -93,13 +103,26 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
 "
             }
         };
+        let shape = match self.shape {
+            Shape::Linear => SHAPE_LINEAR,
+            Shape::Ugimp | Shape::Cpgimp => SHAPE_GIMP,
+            Shape::QuadraticBspline => SHAPE_QUADRATIC,
+            Shape::CubicBspline => SHAPE_CUBIC,
+        };
         format!(
             "const D: u32 = {d}u;\nconst NK: u32 = {nk}u;\nconst S: u32 = {s}u;\n\
              const WG: u32 = {WORKGROUP}u;\nconst TRANSFER: u32 = {t}u;\nconst MUSL: bool = {m};\n\
              const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
              const MODELS: u32 = {models}u;\nconst GATHER: bool = {gather};\n\
-             {accumulator}{COMMON}\n{CONTACT}\n{body}",
-            nk = if d == 3 { 3 } else { 1 },
+             const GIMP: bool = {gimp};\nconst CPGIMP: bool = {cpgimp};\n\
+             {shape}\n{accumulator}{COMMON}\n{CONTACT}\n{body}",
+            nk = if d == 3 {
+                self.shape.support_width()
+            } else {
+                1
+            },
+            gimp = self.shape.is_gimp(),
+            cpgimp = self.shape == Shape::Cpgimp,
             s = 1 + 2 * d,
             t = self.transfer,
             m = self.musl,

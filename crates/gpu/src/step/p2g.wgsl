@@ -48,7 +48,7 @@ struct Scatter {
 // start of the step, as the CPU solver's `choose_dt`: Δt > h / (c + |v|), c the material's
 // elastic wave speed (constitutive.wgsl's table).
 fn prepare(i: u32) -> Scatter {
-    let st = stencil(load_vec(x_at(), i));
+    let st = particle_stencil(i, load_vec(x_at(), i));
     if !st.on_grid {
         _ = raise(FLAG_LEFT_GRID, i);
         var sc: Scatter;
@@ -152,9 +152,9 @@ fn p2g(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) g
             continue;
         }
         for (var k = 0u; k < NK; k++) {
-            for (var j = 0u; j < 3u; j++) {
+            for (var j = 0u; j < B; j++) {
                 let rs = row_sums(sc, j, k);
-                for (var n = 0u; n < 3u; n++) {
+                for (var n = 0u; n < B; n++) {
                     add_entry(entry(sc, rs, n));
                 }
             }

@@ -1,6 +1,6 @@
 // Particle to grid as a gather, for adapters without float atomics: one thread per node sums
-// what the particles of the 3^D bins around it (bins.wgsl: the particles whose stencil's
-// first node is the node less (i, j, k), i, j, k < 3) give it, bin by bin in a fixed order
+// what the particles of the B^D bins around it (bins.wgsl: the particles whose stencil's
+// first node is the node less (i, j, k), i, j, k < B) give it, bin by bin in a fixed order
 // and in each bin by particle index. No atomics, and the sums are the same bits from run to
 // run. The particles' scatters are read from their places (`bin_payload`), the stencil formed
 // again from the position. Compiled after p2g.wgsl and bins.wgsl.
@@ -19,8 +19,8 @@ fn gather_node(n: u32) -> Entry {
     var sum: Entry;
     sum.node = n;
     for (var k = 0u; k < NK; k++) {
-        for (var j = 0u; j < 3u; j++) {
-            for (var i = 0u; i < 3u; i++) {
+        for (var j = 0u; j < B; j++) {
+            for (var i = 0u; i < B; i++) {
                 if c.x < i || c.y < j || c.z < k {
                     continue;
                 }

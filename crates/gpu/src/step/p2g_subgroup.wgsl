@@ -1,5 +1,5 @@
 // Particle to grid with the entries summed within a subgroup first: a run of consecutive
-// lanes whose particles share a stencil (the same first node, so the same 3^D nodes) sums
+// lanes whose particles share a stencil (the same first node, so the same B^D nodes) sums
 // its entries by shuffles, and only the run's first lane adds them to the grid. Particles
 // filled in as a lattice lie side by side along x, two or more to a cell, so the scatter
 // adds about half as often or less; where they have parted, the runs are shorter, with the
@@ -66,9 +66,9 @@ fn p2g_subgroup(
         let before = subgroupShuffleUp(key, 1u);
         let head = key != NO_KEY && (lane == 0u || before != key);
         for (var k = 0u; k < NK; k++) {
-            for (var j = 0u; j < 3u; j++) {
+            for (var j = 0u; j < B; j++) {
                 let rs = row_sums(sc, j, k);
-                for (var n = 0u; n < 3u; n++) {
+                for (var n = 0u; n < B; n++) {
                     var e = entry(sc, rs, n);
                     e.mp = run_sum(e.mp, len, size);
                     if TRANSFER != TRANSFER_MLS {

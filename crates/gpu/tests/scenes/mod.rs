@@ -5,8 +5,10 @@
 /// One test scene; [`SceneText::toml`] writes its scene file for a scheme and a transfer.
 #[derive(Clone, Debug)]
 pub struct SceneText<const D: usize> {
-    /// `grid.hi` (`grid.lo` is the origin); the grid has quadratic B-splines.
+    /// `grid.hi` (`grid.lo` is the origin).
     pub hi: [f64; D],
+    /// `grid.shape_function`.
+    pub shape: &'static str,
     /// `grid.cell_size`.
     pub cell_size: f64,
     /// The keys of the one material after its name ([`water`], [`solid`]).
@@ -99,7 +101,7 @@ impl<const D: usize> SceneText<D> {
         let mut gravity = [0.0; D];
         gravity[1] = -self.gravity;
         format!(
-            "[grid]\nlo = {lo}\nhi = {hi}\ncell_size = {h:?}\nshape_function = \"quadratic_bspline\"\n\n\
+            "[grid]\nlo = {lo}\nhi = {hi}\ncell_size = {h:?}\nshape_function = \"{shape}\"\n\n\
              [[materials]]\nname = \"m\"\n{material}\n\n\
              [[bodies]]\nmaterial = \"m\"\nshape = {{ type = \"box\", lo = {body_lo}, hi = {body_hi} }}\n\
              particles_per_cell = 2\n\n{more}\
@@ -110,6 +112,7 @@ impl<const D: usize> SceneText<D> {
             lo = array([0.0; D]),
             hi = array(self.hi),
             h = self.cell_size,
+            shape = self.shape,
             material = self.material,
             body_lo = array(self.body[0]),
             body_hi = array(self.body[1]),
@@ -126,6 +129,7 @@ impl<const D: usize> SceneText<D> {
 pub fn dam_break_2d() -> SceneText<2> {
     SceneText {
         hi: [2.0, 0.12],
+        shape: "quadratic_bspline",
         cell_size: 0.02,
         material: water(35.0),
         body: [[0.0; 2], [1.0, 0.1]],
@@ -194,6 +198,7 @@ pub fn two_models_2d() -> SceneText<2> {
 pub fn dam_break_3d() -> SceneText<3> {
     SceneText {
         hi: [1.2, 0.4, 0.6],
+        shape: "quadratic_bspline",
         cell_size: 0.05,
         material: water(30.0),
         body: [[0.0; 3], [0.4, 0.3, 0.6]],
