@@ -1,6 +1,5 @@
 //! `loam run --device gpu` and `solver.device`: a GPU run writes the output of a CPU run and
-//! checkpoints and resumes as one does, a feature the GPU path lacks is refused with its
-//! field, and without an adapter the run says how to get one.
+//! checkpoints and resumes as one does, and without an adapter the run says how to get one.
 //!
 //! Under `CI=true` a missing adapter fails the tests that run on the GPU; elsewhere they say
 //! they are skipped and pass (install `mesa-vulkan-drivers` for a software adapter).
@@ -253,39 +252,6 @@ fn the_scene_can_ask_for_the_gpu() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains(", on "));
-}
-
-/// A feature the GPU path lacks is refused before the run with exit 2, naming the field,
-/// with or without an adapter; nothing is written. Here: 17 obstacles (the GPU keeps the
-/// obstacles that acted on a node in 16 bits of its state word), small disks in a row above
-/// the water.
-#[test]
-fn a_feature_the_gpu_lacks_is_refused_with_its_field() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let disks: String = (0..17)
-        .map(|k| {
-            let x = 0.6 + 0.08 * k as f64;
-            format!(
-                "[[obstacles]]\nshape = \"cylinder\"\ncentre = [{x:.2}, 0.35]\nradius = 0.02\n\n"
-            )
-        })
-        .collect();
-    let crowded = scene("", FIXED).replace("[loads]", &format!("{disks}[loads]"));
-    let out = run(dir.path(), "gpu", &crowded, &["--device", "gpu"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("obstacles[16]") && stderr.contains("not supported on the GPU yet"),
-        "{stderr}"
-    );
-    assert!(!dir.path().join("gpu").exists());
-    // The CPU runs the same scene.
-    let cpu = run(dir.path(), "cpu", &crowded, &["--device", "cpu"]);
-    assert!(
-        cpu.status.success(),
-        "{}",
-        String::from_utf8_lossy(&cpu.stderr)
-    );
 }
 
 /// A disk obstacle moving into the water column's face, then the `[loads]` header it is put

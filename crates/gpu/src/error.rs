@@ -13,7 +13,11 @@ pub enum GpuError {
         /// What the lookup reported.
         reason: String,
     },
-    /// The scene uses a feature the GPU path does not support yet.
+    /// The config is not one the explicit solver runs (the CPU's `Config::validate`).
+    #[error(transparent)]
+    Config(#[from] loam_explicit::ConfigError),
+    /// The scene needs what this adapter or the GPU path does not offer (a buffer larger than
+    /// the adapter binds, more steps than the device's step counter holds).
     #[error("`{field}`: {what} is not supported on the GPU yet (run it with device = \"cpu\")")]
     Unsupported {
         /// The scene field that selects the feature.

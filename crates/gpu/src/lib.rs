@@ -15,8 +15,8 @@
 //! live on the device; the host reads back the stability flags every [`CHECK_EVERY`] steps and
 //! the particles when asked.
 //!
-//! Not yet on the GPU (a scene using it gets [`GpuError::Unsupported`] naming the field):
-//! more than 16 obstacles.
+//! Every scene the explicit CPU solver runs, runs here; a scene whose buffers are larger than
+//! the adapter binds gets [`GpuError::Unsupported`] naming the field that sizes them.
 
 mod device;
 mod error;

@@ -1,7 +1,6 @@
 //! The constants of a run as the kernels read them, built from an explicit-solver
 //! [`Config`], with the checks that the GPU path supports the scene.
 
-use crate::error::GpuError;
 use bytemuck::{Pod, Zeroable};
 use loam_core::constitutive::{Hencky, Lame, LinearElastic, Material, Model, NeoHookean};
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
@@ -40,9 +39,16 @@ pub(crate) struct Params {
     pub bins: u32,
 }
 
-/// The most obstacles a run may have on the GPU: one bit each of a node's state, above the
-/// bits of the walls and the friction segments (contact.wgsl).
-pub(crate) const MAX_OBSTACLES: usize = 16;
+/// The u32 words of a node's state (`STATE_WORDS` of common.wgsl): the first holds the walls,
+/// the segments and 16 obstacles (contact.wgsl's bits), each further one 32 more obstacles.
+pub(crate) fn state_words<const D: usize>(config: &Config<f32, D>) -> usize {
+    1 + config
+        .contact
+        .obstacles
+        .len()
+        .saturating_sub(16)
+        .div_ceil(32)
+}
 
 /// The transfer scheme as `common.wgsl` numbers it (`TRANSFER_*`).
 pub(crate) fn transfer_code(transfer: Transfer) -> u32 {
@@ -77,8 +83,8 @@ pub(crate) fn models<const D: usize>(config: &Config<f32, D>) -> u32 {
 }
 
 /// The words of the node buffer of `nodes` nodes in `D` dimensions (`nodev` of
-/// `common.wgsl`): the velocities and the state words, then for FLIP the start-of-step
-/// velocities `v_iⁿ` that G2P's increment `Σ w (v_i − v_iⁿ)` reads.
+/// `common.wgsl`): the velocities and the state words ([`state_words`] per node), then for
+/// FLIP the start-of-step velocities `v_iⁿ` that G2P's increment `Σ w (v_i − v_iⁿ)` reads.
 pub(crate) fn node_words<const D: usize>(config: &Config<f32, D>) -> usize {
     let nodes = config.grid.num_nodes();
     let old = if config.transfer.needs_old_grid_velocity() {
@@ -86,14 +92,7 @@ pub(crate) fn node_words<const D: usize>(config: &Config<f32, D>) -> usize {
     } else {
         0
     };
-    (D + 1) * nodes + old
-}
-
-fn unsupported(field: &str, what: &str) -> GpuError {
-    GpuError::Unsupported {
-        field: field.into(),
-        what: what.into(),
-    }
+    (D + state_words(config)) * nodes + old
 }
 
 /// A wall as `common.wgsl` encodes it: the kind, plus 16 when separable.
@@ -105,27 +104,6 @@ fn wall_code(kind: WallKind, separable: bool) -> u32 {
         WallKind::NoSlip => 3,
     };
     k | if separable { 16 } else { 0 }
-}
-
-/// Checks that the GPU path runs `config`: at most [`MAX_OBSTACLES`] obstacles, and MLS-MPM
-/// only with a B-spline (as the CPU's `Config::validate` requires).
-pub(crate) fn check<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuError> {
-    if config.transfer == Transfer::Mls && config.shape.apic_inverse_inertia().is_none() {
-        return Err(unsupported(
-            "solver.transfer",
-            &format!(
-                "mls with the {:?} shape function (MLS-MPM needs a B-spline)",
-                config.shape
-            ),
-        ));
-    }
-    if config.contact.obstacles.len() > MAX_OBSTACLES {
-        return Err(unsupported(
-            &format!("obstacles[{MAX_OBSTACLES}]"),
-            &format!("more than {MAX_OBSTACLES} obstacles"),
-        ));
-    }
-    Ok(())
 }
 
 /// The uniform block of a run of `particles` particles with the largest particle mass

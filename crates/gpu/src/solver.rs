@@ -118,21 +118,16 @@ fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLay
 }
 
 impl<const D: usize> GpuSolver<D> {
-    /// Whether the GPU path runs `config`, without a device: [`GpuError::Unsupported`] names
-    /// the scene field of the first feature it lacks.
-    pub fn supports(config: &Config<f32, D>) -> Result<(), GpuError> {
-        params::check(config).map(|_| ())
-    }
-
     /// Uploads `particles` and compiles the step of `config` (the lifted f32 config the CPU
-    /// solver takes); fails with [`GpuError::Unsupported`] naming the scene field of a
-    /// feature the GPU path lacks.
+    /// solver takes); fails with [`GpuError::Config`] for a config the CPU solver refuses, and
+    /// with [`GpuError::Unsupported`] naming the scene field that sizes a buffer larger than
+    /// the adapter binds.
     pub fn new(
         gpu: &Gpu,
         config: &Config<f32, D>,
         particles: &Particles<f32, D>,
     ) -> Result<Self, GpuError> {
-        params::check(config)?;
+        config.validate()?;
         let n = particles.len();
         let nodes = config.grid.num_nodes();
         let max_mass = particles.mass.iter().fold(0.0f64, |m, &x| m.max(x as f64));
@@ -161,6 +156,7 @@ impl<const D: usize> GpuSolver<D> {
             subgroups: gpu.subgroups(),
             models: params::models(config),
             shape: config.shape,
+            state_words: params::state_words(config),
         };
         let mut kin = Vec::with_capacity(3 * D * n);
         flat_vectors(&particles.x, &mut kin);

@@ -35,20 +35,16 @@ pub fn device(p2g: Option<P2g>) -> Result<Gpu, GpuError> {
     })
 }
 
-/// Opens the first GPU adapter and uploads the run: a feature the GPU path lacks is invalid
-/// input (exit 2, naming the scene field; checked first, so with or without an adapter), no
-/// adapter a failure of the run (exit 1, with how to get a software adapter); both are
-/// reported here.
+/// Opens the first GPU adapter and uploads the run: no adapter is a failure of the run (exit
+/// 1, with how to get a software adapter), a scene whose buffers are larger than the adapter
+/// binds invalid input (exit 2, naming the scene field that sizes them); both are reported
+/// here.
 pub fn open<const D: usize>(
     config: &Config<f64, D>,
     particles: &Particles<f64, D>,
     p2g: Option<P2g>,
 ) -> Result<GpuSolver<D>, Outcome> {
     let config = config.lift();
-    if let Err(e) = GpuSolver::supports(&config) {
-        eprintln!("error: {e}");
-        return Err(Outcome::BadInput);
-    }
     let gpu = device(p2g).map_err(|e| {
         eprintln!("error: {e}");
         Outcome::Failed
@@ -56,7 +52,7 @@ pub fn open<const D: usize>(
     GpuSolver::new(&gpu, &config, &particles.lift()).map_err(|e| {
         eprintln!("error: {e}");
         match e {
-            GpuError::Unsupported { .. } => Outcome::BadInput,
+            GpuError::Unsupported { .. } | GpuError::Config(_) => Outcome::BadInput,
             _ => Outcome::Failed,
         }
     })

@@ -5,11 +5,11 @@
 // 1 in 2D), `S` (accumulator entries per node, 1 + 2D), `WG` (workgroup size), `TRANSFER`,
 // `MUSL`, `AXIS` (for the per-axis ghost passes), `MODELS` (bit `MODEL_*` of constitutive.wgsl
 // set for each model the scene's materials have), `GIMP` and `CPGIMP` (the shape is of the
-// GIMP family; its half-length stretches with F), the shape file (shape_*.wgsl: the support
-// width `B`, the vector `Wv` of one axis' B factors, `BSPLINE` and the 1D factors `axis`)
-// and the accumulator binding with its
-// `acc_add` / `acc_load` / `acc_store` (native f32 atomics, or a compare-exchange loop on the
-// f32 bits where the adapter has none).
+// GIMP family; its half-length stretches with F), `STATE_WORDS` (a node's state words), the
+// shape file (shape_*.wgsl: the support width `B`, the vector `Wv` of one axis' B factors,
+// `BSPLINE` and the 1D factors `axis`) and the accumulator binding with its `acc_add` /
+// `acc_load` / `acc_store` (native f32 atomics, or a compare-exchange loop on the f32 bits
+// where the adapter has none).
 //
 // Vectors are vec3 and tensors mat3x3 in every dimension: in 2D the z entries are zero (the
 // deformation gradient carries F_zz = 1), which leaves every in-plane value bit for bit as the
@@ -101,8 +101,9 @@ struct Params {
 // Stress (xx, yy, zz, xy, xz, yz; 6 n), mass (n), reference volume (n), material id (n, u32
 // bits), equivalent plastic strain (n), and for GIMP the reference half-lengths (D n).
 @group(0) @binding(4) var<storage, read_write> mat: array<f32>;
-// Node velocities (D N), then the wall bits that acted on each node (N, u32 bits), then for
-// FLIP the start-of-step velocities v_iⁿ = p_i / m_i (D N).
+// Node velocities (D N), then the bits of the walls and contacts that acted on each node
+// (STATE_WORDS N, u32 bits), then for FLIP the start-of-step velocities v_iⁿ = p_i / m_i
+// (D N).
 @group(0) @binding(6) var<storage, read_write> nodev: array<f32>;
 // The stability flags (below), the clock and the speeds; where the scatter is a gather, then
 // the particle bins (bins.wgsl).
@@ -263,19 +264,31 @@ fn set_node_v(n: u32, v: vec3<f32>) {
 
 // FLIP's start-of-step velocity v_iⁿ of node `n` (after the velocities and the state words).
 fn node_v_old(n: u32) -> vec3<f32> {
-    return node_vec((D + 1u) * prm.nodes.w, n);
+    return node_vec((D + STATE_WORDS) * prm.nodes.w, n);
 }
 
 fn set_node_v_old(n: u32, v: vec3<f32>) {
-    set_node_vec((D + 1u) * prm.nodes.w, n, v);
+    set_node_vec((D + STATE_WORDS) * prm.nodes.w, n, v);
 }
 
-fn node_state(n: u32) -> u32 {
-    return bitcast<u32>(nodev[D * prm.nodes.w + n]);
+// The walls, friction segments and obstacles that acted on a node in the first projection
+// (bits of contact.wgsl), for MUSL's second: one word, and one more for each further 32
+// obstacles past the first 16 (`STATE_WORDS`, set by the launcher from the scene). Word `w`
+// of node `n` lies at D N + w N + n.
+alias State = array<u32, STATE_WORDS>;
+
+fn node_state(n: u32) -> State {
+    var s: State;
+    for (var w = 0u; w < STATE_WORDS; w++) {
+        s[w] = bitcast<u32>(nodev[(D + w) * prm.nodes.w + n]);
+    }
+    return s;
 }
 
-fn set_node_state(n: u32, s: u32) {
-    nodev[D * prm.nodes.w + n] = bitcast<f32>(s);
+fn set_node_state(n: u32, s: State) {
+    for (var w = 0u; w < STATE_WORDS; w++) {
+        nodev[(D + w) * prm.nodes.w + n] = bitcast<f32>(s[w]);
+    }
 }
 
 fn node_index(n: u32) -> vec3<u32> {

@@ -11,10 +11,20 @@
 
 const OBSTACLE_BOX: f32 = 0.0;
 
-// The bit of a node's state for the segment of face (axis, side) and for obstacle k; the
-// wall bits of `walls` are 0..5.
+// The bit of a node's state for the segment of face (axis, side) and for obstacle k: bit
+// b of the state words is bit b % 32 of word b / 32; the wall bits of `walls` are 0..5 of
+// word 0.
 const SEGMENT_BITS: u32 = 8u;
 const OBSTACLE_BITS: u32 = 16u;
+
+// Whether a state holds a segment or an obstacle.
+fn in_contact(s: State) -> bool {
+    var any = (s[0] >> SEGMENT_BITS) != 0u;
+    for (var w = 1u; w < STATE_WORDS; w++) {
+        any = any || s[w] != 0u;
+    }
+    return any;
+}
 
 struct Touched {
     // 0: separating (untouched), 1: stuck, 2: slid.
@@ -204,8 +214,8 @@ fn inside_obstacle(x: vec3<f32>, t: f32) -> u32 {
 // whose contact layer φ < s h ‖n‖₁ holds it. With `decide` the Coulomb law decides and the
 // bits of the constraints the node approached are returned; otherwise the normal part is
 // removed on the constraints of `given`.
-fn contact(idx: vec3<u32>, v: ptr<function, vec3<f32>>, t: f32, given: u32, decide: bool) -> u32 {
-    var acted = 0u;
+fn contact(idx: vec3<u32>, v: ptr<function, vec3<f32>>, t: f32, given: State, decide: bool) -> State {
+    var acted: State;
     var faces_done = 0u;
     for (var s = 0u; s < prm.segments; s++) {
         let at = prm.material_entries + 4u * s;
@@ -229,10 +239,10 @@ fn contact(idx: vec3<u32>, v: ptr<function, vec3<f32>>, t: f32, given: u32, deci
         // The face's outward normal, into the wall.
         var n = vec3<f32>(0.0);
         n[axis] = select(1.0, -1.0, side == 0u);
-        let r = law(*v, n, seg.z, decide, (given & bit) != 0u);
+        let r = law(*v, n, seg.z, decide, (given[0] & bit) != 0u);
         *v = r.v;
         if r.touch != 0u {
-            acted |= bit;
+            acted[0] |= bit;
         }
     }
     for (var k = 0u; k < prm.obstacles; k++) {
@@ -244,13 +254,14 @@ fn contact(idx: vec3<u32>, v: ptr<function, vec3<f32>>, t: f32, given: u32, deci
         if d.phi >= prm.reach * l1 {
             continue;
         }
-        let bit = 1u << (OBSTACLE_BITS + k);
+        let word = (OBSTACLE_BITS + k) / 32u;
+        let bit = 1u << ((OBSTACLE_BITS + k) % 32u);
         let vo = obstacle_velocity(k);
         let mu = table[obstacle_at(k) + 1u].w;
-        let r = law(*v - vo, -d.n, mu, decide, (given & bit) != 0u);
+        let r = law(*v - vo, -d.n, mu, decide, (given[word] & bit) != 0u);
         if r.touch != 0u {
             *v = r.v + vo;
-            acted |= bit;
+            acted[word] |= bit;
         }
     }
     return acted;

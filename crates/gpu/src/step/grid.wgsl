@@ -115,7 +115,7 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
         let m = acc_load(acc_at(n, 0u));
         var v = vec3<f32>(0.0);
         var v_old = vec3<f32>(0.0);
-        var state = 0u;
+        var state: State;
         if m > prm.mass_floor {
             var p = vec3<f32>(0.0);
             var f = vec3<f32>(0.0);
@@ -128,10 +128,10 @@ fn update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
             let idx = node_index(n);
             let face = on_any_face(idx);
             if (face && prm.segments > 0u) || prm.obstacles > 0u {
-                state = contact(idx, &v, end_time(), 0u, true);
+                state = contact(idx, &v, end_time(), state, true);
             }
             if face {
-                state |= walls(idx, &v, 0u, true);
+                state[0] |= walls(idx, &v, 0u, true);
             }
         }
         if MUSL {
@@ -160,11 +160,11 @@ fn second_velocity(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
             }
             let idx = node_index(n);
             let state = node_state(n);
-            if (state >> SEGMENT_BITS) != 0u {
+            if in_contact(state) {
                 _ = contact(idx, &v, end_time(), state, false);
             }
             if on_any_face(idx) {
-                _ = walls(idx, &v, state, false);
+                _ = walls(idx, &v, state[0], false);
             }
         }
         set_node_v(n, v);

@@ -68,6 +68,8 @@ pub(crate) struct Variant {
     pub models: u32,
     /// The shape function (which shape file goes in front of common.wgsl).
     pub shape: Shape,
+    /// The u32 words of a node's state (`params::state_words`).
+    pub state_words: usize,
 }
 
 impl Variant {
@@ -115,6 +117,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
              const AXIS: u32 = {axis}u;\nconst FOLD_ALL: bool = {fold_all};\n\
              const MODELS: u32 = {models}u;\nconst GATHER: bool = {gather};\n\
              const GIMP: bool = {gimp};\nconst CPGIMP: bool = {cpgimp};\n\
+             const STATE_WORDS: u32 = {state_words}u;\n\
              {shape}\n{accumulator}{COMMON}\n{CONTACT}\n{body}",
             nk = if d == 3 {
                 self.shape.support_width()
@@ -123,6 +126,7 @@ fn acc_store(i: u32, x: f32) { atomicStore(&acc[i], bitcast<u32>(x)); }
             },
             gimp = self.shape.is_gimp(),
             cpgimp = self.shape == Shape::Cpgimp,
+            state_words = self.state_words,
             s = 1 + 2 * d,
             t = self.transfer,
             m = self.musl,

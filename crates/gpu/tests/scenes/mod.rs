@@ -160,6 +160,27 @@ pub fn friction_2d() -> SceneText<2> {
     }
 }
 
+/// A disk obstacle of radius `r` at `(x, y)` (a 2D cylinder).
+pub fn disk(x: f64, y: f64, r: f64) -> String {
+    format!("[[obstacles]]\nshape = \"cylinder\"\ncentre = [{x:?}, {y:?}]\nradius = {r:?}\n\n")
+}
+
+/// The 2D dam-break of [`dam_break_2d`] running into a field of 20 baffles: disks of radius
+/// 0.015 m, 0.045 m apart along x from x = 1.045 m, staggered at y = 0.03 and 0.07 m, listed
+/// from the far end, so that the ones the surge reaches first are obstacles 19, 18, 17 …
+/// (past the 16 that fit in the first word of a node's state on the GPU).
+pub fn baffles_2d() -> SceneText<2> {
+    SceneText {
+        contact: (0..20)
+            .map(|k| {
+                let x = 1.9 - 0.045 * k as f64;
+                disk(x, if k % 2 == 0 { 0.03 } else { 0.07 }, 0.015)
+            })
+            .collect(),
+        ..dam_break_2d()
+    }
+}
+
 /// The elastic block drop of examples/elastic_block_drop.toml, widened to 0.4 m × 0.3 m
 /// (0.02 m cells, 1,200 particles): the block falls 0.3 m onto a unilateral no-slip floor
 /// (impact at t ≈ 0.25 s, 2.4 m/s) and rebounds. `model` is `neo_hookean` or `hencky` (E = 1e5 Pa, ν = 0.3); a fixed step of
