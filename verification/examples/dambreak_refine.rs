@@ -10,6 +10,7 @@
 //! 35). MUSL, window T_W = 0.5 s. Prints one row of the table.
 
 use loam_core::Transfer;
+use loam_verification::Device;
 use loam_verification::dambreak::{
     L0, SOUND_SPEED, Setup, late_error, late_speed, relative_error, ritter_front, simulate,
 };
@@ -58,7 +59,8 @@ fn main() {
         }
     }
     let t_w = 0.5;
-    let run = simulate(&setup, t_w, 120, &[]).expect("the dam break runs to the window's end");
+    let run = simulate(&setup, &Device::Cpu, t_w, 120, &[])
+        .expect("the dam break runs to the window's end");
     let &(t, x) = run.front.last().expect("the history holds t = 0");
     let travel = (x - L0) / (ritter_front(t) - L0) - 1.0;
     println!(

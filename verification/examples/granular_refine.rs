@@ -6,7 +6,7 @@
 //! cell size in metres (a divisor of 0.01; default 0.0025).
 
 use loam_verification::granular::simulate;
-use loam_verification::{bui, runout};
+use loam_verification::{Device, bui, runout};
 
 fn main() {
     let h: f64 = std::env::args()
@@ -20,7 +20,7 @@ fn main() {
     let bui = bui::collapse(h);
     let columns = runout::COLUMNS.map(|(l0, h0)| ("column-runout", runout::collapse(l0, h0, h)));
     for (case, c) in std::iter::once(("bui-collapse", bui)).chain(columns) {
-        let o = simulate(case, &c, 50).expect("the collapse runs to its end");
+        let o = simulate(case, &c, &Device::Cpu, 50).expect("the collapse runs to its end");
         let last = o.last();
         println!(
             "| {case} | {:.2} | {:.4} | {:.3} | {:.4} | {:.4} | {:.4} | {} | {} | {:.0} |",

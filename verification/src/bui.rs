@@ -30,7 +30,9 @@
 
 use crate::granular::{self, Collapse, G, Granular, MIN_THICKNESS, Outcome};
 use crate::runout::{lajeunesse, lube};
-use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_plot, write_text};
+use crate::{
+    CaseReport, Device, Metric, Series, Size, VerifyError, scenes, write_plot, write_text,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -100,8 +102,8 @@ pub fn band_excess(x: f64, (lo, hi): (f64, f64)) -> f64 {
     }
 }
 
-/// Runs the case: final runout and height at the wall.
-pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+/// Runs the case on `device`: final runout and height at the wall.
+pub fn run(size: Size, device: &Device, out: &Path) -> Result<CaseReport, VerifyError> {
     const CASE: &str = "bui-collapse";
     // Reduced: h = 10 mm (10 cells over H₀, 800 particles, ≈ 5,200 steps). Full: h = 5 mm
     // (3,200 particles, ≈ 10,500 steps).
@@ -110,7 +112,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         Size::Full => 0.005,
     };
     let c = collapse(h);
-    let o = granular::simulate(CASE, &c, 50)?;
+    let o = granular::simulate(CASE, &c, device, 50)?;
     let (band, bounds) = (quasi_2d_band(), runout_bounds());
     let last = o.last();
 

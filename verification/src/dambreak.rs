@@ -32,9 +32,10 @@
 //! **Resolutions.** Every transfer runs at a coarse and a fine cell size ([`resolutions`]):
 //! the fine run's error is held to a bound, and it must be smaller than the coarse run's.
 
+use crate::device::ExplicitRun;
 use crate::{
-    CaseReport, Metric, Series, Size, VerifyError, advance, explicit_solver, scenes, write_csv,
-    write_plot, write_text,
+    CaseReport, Device, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot,
+    write_text,
 };
 use loam_core::{Particles, TimeStep, Transfer};
 use loam_explicit::Config;
@@ -184,10 +185,12 @@ pub struct FrontHistory {
     pub wall: f64,
 }
 
-/// Runs the dam break to `t_end`, sampling the front `samples` times at equal intervals and
-/// the surface profile at each of `profile_times` (each must be one of the sample times).
+/// Runs the dam break on `device` to `t_end`, sampling the front `samples` times at equal
+/// intervals and the surface profile at each of `profile_times` (each must be one of the sample
+/// times).
 pub fn simulate(
     setup: &Setup,
+    device: &Device,
     t_end: f64,
     samples: usize,
     profile_times: &[f64],
@@ -195,7 +198,7 @@ pub fn simulate(
     const CASE: &str = "dambreak-2d";
     let (config, mut particles) = build(setup);
     let (radius, half) = (setup.h, 0.5 * setup.spacing());
-    let mut solver = explicit_solver(CASE, config, &particles)?;
+    let mut solver = ExplicitRun::new(CASE, config, &particles, device)?;
     let start = std::time::Instant::now();
     let max_x =
         |p: &Particles<f64, 2>| p.x.iter().fold(f64::NEG_INFINITY, |a, x| a.max(x[0])) + half;
@@ -204,7 +207,7 @@ pub fn simulate(
     let mut profiles = Vec::new();
     for k in 1..=samples {
         let t = t_end * k as f64 / samples as f64;
-        advance(CASE, &mut solver, &mut particles, t)?;
+        solver.advance(&mut particles, t)?;
         front.push((t, front_position(&particles, radius, half)));
         max.push(max_x(&particles));
         if profile_times
@@ -285,9 +288,9 @@ impl TransferRuns {
     }
 }
 
-/// Runs the case: the front of APIC, TPIC and FLIP (α = 1) runs against Ritter at a coarse
-/// and a fine resolution.
-pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+/// Runs the case on `device`: the front of APIC, TPIC and FLIP (α = 1) runs against Ritter at
+/// a coarse and a fine resolution.
+pub fn run(size: Size, device: &Device, out: &Path) -> Result<CaseReport, VerifyError> {
     const CASE: &str = "dambreak-2d";
     let t_w = WINDOW;
     let [(h_coarse, dt_coarse), (h, dt)] = resolutions(size);
@@ -323,8 +326,8 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             transfer,
             sound_speed: SOUND_SPEED,
         };
-        let fine = simulate(&setup(h, dt), t_w, samples, &profile_times)?;
-        let coarse = simulate(&setup(h_coarse, dt_coarse), t_w, samples, &[])?;
+        let fine = simulate(&setup(h, dt), device, t_w, samples, &profile_times)?;
+        let coarse = simulate(&setup(h_coarse, dt_coarse), device, t_w, samples, &[])?;
         runs.push(TransferRuns { name, coarse, fine });
     }
 

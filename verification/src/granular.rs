@@ -58,9 +58,10 @@
 //! potential energy released, `ΔE_p = E_p(0) − E_p(t)`, and its toe has stopped moving
 //! ([`Outcome::rest_ratio`], [`Outcome::late_toe_motion`]).
 
-use crate::{Series, VerifyError, advance, explicit_solver, scenes, write_csv};
+use crate::device::ExplicitRun;
+use crate::{Device, Series, VerifyError, scenes, write_csv};
 use loam_core::Particles;
-use loam_explicit::{Config, Solver};
+use loam_explicit::Config;
 use loam_scene::{BodyShape, InitialStressSpec, Scene};
 use std::path::Path;
 
@@ -378,13 +379,19 @@ impl Outcome {
     }
 }
 
-/// Runs a collapse to its end time, sampling the history `samples` times at equal intervals.
-pub fn simulate(case: &str, c: &Collapse, samples: usize) -> Result<Outcome, VerifyError> {
+/// Runs a collapse on `device` to its end time, sampling the history `samples` times at equal
+/// intervals.
+pub fn simulate(
+    case: &'static str,
+    c: &Collapse,
+    device: &Device,
+    samples: usize,
+) -> Result<Outcome, VerifyError> {
     let (config, mut particles) = build(c);
-    let mut solver = explicit_solver(case, config, &particles)?;
+    let mut solver = ExplicitRun::new(case, config, &particles, device)?;
     let (w, dp, rho) = (c.h, c.spacing(), c.material.density);
     let e0 = solver.energy(&particles).gravity;
-    let sample = |s: &Solver<f64, 2>, p: &Particles<f64, 2>, t: f64| {
+    let sample = |s: &ExplicitRun, p: &Particles<f64, 2>, t: f64| {
         let e = s.energy(p);
         Sample {
             t,
@@ -399,7 +406,7 @@ pub fn simulate(case: &str, c: &Collapse, samples: usize) -> Result<Outcome, Ver
     let mut history = vec![sample(&solver, &particles, 0.0)];
     for k in 1..=samples {
         let t = c.end_time * k as f64 / samples as f64;
-        advance(case, &mut solver, &mut particles, t)?;
+        solver.advance(&mut particles, t)?;
         history.push(sample(&solver, &particles, t));
     }
     let wall = start.elapsed().as_secs_f64();

@@ -12,6 +12,7 @@ pub mod bui;
 pub mod cantilever;
 pub mod column;
 pub mod dambreak;
+mod device;
 pub mod disk_collision;
 pub mod elastica;
 pub mod fe_beam;
@@ -33,6 +34,7 @@ pub mod runout;
 pub mod scenes;
 pub mod tangent_fd;
 
+pub use device::Device;
 pub use output::{Series, write_csv, write_plot, write_text};
 
 use serde::Serialize;
@@ -183,35 +185,23 @@ pub enum VerifyError {
     /// No case of that name.
     #[error("unknown verification case \"{0}\"; run `loam verify --list` to see the cases")]
     UnknownCase(String),
-}
-
-/// The explicit solver for a case's set-up (a rejected set-up is an error of the case).
-pub(crate) fn explicit_solver(
-    case: &str,
-    config: loam_explicit::Config<f64, 2>,
-    particles: &loam_core::Particles<f64, 2>,
-) -> Result<loam_explicit::Solver<f64, 2>, VerifyError> {
-    loam_explicit::Solver::new(config, particles).map_err(|source| VerifyError::Config {
-        case: case.into(),
-        source,
-    })
-}
-
-/// Advances a case's run to the time `t` exactly, the last step shortened to end on it also
-/// with a fixed step, so that the samples a case takes are at their nominal times (a run that
-/// stops is an error of the case).
-pub(crate) fn advance(
-    case: &str,
-    solver: &mut loam_explicit::Solver<f64, 2>,
-    particles: &mut loam_core::Particles<f64, 2>,
-    t: f64,
-) -> Result<(), VerifyError> {
-    solver
-        .advance_exactly_to(particles, t, |_, _| {})
-        .map_err(|source| VerifyError::Solver {
-            case: case.into(),
-            source,
-        })
+    /// A GPU run failed, or the GPU could not take the set-up.
+    #[error("{case}: GPU run failed: {source}")]
+    Gpu {
+        /// Case name.
+        case: &'static str,
+        /// The GPU path's error.
+        #[source]
+        source: loam_gpu::GpuError,
+    },
+    /// A case that runs on the CPU only was asked for the GPU.
+    #[error("{case} runs on the CPU only; the cases that run on the GPU: {gpu_cases}")]
+    CpuOnly {
+        /// Case name.
+        case: String,
+        /// The cases that do.
+        gpu_cases: String,
+    },
 }
 
 /// A verification case.
@@ -221,7 +211,50 @@ pub struct Case {
     /// One-line description with the reference.
     pub description: &'static str,
     /// Runs the case, writing its files under the given directory.
-    pub run: fn(Size, &Path) -> Result<CaseReport, VerifyError>,
+    pub runner: Runner,
+}
+
+/// How a case runs.
+#[derive(Clone, Copy)]
+pub enum Runner {
+    /// On the CPU only.
+    Cpu(fn(Size, &Path) -> Result<CaseReport, VerifyError>),
+    /// Its explicit runs on either [`Device`].
+    Explicit(fn(Size, &Device, &Path) -> Result<CaseReport, VerifyError>),
+}
+
+impl Case {
+    /// Whether the case's runs can step on the GPU.
+    pub fn on_gpu(&self) -> bool {
+        matches!(self.runner, Runner::Explicit(_))
+    }
+
+    /// Whether the case runs on the GPU when `gpu` is asked for: a CPU-only case is
+    /// [`VerifyError::CpuOnly`], naming the cases that do.
+    pub fn check_device(&self, gpu: bool) -> Result<(), VerifyError> {
+        if gpu && !self.on_gpu() {
+            return Err(VerifyError::CpuOnly {
+                case: self.name.into(),
+                gpu_cases: cases()
+                    .iter()
+                    .filter(|c| c.on_gpu())
+                    .map(|c| c.name)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            });
+        }
+        Ok(())
+    }
+
+    /// Runs the case at `size` on `device`, writing its files under `out` (see
+    /// [`Case::check_device`]).
+    pub fn run(&self, size: Size, device: &Device, out: &Path) -> Result<CaseReport, VerifyError> {
+        self.check_device(matches!(device, Device::Gpu(_)))?;
+        match self.runner {
+            Runner::Cpu(run) => run(size, out),
+            Runner::Explicit(run) => run(size, device, out),
+        }
+    }
 }
 
 /// Every case, in the order `loam verify` runs them.
@@ -230,107 +263,107 @@ pub fn cases() -> Vec<Case> {
         Case {
             name: "axial-bar",
             description: "1D axial vibration of a fixed-free elastic bar vs the modal solution v_cm(t) = v0/(β1 L) cos(ω1 t)",
-            run: axial_bar::run,
+            runner: Runner::Cpu(axial_bar::run),
         },
         Case {
             name: "axial-bar-newmark",
             description: "the axial bar by the implicit solver with Newmark dynamics at twice the explicit stability limit",
-            run: newmark_bar::run,
+            runner: Runner::Cpu(newmark_bar::run),
         },
         Case {
             name: "newmark-energy",
             description: "free vibration of the dynamic cantilever (Hencky, first-mode velocity, tip amplitude L/100) by implicit Newmark at 20 steps per period for 10 periods: total energy drift",
-            run: newmark_energy::run,
+            runner: Runner::Cpu(newmark_energy::run),
         },
         Case {
             name: "tangent-fd",
             description: "sparse-AD tangents (per-particle and colour-seeded) vs central finite differences, Neo-Hookean / Hencky / J2, 2D and 3D",
-            run: tangent_fd::run,
+            runner: Runner::Cpu(tangent_fd::run),
         },
         Case {
             name: "newton-quadratic",
             description: "quadratic convergence of Newton with the AD tangent (r_{k+1}/r_k² bounded)",
-            run: newton_quadratic::run,
+            runner: Runner::Cpu(newton_quadratic::run),
         },
         Case {
             name: "cantilever",
             description: "large-deflection plane-strain cantilever (Hencky, 50 load steps) vs the elastica",
-            run: cantilever::run,
+            runner: Runner::Cpu(cantilever::run),
         },
         Case {
             name: "column-compaction",
             description: "soil column compacting under self-weight (Hencky, 40 load steps) vs the exact stress",
-            run: column::run,
+            runner: Runner::Cpu(column::run),
         },
         Case {
             name: "footing-prandtl",
             description: "rigid strip footing on weightless Tresca (J2) soil: limit pressure vs (2 + π) c_u",
-            run: footing::run,
+            runner: Runner::Cpu(footing::run),
         },
         Case {
             name: "disk-collision",
             description: "Sulsky's two elastic disks: total energy drift through the collision (APIC)",
-            run: disk_collision::run,
+            runner: Runner::Explicit(disk_collision::run),
         },
         Case {
             name: "bui-collapse",
             description: "plane-strain collapse of Bui et al.'s (2008) aluminium-bar column (Drucker–Prager φ = 19.8°, Coulomb floor): final runout and height at the wall",
-            run: bui::run,
+            runner: Runner::Explicit(bui::run),
         },
         Case {
             name: "column-runout",
             description: "granular column collapse, a = 0.5, 1, 2, 4 (Drucker–Prager φ = 32°, Coulomb floor): (L∞ − L0)/L0 between Lube et al. (2005) and Lajeunesse et al. (2005)",
-            run: runout::run,
+            runner: Runner::Explicit(runout::run),
         },
         Case {
             name: "dambreak-2d",
             description: "2D dam break on a frictionless bed (weakly compressible fluid; APIC, TPIC, FLIP): surge front vs Ritter's x_f = L0 + 2√(gH0) t",
-            run: dambreak::run,
+            runner: Runner::Explicit(dambreak::run),
         },
         Case {
             name: "incline-friction",
             description: "block on a 30° incline with Coulomb friction: acceleration vs g(sin α − μ cos α) for μ = 0.1, 0.3; sticking for μ = 0.7 > tan α",
-            run: incline::run,
+            runner: Runner::Cpu(incline::run),
         },
         Case {
             name: "dambreak-obstacles-3d",
             description: "3D dam break against two rigid cylinders: no particle inside a column, mass conserved on particles and grid, energy never above its initial value",
-            run: obstacles::run,
+            runner: Runner::Cpu(obstacles::run),
         },
         Case {
             name: "adjoint-fd",
             description: "discrete adjoint vs forward-mode duals (1e-10) vs branch-aware central differences (1e-6), Taylor test: fluid on friction segments, Neo-Hookean block vs moving obstacle, Drucker–Prager column, 3D block; USL and MUSL",
-            run: adjoint_fd::run,
+            runner: Runner::Cpu(adjoint_fd::run),
         },
         Case {
             name: "implicit-adjoint-fd",
             description: "adjoint of implicit runs vs forward-mode duals (1e-10) vs central differences on the reference's sub-steps (1e-6), Taylor test: Hencky cantilever (E, ν, tip load, ρ₀), J2 footing with a cut load step (σ_y, E, H, settlement), the cantilever in Newmark dynamics under a sudden tip load (E, ν, tip load, ρ₀; tip deflection and velocity)",
-            run: implicit_adjoint_fd::run,
+            runner: Runner::Cpu(implicit_adjoint_fd::run),
         },
         Case {
             name: "inverse-v0",
             description: "initial velocity of a dam break (truth 2.0 m/s, first guess 0.5) recovered by L-BFGS from all particle positions, 100 tracked particles, four velocity monitors: within 0.5 %",
-            run: inverse_v0::run,
+            runner: Runner::Cpu(inverse_v0::run),
         },
         Case {
             name: "inverse-friction",
             description: "friction of four floor bands under a dam break (μ = 0, 0.5, 0.1, 0.2) recovered by L-BFGS through a softplus from 0.798, 100 tracked particles: within 1 %, the zero band below 0.005",
-            run: inverse_friction::run,
+            runner: Runner::Cpu(inverse_friction::run),
         },
         Case {
             name: "inverse-mlp",
             description: "initial velocity field of a water column given by an MLP (2 → 30 → 30 → 30 → 1) recovered by L-BFGS from 100, 500, 1,000 tracked particles: relative L2 error below 6.4 % (500) and 3.7 % (1,000)",
-            run: inverse_mlp::run,
+            runner: Runner::Cpu(inverse_mlp::run),
         },
         Case {
             name: "inverse-cantilever",
             description: "Study 4: Hencky cantilever, E from the tip displacement at 10 load steps (ν known) within 0.1 %; E and ν from all particles at 3 load steps within 1 % each; Gauss–Newton identifiability, tip vs all particles",
-            run: inverse_implicit::run_cantilever,
+            runner: Runner::Cpu(inverse_implicit::run_cantilever),
         },
         Case {
             name: "inverse-footing",
             description: "Study 5: strip footing on J2 clay under a prescribed settlement, σ_y (√3 c_u) and E from the load–settlement curve (reactions) within 0.5 % each",
-            run: inverse_implicit::run_footing,
+            runner: Runner::Cpu(inverse_implicit::run_footing),
         },
     ]
 }

@@ -42,7 +42,8 @@
 
 use crate::granular::{self, Collapse, Granular, MIN_THICKNESS, Outcome};
 use crate::{
-    CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot, write_text,
+    CaseReport, Device, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot,
+    write_text,
 };
 use std::fmt::Write as _;
 use std::path::Path;
@@ -101,8 +102,8 @@ pub fn band_excess(r: f64, a: f64) -> f64 {
     crate::bui::band_excess(r, (lube(a), lajeunesse(a)))
 }
 
-/// Runs the case: the four columns, runout against the two laws.
-pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+/// Runs the case on `device`: the four columns, runout against the two laws.
+pub fn run(size: Size, device: &Device, out: &Path) -> Result<CaseReport, VerifyError> {
     const CASE: &str = "column-runout";
     // Reduced: h = 10 mm (≈ 800 particles and 5,200 steps per column). Full: h = 5 mm
     // (≈ 3,200 particles, 10,500 steps per column).
@@ -112,7 +113,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     };
     let mut runs = Vec::new();
     for &(l0, h0) in &COLUMNS {
-        runs.push(granular::simulate(CASE, &collapse(l0, h0, h), 50)?);
+        runs.push(granular::simulate(CASE, &collapse(l0, h0, h), device, 50)?);
     }
     let mut files = write_outputs(&runs, h, out)?;
     let md = out.join("runout.md");

@@ -1,18 +1,40 @@
-//! The verification cases at reduced size: each must meet its tolerance.
+//! The verification cases at reduced size: each must meet its tolerance, on the CPU, and the
+//! cases whose explicit runs can step on the GPU also there (in f32, against the same
+//! references and tolerances).
+//!
+//! Under `CI=true` a missing GPU adapter fails the GPU tests; elsewhere they say they are
+//! skipped and pass (install `mesa-vulkan-drivers` for a software adapter).
 
-use loam_verification::{Size, case};
+use loam_gpu::Gpu;
+use loam_verification::{Device, Size, case};
+use std::sync::OnceLock;
 
 fn check(name: &str) {
+    check_on(name, &Device::Cpu);
+}
+
+fn check_on(name: &str, device: &Device) {
     let dir = tempfile::tempdir().expect("temporary directory");
-    let report =
-        (case(name).expect("case exists").run)(Size::Reduced, dir.path()).expect("case runs");
+    let report = case(name)
+        .expect("case exists")
+        .run(Size::Reduced, device, dir.path())
+        .expect("case runs");
     for m in &report.metrics {
         match m.tolerance {
             Some(t) => println!(
-                "{} {} = {:.4e} (tolerance {t:.1e})",
-                m.case, m.metric, m.value
+                "{} on {}: {} = {:.4e} (tolerance {t:.1e})",
+                m.case,
+                device.name(),
+                m.metric,
+                m.value
             ),
-            None => println!("{} {} = {:.4e} (information)", m.case, m.metric, m.value),
+            None => println!(
+                "{} on {}: {} = {:.4e} (information)",
+                m.case,
+                device.name(),
+                m.metric,
+                m.value
+            ),
         }
     }
     for f in &report.files {
@@ -21,10 +43,65 @@ fn check(name: &str) {
     for m in &report.metrics {
         assert!(
             m.passed,
-            "{}: {} = {} outside its tolerance {:?}",
-            m.case, m.metric, m.value, m.tolerance
+            "{} on {}: {} = {} outside its tolerance {:?}",
+            m.case,
+            device.name(),
+            m.metric,
+            m.value,
+            m.tolerance
         );
     }
+}
+
+/// The GPU (one device for the binary), or `None` with a note where there is none outside CI.
+fn gpu() -> Option<Device> {
+    static GPU: OnceLock<Result<Gpu, String>> = OnceLock::new();
+    match GPU.get_or_init(|| Gpu::new(false).map_err(|e| e.to_string())) {
+        Ok(gpu) => Some(Device::Gpu(Box::new(gpu.clone()))),
+        Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
+            panic!("CI needs a GPU adapter for the GPU tests: {e}")
+        }
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+fn check_on_gpu(name: &str) {
+    if let Some(device) = gpu() {
+        check_on(name, &device);
+    }
+}
+
+#[test]
+fn disk_collision_on_the_gpu() {
+    check_on_gpu("disk-collision");
+}
+
+#[test]
+fn dambreak_2d_on_the_gpu() {
+    check_on_gpu("dambreak-2d");
+}
+
+#[test]
+fn bui_collapse_on_the_gpu() {
+    check_on_gpu("bui-collapse");
+}
+
+/// A case that runs on the CPU only says so when asked for the GPU, and names those that do.
+#[test]
+fn a_cpu_only_case_is_refused_on_the_gpu() {
+    let cantilever = case("cantilever").expect("case exists");
+    let e = cantilever
+        .check_device(true)
+        .expect_err("the cantilever is implicit");
+    let message = e.to_string();
+    assert!(
+        message.contains("runs on the CPU only") && message.contains("dambreak-2d"),
+        "{message}"
+    );
+    assert!(cantilever.check_device(false).is_ok());
 }
 
 #[test]

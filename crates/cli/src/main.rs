@@ -124,6 +124,10 @@ enum Command {
         /// Run the reduced sizes used by the test suite (seconds instead of minutes).
         #[arg(long)]
         reduced: bool,
+        /// Where the explicit runs step: `gpu` runs the cases that can (default: all of them)
+        /// in f32 on the first GPU adapter, against the same references and tolerances.
+        #[arg(long, value_enum, default_value_t = Device::Cpu)]
+        device: Device,
     },
     /// Time the bench scenes on this machine (particle-steps per second).
     Bench {
@@ -165,8 +169,7 @@ enum Command {
 enum Device {
     /// The CPU solver (all features, f64 or f32).
     Cpu,
-    /// The GPU solver of `loam-gpu` (f32; fluid, linear elastic, Neo-Hookean, Hencky, J2 and
-    /// Drucker–Prager scenes with walls, friction segments and obstacles).
+    /// The GPU solver of `loam-gpu` (f32; every explicit scene).
     Gpu,
 }
 
@@ -279,7 +282,17 @@ fn main() -> ExitCode {
             json,
             out,
             reduced,
-        } => hold(|| verify::verify(&cases, list, json.as_deref(), &out, reduced)),
+            device,
+        } => hold(|| {
+            verify::verify(
+                &cases,
+                list,
+                json.as_deref(),
+                &out,
+                reduced,
+                device == Device::Gpu,
+            )
+        }),
         Command::Bench {
             benches,
             list,

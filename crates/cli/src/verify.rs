@@ -1,7 +1,7 @@
 //! `loam verify`: run verification cases and report each metric against its tolerance.
 
 use crate::Outcome;
-use loam_verification::{Bound, Case, Metric, Size, case, cases};
+use loam_verification::{Bound, Case, Device, Metric, Size, case, cases};
 use std::path::Path;
 use std::time::Instant;
 
@@ -23,24 +23,29 @@ fn pass_fail(passed: bool) -> &'static str {
     if passed { "pass" } else { "FAIL" }
 }
 
-/// Runs the named cases (all when empty); exit 1 if any metric fails.
+/// Runs the named cases (all when empty; on the GPU, all that run there); exit 1 if any
+/// metric fails. With `gpu` the cases' explicit runs step on the first GPU adapter, their
+/// files go to `out/gpu/CASE` and their metrics are reported as `CASE/gpu`; a case that runs
+/// on the CPU only is refused (exit 2), no adapter is a failure (exit 1).
 pub fn verify(
     names: &[String],
     list: bool,
     json: Option<&Path>,
     out: &Path,
     reduced: bool,
+    gpu: bool,
 ) -> Outcome {
     if list {
         for c in cases() {
-            println!("{:<21} {}", c.name, c.description);
+            let device = if c.on_gpu() { "cpu, gpu" } else { "cpu" };
+            println!("{:<21} [{device}] {}", c.name, c.description);
         }
         return Outcome::Ok;
     }
     let selected: Vec<Case> = if names.is_empty() {
-        cases()
+        cases().into_iter().filter(|c| !gpu || c.on_gpu()).collect()
     } else {
-        match names.iter().map(|n| case(n)).collect::<Result<_, _>>() {
+        match names.iter().map(|n| case(n)).collect::<Result<Vec<_>, _>>() {
             Ok(c) => c,
             Err(e) => {
                 eprintln!("error: {e}");
@@ -48,7 +53,23 @@ pub fn verify(
             }
         }
     };
+    if let Some(e) = selected.iter().find_map(|c| c.check_device(gpu).err()) {
+        eprintln!("error: {e}");
+        return Outcome::BadInput;
+    }
+    let (device, out) = if gpu {
+        match crate::run::gpu::device(None) {
+            Ok(g) => (Device::Gpu(Box::new(g)), out.join("gpu")),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Outcome::Failed;
+            }
+        }
+    } else {
+        (Device::Cpu, out.to_path_buf())
+    };
     let size = if reduced { Size::Reduced } else { Size::Full };
+    println!("device: {}", device.name());
     let mut metrics: Vec<Metric> = Vec::new();
     let mut failed = false;
     println!(
@@ -62,8 +83,13 @@ pub fn verify(
             return Outcome::Failed;
         }
         let start = Instant::now();
-        match (c.run)(size, &dir) {
-            Ok(report) => {
+        match c.run(size, &device, &dir) {
+            Ok(mut report) => {
+                if gpu {
+                    for m in &mut report.metrics {
+                        m.case = format!("{}/gpu", m.case);
+                    }
+                }
                 for m in &report.metrics {
                     println!("{}", metric_line(m));
                     failed |= !m.passed;
@@ -86,7 +112,12 @@ pub fn verify(
                     "{:<21} {:<44} {:>12} {:>12}  FAIL ({e})",
                     c.name, "run", "-", "-"
                 );
-                metrics.push(Metric::at_most(c.name, "run", f64::NAN, 0.0));
+                let name = if gpu {
+                    format!("{}/gpu", c.name)
+                } else {
+                    c.name.to_string()
+                };
+                metrics.push(Metric::at_most(&name, "run", f64::NAN, 0.0));
                 failed = true;
             }
         }

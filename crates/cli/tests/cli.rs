@@ -748,6 +748,14 @@ fn verify_lists_cases_and_writes_json() {
     );
     let bad = loam(&["verify", "no-such-case"]);
     assert_eq!(bad.status.code(), Some(2));
+    // A CPU-only case asked for the GPU: exit 2 before any adapter is opened.
+    let cpu_only = loam(&["verify", "cantilever", "--device", "gpu"]);
+    let stderr = String::from_utf8_lossy(&cpu_only.stderr);
+    assert_eq!(cpu_only.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("cantilever runs on the CPU only"),
+        "{stderr}"
+    );
     let dir = tempfile::tempdir().expect("tempdir");
     let json = dir.path().join("out.json");
     let out = loam(&[

@@ -338,3 +338,48 @@ fn a_gpu_run_resumed_from_its_checkpoint_rewrites_the_later_frames_with_the_same
         );
     }
 }
+
+/// `loam verify --device gpu` runs a case's explicit runs on the GPU against the same
+/// tolerances: its metrics are reported as `CASE/gpu` and its files go to `OUT/gpu/CASE`.
+#[test]
+fn verify_runs_a_case_on_the_gpu() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = dir.path().join("metrics.json");
+    let out = loam(&[
+        "verify",
+        "disk-collision",
+        "--reduced",
+        "--device",
+        "gpu",
+        "--json",
+        json.to_str().expect("path"),
+        "--out",
+        dir.path().to_str().expect("path"),
+    ]);
+    if no_adapter(&out) {
+        return;
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("device: ") && stdout.contains("(f32)"),
+        "{stdout}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    let metrics = v.as_array().expect("array");
+    assert!(!metrics.is_empty());
+    for m in metrics {
+        assert_eq!(m["case"], "disk-collision/gpu");
+        assert_eq!(m["passed"], true, "{m}");
+    }
+    assert!(
+        dir.path()
+            .join("gpu/disk-collision/disk_collision.csv")
+            .exists()
+    );
+}
