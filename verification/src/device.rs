@@ -31,19 +31,19 @@ impl Device {
 
 /// A case's explicit run on its device. The CPU solver is kept on the GPU too: its
 /// configuration gives the energy of the particles read back.
-pub(crate) struct ExplicitRun {
+pub(crate) struct ExplicitRun<const D: usize> {
     case: &'static str,
-    cpu: Solver<f64, 2>,
-    gpu: Option<GpuSolver<2>>,
+    cpu: Solver<f64, D>,
+    gpu: Option<GpuSolver<D>>,
 }
 
-impl ExplicitRun {
+impl<const D: usize> ExplicitRun<D> {
     /// The run of `config` from `particles` on `device` (a rejected set-up is an error of the
     /// case, as is a GPU that cannot take it).
     pub fn new(
         case: &'static str,
-        config: Config<f64, 2>,
-        particles: &Particles<f64, 2>,
+        config: Config<f64, D>,
+        particles: &Particles<f64, D>,
         device: &Device,
     ) -> Result<Self, VerifyError> {
         let gpu = match device {
@@ -67,7 +67,7 @@ impl ExplicitRun {
     /// (the cases sample at multiples of their fixed steps), then reads the particles back.
     pub fn advance(
         &mut self,
-        particles: &mut Particles<f64, 2>,
+        particles: &mut Particles<f64, D>,
         t: f64,
     ) -> Result<(), VerifyError> {
         let case = self.case;
@@ -94,8 +94,61 @@ impl ExplicitRun {
         }
     }
 
+    /// Whether the run has reached the time `t` (the solver's own test: within round-off of
+    /// it, or with the GPU's fixed step within half a step).
+    pub fn reached(&self, t: f64) -> bool {
+        match &self.gpu {
+            None => self.cpu.next_step_cap(t).is_none(),
+            Some(gpu) => gpu.next_step_cap(t).is_none(),
+        }
+    }
+
+    /// Takes one step towards `t`, as a step of `Solver::advance_to` (an adaptive step is
+    /// shortened to land on `t`, a fixed one keeps its size), none once `t` is reached, and
+    /// leaves the state in `particles`; returns the time reached.
+    pub fn step_toward(
+        &mut self,
+        particles: &mut Particles<f64, D>,
+        t: f64,
+    ) -> Result<f64, VerifyError> {
+        let case = self.case;
+        match &mut self.gpu {
+            None => {
+                let Some(cap) = self.cpu.next_step_cap(t) else {
+                    return Ok(self.cpu.time());
+                };
+                let info = self
+                    .cpu
+                    .step(particles, cap)
+                    .map_err(|source| VerifyError::Solver {
+                        case: case.into(),
+                        source,
+                    })?;
+                Ok(info.time)
+            }
+            Some(gpu) => {
+                gpu.advance_toward(t, 1)
+                    .and_then(|_| gpu.read_particles(particles))
+                    .map_err(|source| VerifyError::Gpu { case, source })?;
+                Ok(gpu.time())
+            }
+        }
+    }
+
+    /// The mass on the grid after the last step's transfer, over the nodes that carry the
+    /// body's mass (not the ghosts behind a bilateral wall, which hold copies).
+    pub fn grid_mass(&self) -> Result<f64, VerifyError> {
+        match &self.gpu {
+            None => Ok(crate::obstacles::grid_mass(&self.cpu)),
+            Some(gpu) => gpu.grid_mass().map_err(|source| VerifyError::Gpu {
+                case: self.case,
+                source,
+            }),
+        }
+    }
+
     /// The energy of `particles` under the run's configuration.
-    pub fn energy(&self, particles: &Particles<f64, 2>) -> Energy {
+    pub fn energy(&self, particles: &Particles<f64, D>) -> Energy {
         self.cpu.energy(particles)
     }
 }

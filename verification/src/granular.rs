@@ -391,7 +391,7 @@ pub fn simulate(
     let mut solver = ExplicitRun::new(case, config, &particles, device)?;
     let (w, dp, rho) = (c.h, c.spacing(), c.material.density);
     let e0 = solver.energy(&particles).gravity;
-    let sample = |s: &ExplicitRun, p: &Particles<f64, 2>, t: f64| {
+    let sample = |s: &ExplicitRun<2>, p: &Particles<f64, 2>, t: f64| {
         let e = s.energy(p);
         Sample {
             t,

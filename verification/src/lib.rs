@@ -323,12 +323,12 @@ pub fn cases() -> Vec<Case> {
         Case {
             name: "incline-friction",
             description: "block on a 30° incline with Coulomb friction: acceleration vs g(sin α − μ cos α) for μ = 0.1, 0.3; sticking for μ = 0.7 > tan α",
-            runner: Runner::Cpu(incline::run),
+            runner: Runner::Explicit(incline::run),
         },
         Case {
             name: "dambreak-obstacles-3d",
             description: "3D dam break against two rigid cylinders: no particle inside a column, mass conserved on particles and grid, energy never above its initial value",
-            runner: Runner::Cpu(obstacles::run),
+            runner: Runner::Explicit(obstacles::run),
         },
         Case {
             name: "adjoint-fd",

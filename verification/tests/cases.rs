@@ -89,6 +89,11 @@ fn bui_collapse_on_the_gpu() {
     check_on_gpu("bui-collapse");
 }
 
+#[test]
+fn dambreak_obstacles_3d_on_the_gpu() {
+    check_on_gpu("dambreak-obstacles-3d");
+}
+
 /// A case that runs on the CPU only says so when asked for the GPU, and names those that do.
 #[test]
 fn a_cpu_only_case_is_refused_on_the_gpu() {
