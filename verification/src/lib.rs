@@ -25,6 +25,7 @@ pub mod inverse_implicit;
 pub mod inverse_mlp;
 pub mod inverse_v0;
 mod inversion;
+pub mod k0_layer;
 pub mod newmark_bar;
 pub mod newmark_energy;
 pub mod newton_quadratic;
@@ -33,6 +34,7 @@ mod output;
 pub mod runout;
 pub mod scenes;
 pub mod tangent_fd;
+pub mod triaxial;
 
 pub use device::Device;
 pub use output::{Series, write_csv, write_plot, write_text};
@@ -299,6 +301,21 @@ pub fn cases() -> Vec<Case> {
             name: "footing-prandtl",
             description: "rigid strip footing on weightless Tresca (J2) soil: limit pressure vs (2 + π) c_u",
             runner: Runner::Cpu(footing::run),
+        },
+        Case {
+            name: "k0-layer",
+            description: "soil layer at rest: σ′_h/σ′_v = ν/(1 − ν) after gravity switch-on; a K0 = 0.5 state kept through the first load step",
+            runner: Runner::Cpu(k0_layer::run),
+        },
+        Case {
+            name: "triaxial-dp",
+            description: "drained triaxial compression of Drucker–Prager sand (Hencky, compression cone): q_f vs 3Mp′₀/(3 − M); φ = 0 vs von Mises and J2",
+            runner: Runner::Cpu(triaxial::run_dp),
+        },
+        Case {
+            name: "triaxial-mc",
+            description: "drained triaxial compression and extension of Mohr–Coulomb soil vs σ′₁/σ′₃ = (1 + sin φ)/(1 − sin φ) (+ cohesion); tangent vs central differences in every return region",
+            runner: Runner::Cpu(triaxial::run_mc),
         },
         Case {
             name: "disk-collision",

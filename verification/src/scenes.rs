@@ -39,13 +39,14 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 22] = [
+pub const SCENES: [CaseScene; 23] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
     case_scene!("cantilever"),
     case_scene!("column_compaction"),
     case_scene!("footing_prandtl"),
+    case_scene!("k0_layer"),
     case_scene!("disk_collision"),
     case_scene!("bui_collapse"),
     case_scene!("column_runout"),

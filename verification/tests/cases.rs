@@ -145,6 +145,21 @@ fn footing_prandtl() {
 }
 
 #[test]
+fn k0_layer() {
+    check("k0-layer");
+}
+
+#[test]
+fn triaxial_dp() {
+    check("triaxial-dp");
+}
+
+#[test]
+fn triaxial_mc() {
+    check("triaxial-mc");
+}
+
+#[test]
 fn axial_bar_newmark() {
     check("axial-bar-newmark");
 }

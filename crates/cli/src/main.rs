@@ -9,6 +9,7 @@
 mod bench;
 mod check;
 mod invert;
+mod material;
 mod preflight;
 mod run;
 mod verify;
@@ -70,6 +71,19 @@ enum Command {
         /// bits on every run.
         #[arg(long, value_enum)]
         p2g: Option<run::gpu::P2g>,
+    },
+    /// Element test: drive one material point through the laboratory paths of FILE
+    /// (drained/undrained triaxial, oedometer, isotropic, simple shear) and write
+    /// element.csv and plots (compression positive, kPa).
+    Material {
+        /// Element-test file (.toml or .json).
+        file: PathBuf,
+        /// Output folder (default: the file's `output_dir`, or out/<file stem>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No summary line.
+        #[arg(long)]
+        quiet: bool,
     },
     /// Validate a scene file and estimate its size, memory and steps (or validate an
     /// inversion file, its scene and observations): exit 0 if it can run, 2 with the
@@ -263,6 +277,7 @@ fn main() -> ExitCode {
                 (None, None) => Outcome::BadInput,
             }
         }
+        Command::Material { file, out, quiet } => material::material(&file, out.as_deref(), quiet),
         Command::Check { scene } if invert::is_inversion(&scene) => invert::check(&scene),
         Command::Check { scene } => check::check(&scene, memory_limit),
         Command::Gradient {

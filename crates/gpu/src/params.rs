@@ -1,8 +1,11 @@
 //! The constants of a run as the kernels read them, built from an explicit-solver
 //! [`Config`], with the checks that the GPU path supports the scene.
 
+use crate::GpuError;
 use bytemuck::{Pod, Zeroable};
-use loam_core::constitutive::{Hencky, Lame, LinearElastic, Material, Model, NeoHookean};
+use loam_core::constitutive::{
+    Elasticity, Hencky, Lame, LinearElastic, Material, Model, NeoHookean,
+};
 use loam_core::contact::{FrictionSegment, Obstacle, ObstacleShape};
 use loam_core::grid::Grid;
 use loam_core::step::PROJECTION_DEPTH;
@@ -61,16 +64,44 @@ pub(crate) fn transfer_code(transfer: Transfer) -> u32 {
     }
 }
 
-/// The model of a material as constitutive.wgsl numbers it (`MODEL_*`).
-fn model_code(model: &Model<f32>) -> u32 {
+/// The model of a material as constitutive.wgsl numbers it (`MODEL_*`); `None` for the
+/// models the kernels do not hold: Mohr–Coulomb and the Hencky form of Drucker–Prager.
+fn gpu_model_code(model: &Model<f32>) -> Option<u32> {
     match model {
-        Model::Fluid(_) => 0,
-        Model::NeoHookean(_) => 1,
-        Model::Hencky(_) => 2,
-        Model::DruckerPrager(_) => 3,
-        Model::LinearElastic(_) => 4,
-        Model::J2(_) => 5,
+        Model::Fluid(_) => Some(0),
+        Model::NeoHookean(_) => Some(1),
+        Model::Hencky(_) => Some(2),
+        Model::DruckerPrager(dp) if dp.elasticity == Elasticity::Jaumann => Some(3),
+        Model::LinearElastic(_) => Some(4),
+        Model::J2(_) => Some(5),
+        Model::DruckerPrager(_) | Model::MohrCoulomb(_) => None,
     }
+}
+
+/// [`gpu_model_code`] of a material that [`check_models`] has let through.
+fn model_code(model: &Model<f32>) -> u32 {
+    gpu_model_code(model).expect("checked by check_models")
+}
+
+/// Refuses, naming the material, a config with a model the GPU kernels do not hold.
+pub(crate) fn check_models<const D: usize>(config: &Config<f32, D>) -> Result<(), GpuError> {
+    for (k, m) in config.materials.iter().enumerate() {
+        if gpu_model_code(&m.model).is_none() {
+            let what = match &m.model {
+                Model::DruckerPrager(_) => {
+                    "model \"drucker_prager\" with elasticity = \"hencky\" (the GPU runs \
+                     elasticity = \"jaumann\")"
+                        .to_owned()
+                }
+                model => format!("model \"{}\"", model.kind().name()),
+            };
+            return Err(GpuError::Unsupported {
+                field: format!("materials[{k}].model"),
+                what,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The models of the scene's materials, bit `model_code` set for each (`MODELS` of
@@ -202,6 +233,7 @@ fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
                 [m.alpha_psi(), c, 0.0, 0.0],
             ]
         }
+        Model::MohrCoulomb(_) => unreachable!("refused by check_models"),
         Model::J2(m) => [
             [
                 code,

@@ -121,13 +121,14 @@ impl<const D: usize> GpuSolver<D> {
     /// Uploads `particles` and compiles the step of `config` (the lifted f32 config the CPU
     /// solver takes); fails with [`GpuError::Config`] for a config the CPU solver refuses, and
     /// with [`GpuError::Unsupported`] naming the scene field that sizes a buffer larger than
-    /// the adapter binds.
+    /// the adapter binds or a material whose model the GPU does not run.
     pub fn new(
         gpu: &Gpu,
         config: &Config<f32, D>,
         particles: &Particles<f32, D>,
     ) -> Result<Self, GpuError> {
         config.validate()?;
+        params::check_models(config)?;
         let n = particles.len();
         let nodes = config.grid.num_nodes();
         let max_mass = particles.mass.iter().fold(0.0f64, |m, &x| m.max(x as f64));

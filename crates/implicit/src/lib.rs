@@ -10,8 +10,10 @@
 //!   tangent, particle update.
 //! - [`newton`]: Newton with line search; [`solver`]: load stepping with step cutting.
 //! - [`linear`]: sparse direct (faer LU / Cholesky) and preconditioned Krylov solvers.
+//! - [`element`]: element tests, one material point under mixed strain and stress control.
 
 pub mod dofs;
+pub mod element;
 pub mod kernel;
 pub mod linear;
 pub mod newton;

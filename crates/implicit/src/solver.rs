@@ -22,7 +22,8 @@ pub struct ImplicitConfig<const D: usize> {
     pub boundary: Boundary<D>,
     /// Material table.
     pub materials: Vec<Material<f64>>,
-    /// Gravity, ramped with the load factor.
+    /// Gravity, ramped with the load factor (in full from the first step with
+    /// [`ImplicitConfig::gravity_in_full`] or in dynamics).
     pub gravity: Vector<f64, D>,
     /// Prescribed displacements on grid nodes (ramped).
     pub constraints: Vec<NodeConstraint<D>>,
@@ -36,6 +37,10 @@ pub struct ImplicitConfig<const D: usize> {
     /// of `dt` (cut steps are shorter), gravity and point loads act in full from the start and
     /// prescribed displacements ramp over the steps. `None`: quasi-static.
     pub dynamics: Option<f64>,
+    /// Quasi-static runs: gravity acts in full from the first load step instead of ramping
+    /// with the load factor, for particles that start from a stress at rest under it (a
+    /// geostatic / K0 state); point loads and prescribed displacements still ramp.
+    pub gravity_in_full: bool,
     /// A node takes part in a load step when its particle support `Σ_p w_ip V_p` exceeds
     /// this fraction of a cell volume (1e-4 by default; see `ImplicitConfig::DEFAULT_MIN_NODE_SUPPORT`).
     /// A node below it keeps `Δu = 0` in a quasi-static step and follows an active neighbour
@@ -353,14 +358,16 @@ impl<const D: usize> ImplicitSolver<D> {
         };
         let mut dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
         follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
-        // Quasi-static loads ramp with the load factor; dynamic loads act in full.
+        // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so does
+        // gravity on a prestressed body.
         let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
+        let g_factor = if cfg.gravity_in_full { 1.0 } else { factor };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
         for l in &cfg.point_loads {
             loads[l.particle] += Vector::<f64, D>::from(l.force) * factor;
         }
         let mut system = StepSystem::new(grid, frozen, dofs, |i| {
-            p.mass[i] * factor * cfg.gravity + loads[i]
+            p.mass[i] * g_factor * cfg.gravity + loads[i]
         });
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;

@@ -45,6 +45,7 @@ fn block(
         load_steps: steps,
         newton: NewtonSettings::default(),
         dynamics: Some(dt),
+        gravity_in_full: false,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
     };
     (config, particles)

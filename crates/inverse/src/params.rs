@@ -352,6 +352,9 @@ pub(crate) fn seed_material(
         (F::FrictionAngle, Model::DruckerPrager(x)) => one(&mut x.friction_angle),
         (F::DilationAngle, Model::DruckerPrager(x)) => one(&mut x.dilation_angle),
         (F::Cohesion, Model::DruckerPrager(x)) => one(&mut x.cohesion),
+        (F::FrictionAngle, Model::MohrCoulomb(x)) => one(&mut x.friction_angle),
+        (F::DilationAngle, Model::MohrCoulomb(x)) => one(&mut x.dilation_angle),
+        (F::Cohesion, Model::MohrCoulomb(x)) => one(&mut x.cohesion),
         (F::YieldStress, Model::J2(x)) => one(&mut x.yield_stress),
         (F::Hardening, Model::J2(x)) => one(&mut x.hardening),
         _ => return None,
@@ -367,6 +370,7 @@ fn lame_of<T>(model: &mut Model<T>) -> Option<&mut Lame<T>> {
         Model::Hencky(x) => Some(&mut x.lame),
         Model::J2(x) => Some(&mut x.lame),
         Model::DruckerPrager(x) => Some(&mut x.lame),
+        Model::MohrCoulomb(x) => Some(&mut x.lame),
         Model::Fluid(_) => None,
     }
 }
@@ -393,6 +397,9 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
         (F::FrictionAngle, Model::DruckerPrager(x)) => x.friction_angle = value,
         (F::DilationAngle, Model::DruckerPrager(x)) => x.dilation_angle = value,
         (F::Cohesion, Model::DruckerPrager(x)) => x.cohesion = value,
+        (F::FrictionAngle, Model::MohrCoulomb(x)) => x.friction_angle = value,
+        (F::DilationAngle, Model::MohrCoulomb(x)) => x.dilation_angle = value,
+        (F::Cohesion, Model::MohrCoulomb(x)) => x.cohesion = value,
         (F::YieldStress, Model::J2(x)) => x.yield_stress = value,
         (F::Hardening, Model::J2(x)) => x.hardening = value,
         _ => return None,

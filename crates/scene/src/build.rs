@@ -5,8 +5,9 @@ use crate::initial::BodyContext;
 use crate::output::Field;
 use crate::schema::{
     DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, Device, LinearKind,
-    LinearSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
+    LinearSpec, MaterialSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
 };
+use loam_core::constitutive::{DruckerPrager, Elasticity, Lame, Model, MohrCoulomb};
 use loam_core::{
     Boundary, Contact, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme,
     Shape, TimeStep, Transfer,
@@ -49,6 +50,10 @@ pub struct Built<const D: usize> {
     /// Coulomb friction segments on walls and rigid obstacles (explicit solver; empty
     /// otherwise), for [`loam_core::Contact::apply`].
     pub contact: Contact<f64, D>,
+    /// Whether a body starts from an initial stress at rest under gravity
+    /// (`initial_stress`): a quasi-static implicit run then applies gravity in full from its
+    /// first load step, where that stress balances it, instead of ramping it.
+    pub prestressed: bool,
 }
 
 /// The solver to run and its settings, defaults filled in.
@@ -243,6 +248,7 @@ impl<const D: usize> Built<D> {
             load_steps: plan.load_steps,
             newton: plan.newton,
             dynamics: plan.newmark_dt,
+            gravity_in_full: self.prestressed,
             min_node_support: loam_implicit::ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
         })
     }
@@ -319,38 +325,7 @@ impl Scene {
         let materials: Vec<Material<f64>> = self
             .materials
             .iter()
-            .map(|m| {
-                // Validated: the solid models come with E and ν (`j2` with a yield stress,
-                // `drucker_prager` with a friction angle), `fluid` with a sound speed or a
-                // bulk modulus. Angles are degrees in the file, radians in the model.
-                let young = m.youngs_modulus.unwrap_or(f64::NAN);
-                let poisson = m.poisson_ratio.unwrap_or(f64::NAN);
-                match m.model {
-                    ModelKind::J2 => Material::j2(
-                        young,
-                        poisson,
-                        m.yield_stress.unwrap_or(f64::INFINITY),
-                        m.hardening.unwrap_or(0.0),
-                        m.density,
-                    ),
-                    ModelKind::DruckerPrager => Material::drucker_prager(
-                        young,
-                        poisson,
-                        m.friction_angle.unwrap_or(f64::NAN).to_radians(),
-                        m.dilation_angle.unwrap_or(0.0).to_radians(),
-                        m.cohesion.unwrap_or(0.0),
-                        m.tension_cutoff,
-                        m.density,
-                    ),
-                    ModelKind::Fluid => Material::fluid(
-                        m.fluid_bulk_modulus().unwrap_or(f64::NAN),
-                        m.gamma.unwrap_or(DEFAULT_FLUID_GAMMA),
-                        m.viscosity.unwrap_or(0.0),
-                        m.density,
-                    ),
-                    kind => Material::elastic(kind, young, poisson, m.density),
-                }
-            })
+            .map(|m| m.material(self.default_elasticity()))
             .collect();
         let material_names: Vec<String> = self.materials.iter().map(|m| m.name.clone()).collect();
         // Per body: (material id, density, velocity, half-width); names were validated.
@@ -421,7 +396,18 @@ impl Scene {
             plan,
             output: self.output_plan(),
             contact: self.contact::<D>(),
+            prestressed: self.bodies.iter().any(|b| b.initial_stress.is_some()),
         })
+    }
+
+    /// The elastic law of a `drucker_prager` material that does not name one: Hencky for the
+    /// implicit solver (exact over whole load steps), Jaumann for the explicit one (the model
+    /// the GPU runs too).
+    pub fn default_elasticity(&self) -> Elasticity {
+        match self.solver.kind {
+            SolverKind::Implicit => Elasticity::Hencky,
+            SolverKind::Explicit => Elasticity::Jaumann,
+        }
     }
 
     /// The constraints as core structs (the fields must be valid and of dimension `D`).
@@ -606,6 +592,56 @@ fn for_each_index<const D: usize>(
             if a == D {
                 return;
             }
+        }
+    }
+}
+
+impl MaterialSpec {
+    /// The material this (validated) entry describes; a `drucker_prager` entry that names no
+    /// `elasticity` gets `default_elasticity` ([`Scene::default_elasticity`] of its scene).
+    pub fn material(&self, default_elasticity: Elasticity) -> Material<f64> {
+        let m = self;
+        // Validated: the solid models come with E and ν (`j2` with a yield stress,
+        // `drucker_prager` with a friction angle), `fluid` with a sound speed or a
+        // bulk modulus. Angles are degrees in the file, radians in the model.
+        let young = m.youngs_modulus.unwrap_or(f64::NAN);
+        let poisson = m.poisson_ratio.unwrap_or(f64::NAN);
+        match m.model {
+            ModelKind::J2 => Material::j2(
+                young,
+                poisson,
+                m.yield_stress.unwrap_or(f64::INFINITY),
+                m.hardening.unwrap_or(0.0),
+                m.density,
+            ),
+            ModelKind::DruckerPrager => Material {
+                density: m.density,
+                model: Model::DruckerPrager(DruckerPrager {
+                    lame: Lame::from_young_poisson(young, poisson),
+                    friction_angle: m.friction_angle.unwrap_or(f64::NAN).to_radians(),
+                    dilation_angle: m.dilation_angle.unwrap_or(0.0).to_radians(),
+                    cohesion: m.cohesion.unwrap_or(0.0),
+                    tension_cutoff: m.tension_cutoff,
+                    cone: m.cone.unwrap_or_default(),
+                    elasticity: m.elasticity.unwrap_or(default_elasticity),
+                }),
+            },
+            ModelKind::MohrCoulomb => Material {
+                density: m.density,
+                model: Model::MohrCoulomb(MohrCoulomb {
+                    lame: Lame::from_young_poisson(young, poisson),
+                    friction_angle: m.friction_angle.unwrap_or(f64::NAN).to_radians(),
+                    dilation_angle: m.dilation_angle.unwrap_or(0.0).to_radians(),
+                    cohesion: m.cohesion.unwrap_or(0.0),
+                }),
+            },
+            ModelKind::Fluid => Material::fluid(
+                m.fluid_bulk_modulus().unwrap_or(f64::NAN),
+                m.gamma.unwrap_or(DEFAULT_FLUID_GAMMA),
+                m.viscosity.unwrap_or(0.0),
+                m.density,
+            ),
+            kind => Material::elastic(kind, young, poisson, m.density),
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use crate::error::Issue;
 use crate::schema::{BodySpec, InitialStressSpec, Scene};
-use loam_core::constitutive::{DruckerPrager, Hencky, Kinematics, Model};
+use loam_core::constitutive::{DruckerPrager, Elasticity, Hencky, Kinematics, Model};
 use loam_core::tensor::{Tensor, det, to3};
 use loam_core::{Material, MaterialState, Particles};
 use nalgebra::{DMatrix, DVector, Matrix3, SVector};
@@ -371,6 +371,8 @@ fn default_k0(material: &Material<f64>) -> f64 {
             let jaky = 1.0 - dp.friction_angle.sin();
             jaky.max(cone_k0_range(dp).0)
         }
+        // Jaky's value lies inside the pyramid for every φ: (1 − sin φ)(1 + sin φ) ≤ 1.
+        Model::MohrCoulomb(mc) => 1.0 - mc.friction_angle.sin(),
         model => {
             let lame = match model {
                 Model::LinearElastic(m) => m.lame,
@@ -378,7 +380,7 @@ fn default_k0(material: &Material<f64>) -> f64 {
                 Model::Hencky(m) => m.lame,
                 Model::J2(m) => m.lame,
                 // Validated: geostatic is not offered for fluids.
-                Model::Fluid(_) | Model::DruckerPrager(_) => return 1.0,
+                Model::Fluid(_) | Model::DruckerPrager(_) | Model::MohrCoulomb(_) => return 1.0,
             };
             let nu = lame.lambda / (2.0 * (lame.lambda + lame.mu));
             nu / (1.0 - nu)
@@ -445,7 +447,7 @@ fn state_at_rest<const D: usize>(
             let (stress, state) = evaluate(material, &f);
             return Ok(Rest { f, stress, state });
         }
-        Model::DruckerPrager(dp) => {
+        Model::DruckerPrager(dp) if dp.elasticity == Elasticity::Jaumann => {
             let stress = Matrix3::from_diagonal(&target.into());
             let scale = target.iter().fold(0.0f64, |m, s| m.max(s.abs()));
             let tolerance = 1e-12 * scale.max(dp.k());
@@ -469,6 +471,8 @@ fn state_at_rest<const D: usize>(
             let f = Tensor::<f64, D>::identity();
             return Ok(Rest { f, stress, state });
         }
+        Model::DruckerPrager(dp) => dp.lame,
+        Model::MohrCoulomb(m) => m.lame,
         Model::LinearElastic(m) => m.lame,
         Model::NeoHookean(m) => m.lame,
         Model::Hencky(m) => m.lame,
@@ -482,10 +486,11 @@ fn state_at_rest<const D: usize>(
         .ok_or_else(|| "the elastic constants give no stiffness".to_owned())?;
     let scale = target.iter().fold(0.0f64, |m, s| m.max(s.abs()));
     let tolerance = ELASTIC_TOLERANCE * scale + 16.0 * f64::EPSILON * (lame.lambda + 2.0 * lame.mu);
-    // J2 is Hencky elasticity until it yields: find the stretches on the elastic law, then
-    // let J2 say whether the state is admissible (and set its bₑ).
+    // J2 and the Hencky soil models are Hencky elasticity until they yield: find the
+    // stretches on the elastic law, then let the model say whether the state is admissible
+    // (and set its bₑ).
     let elastic = match &material.model {
-        Model::J2(_) => Material {
+        Model::J2(_) | Model::DruckerPrager(_) | Model::MohrCoulomb(_) => Material {
             density: material.density,
             model: Model::Hencky(Hencky { lame }),
         },
@@ -499,9 +504,13 @@ fn state_at_rest<const D: usize>(
         if residual.amax() <= tolerance {
             let (stress, state) = evaluate(material, &f);
             if state.plastic_strain > 0.0 {
+                let hint = match &material.model {
+                    Model::J2(_) => "use a K0 closer to 1 or a higher yield_stress",
+                    _ => "use a K0 closer to 1 − sin φ, or more cohesion",
+                };
                 return Err(format!(
-                    "the stress{k0_text} exceeds the yield stress (use a K0 closer to 1 or a \
-                     higher yield_stress)"
+                    "the stress{k0_text} lies outside the yield surface of model \"{}\" ({hint})",
+                    material.model.kind().name()
                 ));
             }
             return Ok(Rest { f, stress, state });

@@ -51,6 +51,8 @@
 //!   is generated; [`Scene::validate`] then checks the particle generation.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
 //! - [`checkpoint`] writes and reads the restartable state of an explicit run.
+//! - [`element`] reads element-test files (`loam material`): one material point through
+//!   laboratory paths.
 //!
 //! This crate depends on `loam-core`, and on `loam-explicit` for
 //! [`Built::explicit_config`] only: solvers take the plain structs it builds.
@@ -58,6 +60,7 @@
 mod build;
 pub mod checkpoint;
 mod contact;
+pub mod element;
 mod error;
 mod estimate;
 mod forms;

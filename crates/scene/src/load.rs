@@ -7,6 +7,7 @@
 
 use crate::error::{Issue, Location, SceneError, SceneFormat};
 use crate::schema::Scene;
+use serde::de::DeserializeOwned;
 use std::path::Path;
 
 impl Scene {
@@ -50,7 +51,7 @@ impl Scene {
         let format = SceneFormat::from_path(path).ok_or_else(|| SceneError::Extension {
             path: path.to_path_buf(),
         })?;
-        let mut scene = parse(text, format).map_err(|e| e.in_file(path))?;
+        let mut scene: Scene = parse(text, format).map_err(|e| e.in_file(path))?;
         scene.source = Some(path.to_path_buf());
         scene.check_fields()?;
         Ok(scene)
@@ -59,7 +60,7 @@ impl Scene {
     /// Parses a scene written in the given format and checks its fields, without generating
     /// particles (see [`Scene::read_path`]).
     pub fn parse_str(text: &str, format: SceneFormat) -> Result<Self, SceneError> {
-        let scene = parse(text, format)?;
+        let scene: Scene = parse(text, format)?;
         scene.check_fields()?;
         Ok(scene)
     }
@@ -76,21 +77,21 @@ impl Scene {
 
     /// Parses and validates a scene written in the given format.
     pub fn from_str_in(text: &str, format: SceneFormat) -> Result<Self, SceneError> {
-        let scene = parse(text, format)?;
+        let scene: Scene = parse(text, format)?;
         scene.validate()?;
         Ok(scene)
     }
 }
 
-/// Parses without validating.
-fn parse(text: &str, format: SceneFormat) -> Result<Scene, SceneError> {
+/// Parses without validating (a scene, or another file of loam's in the scene's formats).
+pub(crate) fn parse<S: DeserializeOwned>(text: &str, format: SceneFormat) -> Result<S, SceneError> {
     match format {
         SceneFormat::Toml => parse_toml(text),
         SceneFormat::Json => parse_json(text),
     }
 }
 
-fn parse_toml(text: &str) -> Result<Scene, SceneError> {
+fn parse_toml<S: DeserializeOwned>(text: &str) -> Result<S, SceneError> {
     let location = |e: &toml::de::Error| e.span().map(|s| Location::from_offset(text, s.start));
     let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Syntax {
         file: None,
@@ -104,9 +105,9 @@ fn parse_toml(text: &str) -> Result<Scene, SceneError> {
     })
 }
 
-fn parse_json(text: &str) -> Result<Scene, SceneError> {
+fn parse_json<S: DeserializeOwned>(text: &str) -> Result<S, SceneError> {
     let mut de = serde_json::Deserializer::from_str(text);
-    let scene: Scene = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+    let scene: S = serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let inner = e.inner();
         if inner.is_data() {
             field_error(e.path(), &json_message(inner), json_location(inner))

@@ -9,6 +9,7 @@
 
 use crate::forms;
 use crate::output::Field;
+use loam_core::constitutive::{Cone, Elasticity};
 use loam_core::{ModelKind, Scheme, Shape, TimeStep, Transfer, Wall};
 use loam_implicit::TangentMethod;
 use loam_implicit::linear::Preconditioner;
@@ -73,13 +74,14 @@ fn default_shape_function() -> Shape {
     Shape::QuadraticBspline
 }
 
-/// `[[materials]]`: a named isotropic material, elastic, (model `j2`) elastoplastic, (model
-/// `drucker_prager`) frictional elastoplastic or (model `fluid`) a weakly compressible
-/// Newtonian fluid.
+/// `[[materials]]`: a named isotropic material, elastic, (model `j2`) elastoplastic, (models
+/// `drucker_prager`, `mohr_coulomb`) frictional elastoplastic or (model `fluid`) a weakly
+/// compressible Newtonian fluid.
 ///
 /// Which keys apply depends on `model`: the solid models need `youngs_modulus` and
-/// `poisson_ratio`; `drucker_prager` also needs `friction_angle` and takes `dilation_angle`,
-/// `cohesion` and `tension_cutoff`; `fluid` needs exactly one of `sound_speed` and
+/// `poisson_ratio`; `drucker_prager` and `mohr_coulomb` also need `friction_angle` and take
+/// `dilation_angle` and `cohesion`; `drucker_prager` takes `tension_cutoff`, `cone` and
+/// `elasticity`; `fluid` needs exactly one of `sound_speed` and
 /// `bulk_modulus` and takes `gamma` and `viscosity`. A key of another model is an error naming
 /// it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -121,20 +123,31 @@ pub struct MaterialSpec {
     /// Model `fluid`: dynamic viscosity `η` (Pa·s), `≥ 0` (default 0, inviscid).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub viscosity: Option<f64>,
-    /// Model `drucker_prager`: friction angle `φ` in **degrees**, `0 < φ < 90` (required).
+    /// Models `drucker_prager`, `mohr_coulomb`: friction angle `φ` in **degrees**,
+    /// `0 < φ < 90` (required).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_angle: Option<f64>,
-    /// Model `drucker_prager`: dilation angle `ψ` in degrees, `0 ≤ ψ ≤ φ` (default 0,
-    /// isochoric plastic flow; `ψ = φ` is associated flow).
+    /// Models `drucker_prager`, `mohr_coulomb`: dilation angle `ψ` in degrees, `0 ≤ ψ ≤ φ`
+    /// (default 0, isochoric plastic flow; `ψ = φ` is associated flow).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dilation_angle: Option<f64>,
-    /// Model `drucker_prager`: cohesion `c` (Pa), `≥ 0` (default 0, cohesionless).
+    /// Models `drucker_prager`, `mohr_coulomb`: cohesion `c` (Pa), `≥ 0` (default 0,
+    /// cohesionless).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cohesion: Option<f64>,
     /// Model `drucker_prager`: tension cutoff `σ_t` (Pa) on the mean stress, `0 ≤ σ_t ≤
     /// c cot φ` (default: the apex of the cone, `c cot φ`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tension_cutoff: Option<f64>,
+    /// Model `drucker_prager`: the Mohr–Coulomb section the cone is matched to,
+    /// `"plane_strain"` (default), `"compression"` or `"extension"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cone: Option<Cone>,
+    /// Model `drucker_prager`: `"hencky"` (hyperelastic in logarithmic strain; the default
+    /// and the only choice of the implicit solver) or `"jaumann"` (hypoelastic, the default of
+    /// the explicit solver and the one the GPU runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elasticity: Option<Elasticity>,
 }
 
 /// Default Tait exponent of model `fluid` (water).

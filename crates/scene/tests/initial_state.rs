@@ -625,7 +625,8 @@ fn inadmissible_initial_stresses_are_errors_naming_the_depth_and_the_bound() {
         "[0.0, -9.81]",
     ));
     assert!(
-        err.contains("exceeds the yield stress") && err.contains("at depth 0.1125 m"),
+        err.contains("lies outside the yield surface of model \"j2\"")
+            && err.contains("at depth 0.1125 m"),
         "{err}"
     );
 }

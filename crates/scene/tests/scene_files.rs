@@ -1,7 +1,7 @@
 //! Scene files: malformed fixtures give errors naming the offending field, good ones build
 //! with the expected particles, and the example scenes load.
 
-use loam_core::constitutive::{DruckerPrager, Fluid, J2, Lame, Model};
+use loam_core::constitutive::{Cone, DruckerPrager, Elasticity, Fluid, J2, Lame, Model};
 use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
 use loam_implicit::linear::{LinearSolverKind, Preconditioner};
 use loam_implicit::{NewtonSettings, TangentMethod};
@@ -229,12 +229,14 @@ const BAD: &[(&str, &[&str])] = &[
         ],
     ),
     (
-        "drucker_prager_in_implicit.toml",
-        &[r#"materials[0].model: "drucker_prager" is for the explicit solver"#],
+        "drucker_prager_jaumann_in_implicit.toml",
+        &[r#"materials[0].elasticity: "jaumann" is for the explicit solver"#],
     ),
     (
         "friction_angle_on_elastic.toml",
-        &[r#"materials[0].friction_angle: only used by model "drucker_prager""#],
+        &[
+            r#"materials[0].friction_angle: only used by models "drucker_prager" and "mohr_coulomb""#,
+        ],
     ),
     (
         "newmark_dt_negative.toml",
@@ -760,6 +762,8 @@ fn drucker_prager_fixture_builds_frictional_materials() {
                 dilation_angle: 5f64.to_radians(),
                 cohesion: 2.0e3,
                 tension_cutoff: Some(1.0e3),
+                cone: Cone::PlaneStrain,
+                elasticity: Elasticity::Jaumann,
             },
         ),
         (
@@ -770,6 +774,8 @@ fn drucker_prager_fixture_builds_frictional_materials() {
                 dilation_angle: 0.0,
                 cohesion: 0.0,
                 tension_cutoff: None,
+                cone: Cone::PlaneStrain,
+                elasticity: Elasticity::Jaumann,
             },
         ),
     ];
@@ -827,7 +833,7 @@ density = 1600.0"#,
             r#"model = "fluid"
 sound_speed = 10.0
 density = 1600.0"#,
-            r#"materials[1].friction_angle: only used by model "drucker_prager""#,
+            r#"materials[1].friction_angle: only used by models "drucker_prager" and "mohr_coulomb""#,
         ),
         (
             r#"model = "drucker_prager"
@@ -835,7 +841,7 @@ density = 1600.0"#,
             r#"model = "j2"
 yield_stress = 1.0e4
 density = 1600.0"#,
-            r#"materials[1].friction_angle: only used by model "drucker_prager""#,
+            r#"materials[1].friction_angle: only used by models "drucker_prager" and "mohr_coulomb""#,
         ),
     ] {
         let changed = text.replacen(from, to, 1);

@@ -84,6 +84,11 @@ pub fn run<const D: usize>(
                 residual: rel,
                 linear_iterations: lin as u64,
                 wall_time_s: wall,
+                constraint_forces: report
+                    .constraint_forces
+                    .iter()
+                    .map(|f| f.iter().copied().collect())
+                    .collect(),
             });
             if !quiet {
                 let history: Vec<String> = last

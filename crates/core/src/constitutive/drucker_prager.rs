@@ -108,10 +108,12 @@
 //! `c`, `σ_t`) are `T`, so running with a dual `φ` gives `∂σ/∂φ` of the branch taken (exact:
 //! the return is closed form).
 
-use super::{Constitutive, Kinematics, Lame, MaterialState, Region};
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region, hencky_trial};
 use crate::scalar::Scalar;
+use crate::spectral::{Exp, Log, symmetric_fn};
 use crate::tensor::det;
 use nalgebra::Matrix3;
+use serde::{Deserialize, Serialize};
 
 /// Non-associated Drucker–Prager elastoplasticity with a tension cutoff, hypoelastic with the
 /// Jaumann rate: `f = √J₂ + α I₁ − k`, `g = √J₂ + α_ψ I₁`, `p = I₁/3 ≤ σ_t`, perfectly
@@ -134,31 +136,89 @@ pub struct DruckerPrager<T> {
     /// the cone, `c cot φ` (`0` for a cohesionless material). A value above the apex acts as
     /// the apex.
     pub tension_cutoff: Option<T>,
+    /// Which Mohr–Coulomb section the cone is matched to ([`Cone`]).
+    pub cone: Cone,
+    /// The elastic law and its integration ([`Elasticity`]).
+    pub elasticity: Elasticity,
+}
+
+/// How the Drucker–Prager cone `√J₂ + α I₁ = k` is matched to the Mohr–Coulomb pyramid of the
+/// same `(c, φ)` (de Souza Neto, Perić & Owen 2008, §6.4.2). With `s = sin θ`, `t = tan θ` for
+/// an angle `θ` (`φ` for the yield surface, `ψ` for the plastic potential):
+///
+/// ```text
+/// plane strain:  α = t / √(9 + 12t²),       k = 3c / √(9 + 12t²)
+/// compression:   α = 2s / (√3 (3 − s)),     k = 6c cos φ / (√3 (3 − s))
+/// extension:     α = 2s / (√3 (3 + s)),     k = 6c cos φ / (√3 (3 + s))
+/// ```
+///
+/// Every match has its apex at `p = k/(3α) = c cot φ`. In triaxial compression the compression
+/// cone is `q = M p′ + …` with `M = 6 sin φ/(3 − sin φ)` (compression positive `p′`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Cone {
+    /// The plane-strain match: collapse loads of plane-strain problems with associated flow
+    /// equal those of Mohr–Coulomb; the cone inscribed in the pyramid, tangent to its faces.
+    #[default]
+    PlaneStrain,
+    /// The outer cone through the pyramid's compression meridian (triaxial compression,
+    /// `σ₁ = σ₂ > σ₃` in tension-positive order).
+    Compression,
+    /// The inner cone through the pyramid's extension meridian.
+    Extension,
+}
+
+impl Cone {
+    /// `(α_θ, k_θ / c)` of the match for an angle `θ`: the cone coefficient and the factor of
+    /// the cohesion in `k` (see [`Cone`] for the formulas).
+    pub fn coefficients<T: Scalar>(self, angle: T) -> (T, T) {
+        match self {
+            Self::PlaneStrain => {
+                let t = angle.tan();
+                let root = (T::cst(9.0) + T::cst(12.0) * t * t).sqrt();
+                (t / root, T::cst(3.0) / root)
+            }
+            Self::Compression | Self::Extension => {
+                let s = angle.sin();
+                let sign = if self == Self::Compression { -1.0 } else { 1.0 };
+                let den = (T::cst(3.0) + s * T::cst(sign)) * T::cst(3f64.sqrt());
+                (s * T::cst(2.0) / den, angle.cos() * T::cst(6.0) / den)
+            }
+        }
+    }
+}
+
+/// The elastic law of a [`DruckerPrager`] material.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Elasticity {
+    /// Hypoelastic, Jaumann rate, integrated over each explicit step (the GPU path's model;
+    /// [`MaterialState::tensor`] holds `I + 2εₑ`). Not for implicit load steps.
+    #[default]
+    Jaumann,
+    /// Hyperelastic in Hencky strain with a multiplicative split `F = Fₑ Fₚ`, as [`super::J2`]:
+    /// the trial `bₑᵗʳ = ΔF bₑⁿ ΔFᵀ`, `τᵗʳ = C:½ ln bₑᵗʳ`, the same return on the Kirchhoff
+    /// stress, `bₑ = exp(2 C⁻¹:τ)` ([`MaterialState::tensor`] holds `bₑ`). Exact for any
+    /// step size, so the implicit solver uses it; objective without a rate.
+    Hencky,
 }
 
 impl<T: Scalar> DruckerPrager<T> {
-    /// The plane-strain Mohr–Coulomb cone coefficient of an angle `θ`,
-    /// `tan θ / √(9 + 12 tan²θ)`: `α` for `θ = φ`, `α_ψ` for `θ = ψ`.
-    pub fn cone_coefficient(angle: T) -> T {
-        let t = angle.tan();
-        t / (T::cst(9.0) + T::cst(12.0) * t * t).sqrt()
-    }
-
-    /// Friction coefficient `α = tan φ / √(9 + 12 tan²φ)` of `f = √J₂ + α I₁ − k`.
+    /// Friction coefficient `α` of `f = √J₂ + α I₁ − k` (`tan φ / √(9 + 12 tan²φ)` for the
+    /// plane-strain [`Cone`]).
     pub fn alpha(&self) -> T {
-        Self::cone_coefficient(self.friction_angle)
+        self.cone.coefficients(self.friction_angle).0
     }
 
-    /// Dilatancy coefficient `α_ψ = tan ψ / √(9 + 12 tan²ψ)` of `g = √J₂ + α_ψ I₁`.
+    /// Dilatancy coefficient `α_ψ` of `g = √J₂ + α_ψ I₁`, the cone's `α` of the angle `ψ`.
     pub fn alpha_psi(&self) -> T {
-        Self::cone_coefficient(self.dilation_angle)
+        self.cone.coefficients(self.dilation_angle).0
     }
 
-    /// Cohesive strength `k = 3c / √(9 + 12 tan²φ)` of `f = √J₂ + α I₁ − k` (the value of
-    /// `√J₂` at yield when `I₁ = 0`).
+    /// Cohesive strength `k` of `f = √J₂ + α I₁ − k` (the value of `√J₂` at yield when
+    /// `I₁ = 0`; `3c / √(9 + 12 tan²φ)` for the plane-strain [`Cone`]).
     pub fn k(&self) -> T {
-        let t = self.friction_angle.tan();
-        self.cohesion * T::cst(3.0) / (T::cst(9.0) + T::cst(12.0) * t * t).sqrt()
+        self.cohesion * self.cone.coefficients(self.friction_angle).1
     }
 
     /// Mean stress at the apex of the cone, `p_apex = k/(3α) = c cot φ` (`0` when `c = 0`).
@@ -183,11 +243,9 @@ impl<T: Scalar> DruckerPrager<T> {
     /// `(α, k, σ_t, q_c)` of the yield surface and the cutoff, with one `tan` and one `sqrt`
     /// (the return mapping needs all four every step).
     fn surface(&self) -> (T, T, T, T) {
-        let tan = self.friction_angle.tan();
-        let root = (T::cst(9.0) + T::cst(12.0) * tan * tan).sqrt();
-        let alpha = tan / root;
-        let k = self.cohesion * T::cst(3.0) / root;
-        let apex = self.cohesion / tan;
+        let (alpha, k_factor) = self.cone.coefficients(self.friction_angle);
+        let k = self.cohesion * k_factor;
+        let apex = self.cohesion / self.friction_angle.tan();
         match self.tension_cutoff {
             Some(t) if t.re() < apex.re() => {
                 let q_c = k - alpha * t * T::cst(3.0);
@@ -219,10 +277,49 @@ impl<T: Scalar> DruckerPrager<T> {
             + Matrix3::identity() * (p / (self.bulk_modulus() * T::cst(3.0)))
     }
 
-    /// The Cauchy stress a state stands for, `σ = C:εₑ` with `εₑ = ½ (tensor − I)`.
+    /// The stress a state stands for, `C:εₑ`: the Cauchy stress with `εₑ = ½ (tensor − I)`
+    /// ([`Elasticity::Jaumann`]), the Kirchhoff stress with `εₑ = ½ ln bₑ`
+    /// ([`Elasticity::Hencky`]).
     pub fn stress_of_state(&self, state: &MaterialState<T>) -> Matrix3<T> {
-        self.lame
-            .stress(&((state.tensor - Matrix3::identity()) * T::cst(0.5)))
+        self.lame.stress(&self.elastic_strain(state))
+    }
+
+    /// The elastic strain `εₑ` a state holds: `½ (tensor − I)` ([`Elasticity::Jaumann`]) or
+    /// the Hencky strain `½ ln bₑ` ([`Elasticity::Hencky`]).
+    pub fn elastic_strain(&self, state: &MaterialState<T>) -> Matrix3<T> {
+        match self.elasticity {
+            Elasticity::Jaumann => (state.tensor - Matrix3::identity()) * T::cst(0.5),
+            Elasticity::Hencky => symmetric_fn(&state.tensor, &Log) * T::cst(0.5),
+        }
+    }
+
+    /// The state that an elastic strain `εₑ` stands for (the inverse of
+    /// [`DruckerPrager::elastic_strain`]): `I + 2εₑ` or `bₑ = exp(2εₑ)`.
+    pub fn state_tensor(&self, eps_e: &Matrix3<T>) -> Matrix3<T> {
+        match self.elasticity {
+            Elasticity::Jaumann => Matrix3::identity() + eps_e * T::cst(2.0),
+            Elasticity::Hencky => symmetric_fn(&(eps_e * T::cst(2.0)), &Exp),
+        }
+    }
+
+    /// One step of the Hencky model ([`Elasticity::Hencky`]) from the relative deformation
+    /// gradient `ΔF`: `bₑᵗʳ = ΔF bₑⁿ ΔFᵀ`, `τᵗʳ = C:½ ln bₑᵗʳ`, [`DruckerPrager::return_map`] on
+    /// `τᵗʳ`, `bₑ = exp(2 C⁻¹:τ)`. Returns the Kirchhoff stress, the new state and the region.
+    /// Pure; with dual `ΔF` its derivative is the consistent tangent.
+    pub fn hencky_return(
+        &self,
+        delta_f: &Matrix3<T>,
+        state: &MaterialState<T>,
+    ) -> (Matrix3<T>, MaterialState<T>, Region) {
+        let (b_trial, eps_trial) = hencky_trial(delta_f, &state.tensor);
+        let tau_trial = self.lame.stress(&eps_trial);
+        let (tau, mut new_state, region) = self.return_map(&tau_trial, state);
+        new_state.tensor = if region == Region::Elastic {
+            b_trial
+        } else {
+            self.state_tensor(&self.compliance(&tau))
+        };
+        (tau, new_state, region)
     }
 
     /// The elastic trial stress of a step, `σᵗʳ = Q σₙ Qᵀ + C:(Δt D)`, from the stress at the
@@ -308,12 +405,11 @@ impl<T: Scalar> DruckerPrager<T> {
         self.return_map(&self.trial_stress(sigma_n, dl), state)
     }
 
-    /// Kirchhoff stress `τ = J σ` (`J = det f`) and new state of a step with the relative
-    /// deformation gradient `ΔF`, from the stress the state stands for
-    /// ([`DruckerPrager::stress_of_state`]) and `ΔL = ΔF − I`. Pure.
-    ///
-    /// This is the `(ΔF, F, state)` interface of the implicit solvers, but the scene checks
-    /// keep Drucker–Prager out of them: the Jaumann update is accurate only for the small
+    /// Kirchhoff stress and new state of a step with the relative deformation gradient `ΔF`.
+    /// Pure. [`Elasticity::Hencky`]: [`DruckerPrager::hencky_return`].
+    /// [`Elasticity::Jaumann`]: `τ = J σ` (`J = det f`) from the stress the state stands for
+    /// ([`DruckerPrager::stress_of_state`]) and `ΔL = ΔF − I`; the scene checks keep this one
+    /// out of the implicit solvers: the Jaumann update is accurate only for the small
     /// increments of explicit steps, not for whole load steps.
     pub fn kirchhoff_update(
         &self,
@@ -321,30 +417,53 @@ impl<T: Scalar> DruckerPrager<T> {
         f: &Matrix3<T>,
         state: &MaterialState<T>,
     ) -> (Matrix3<T>, MaterialState<T>) {
-        let sigma_n = self.stress_of_state(state);
-        let dl = delta_f - Matrix3::identity();
-        let (sigma, state, _) = self.stress_update(&sigma_n, &dl, state);
-        (sigma * det::<T, 3>(f), state)
+        match self.elasticity {
+            Elasticity::Hencky => {
+                let (tau, state, _) = self.hencky_return(delta_f, state);
+                (tau, state)
+            }
+            Elasticity::Jaumann => {
+                let sigma_n = self.stress_of_state(state);
+                let dl = delta_f - Matrix3::identity();
+                let (sigma, state, _) = self.stress_update(&sigma_n, &dl, state);
+                (sigma * det::<T, 3>(f), state)
+            }
+        }
     }
 
-    /// The explicit stress update: [`DruckerPrager::stress_update`] from `kin.stress` with
-    /// `ΔL = kin.dt · L`; commits the new state and returns the region taken.
+    /// The explicit stress update, committing the new state and returning the region taken:
+    /// [`DruckerPrager::stress_update`] from `kin.stress` with `ΔL = kin.dt · L`
+    /// ([`Elasticity::Jaumann`]), or `σ = τ / det F` with `τ` from
+    /// [`DruckerPrager::hencky_return`] on `kin.delta_f` ([`Elasticity::Hencky`]).
     pub fn update_region(
         &self,
         kin: &Kinematics<'_, T>,
         state: &mut MaterialState<T>,
     ) -> (Matrix3<T>, Region) {
-        let dl = kin.velocity_gradient * kin.dt;
-        let (sigma, new_state, region) = self.stress_update(kin.stress, &dl, state);
+        let (sigma, new_state, region) = match self.elasticity {
+            Elasticity::Jaumann => {
+                let dl = kin.velocity_gradient * kin.dt;
+                self.stress_update(kin.stress, &dl, state)
+            }
+            Elasticity::Hencky => {
+                let (tau, new_state, region) = self.hencky_return(kin.delta_f, state);
+                (tau / det::<T, 3>(kin.f), new_state, region)
+            }
+        };
         *state = new_state;
         (sigma, region)
     }
 
-    /// Stored elastic energy per unit reference volume,
-    /// `ψ = J ½ σ:C⁻¹:σ = J (μ εₑ:εₑ + ½λ (tr εₑ)²)`, `εₑ = ½ (tensor − I)`, `J = det f`.
+    /// Stored elastic energy per unit reference volume, from the elastic strain the state
+    /// holds ([`DruckerPrager::elastic_strain`]): `ψ = μ εₑ:εₑ + ½λ (tr εₑ)²` for
+    /// [`Elasticity::Hencky`] (per reference volume, as [`super::J2`]), `J ψ` for
+    /// [`Elasticity::Jaumann`] (`J = det f`; its energy density is per current volume).
     pub fn stored_energy(&self, f: &Matrix3<T>, state: &MaterialState<T>) -> T {
-        let eps_e = (state.tensor - Matrix3::identity()) * T::cst(0.5);
-        self.lame.energy(&eps_e) * det::<T, 3>(f)
+        let psi = self.lame.energy(&self.elastic_strain(state));
+        match self.elasticity {
+            Elasticity::Jaumann => psi * det::<T, 3>(f),
+            Elasticity::Hencky => psi,
+        }
     }
 }
 
@@ -357,6 +476,8 @@ impl DruckerPrager<f64> {
             dilation_angle: T::cst(self.dilation_angle),
             cohesion: T::cst(self.cohesion),
             tension_cutoff: self.tension_cutoff.map(T::cst),
+            cone: self.cone,
+            elasticity: self.elasticity,
         }
     }
 }

@@ -19,6 +19,8 @@ fn dp(phi_deg: f64, psi_deg: f64, cohesion: f64, cutoff: Option<f64>) -> Drucker
         dilation_angle: psi_deg.to_radians(),
         cohesion,
         tension_cutoff: cutoff,
+        cone: Cone::PlaneStrain,
+        elasticity: Elasticity::Jaumann,
     }
 }
 
@@ -172,6 +174,7 @@ fn check_step(
             assert!(f.abs() <= tol, "corner: |f| = {f:e}");
             assert!((p - sigma_t).abs() <= tol, "corner: p − σ_t");
         }
+        Region::Edge | Region::Apex => panic!("{region:?} is a Mohr–Coulomb region"),
     }
     if region != Region::Elastic {
         // The trial was outside: f(σᵗʳ) > 0 or pᵗʳ > σ_t.
@@ -800,6 +803,8 @@ fn runs_in_single_precision() {
         dilation_angle: m.dilation_angle as f32,
         cohesion: m.cohesion as f32,
         tension_cutoff: None,
+        cone: Cone::PlaneStrain,
+        elasticity: Elasticity::Jaumann,
     };
     let (start, path) = paths().remove(0);
     let mut s64 = start;

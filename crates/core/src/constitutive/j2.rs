@@ -20,7 +20,7 @@
 //! logarithm / exponential go through [`symmetric_fn`], so a dual-number evaluation gives the
 //! exact consistent (algorithmic) tangent, also at repeated principal stretches.
 
-use super::{Constitutive, Kinematics, Lame, MaterialState, Region};
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region, hencky_trial};
 use crate::scalar::Scalar;
 use crate::spectral::{Exp, Log, symmetric_fn};
 use crate::tensor::det;
@@ -88,11 +88,7 @@ impl<T: Scalar> J2<T> {
         delta_f: &Matrix3<T>,
         state: &MaterialState<T>,
     ) -> (Matrix3<T>, MaterialState<T>, Region) {
-        let half = T::cst(0.5);
-        let b = delta_f * state.tensor * delta_f.transpose();
-        // Symmetrised so that round-off asymmetry does not accumulate over many steps.
-        let b_trial = (b + b.transpose()) * half;
-        let eps_trial = symmetric_fn(&b_trial, &Log) * half;
+        let (b_trial, eps_trial) = hencky_trial(delta_f, &state.tensor);
         let tau_trial = self.lame.stress(&eps_trial);
         let s = tau_trial - Matrix3::identity() * (tau_trial.trace() / T::cst(3.0));
         let s_norm = s.norm();

@@ -10,13 +10,15 @@ mod fluid;
 mod hencky;
 mod j2;
 mod linear_elastic;
+mod mohr_coulomb;
 mod neo_hookean;
 
-pub use drucker_prager::DruckerPrager;
+pub use drucker_prager::{Cone, DruckerPrager, Elasticity};
 pub use fluid::Fluid;
 pub use hencky::Hencky;
 pub use j2::J2;
 pub use linear_elastic::LinearElastic;
+pub use mohr_coulomb::MohrCoulomb;
 pub use neo_hookean::NeoHookean;
 
 use crate::scalar::Scalar;
@@ -81,6 +83,18 @@ impl Lame<f64> {
     }
 }
 
+/// The elastic trial state of a Hencky model with a multiplicative split: the trial left
+/// Cauchy–Green tensor `bₑᵗʳ = ΔF bₑⁿ ΔFᵀ` (symmetrised, so that round-off asymmetry does not
+/// accumulate over many steps) and its Hencky strain `εᵗʳ = ½ ln bₑᵗʳ` (dual-safe at repeated
+/// stretches). Shared by [`J2`], the Hencky [`DruckerPrager`] and [`MohrCoulomb`].
+pub fn hencky_trial<T: Scalar>(delta_f: &Matrix3<T>, b_n: &Matrix3<T>) -> (Matrix3<T>, Matrix3<T>) {
+    let half = T::cst(0.5);
+    let b = delta_f * b_n * delta_f.transpose();
+    let b_trial = (b + b.transpose()) * half;
+    let eps_trial = crate::spectral::symmetric_fn(&b_trial, &crate::spectral::Log) * half;
+    (b_trial, eps_trial)
+}
+
 /// History variables a particle carries for its constitutive model (unused by elastic
 /// models; plasticity stores its equivalent plastic strain and a tensor state here).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,6 +155,10 @@ pub enum Region {
     /// [`DruckerPrager`]: return to the corner where the cone meets the cutoff (the apex when
     /// `σ_t = c cot φ`).
     Corner,
+    /// [`MohrCoulomb`]: return to an edge of the pyramid (two planes active).
+    Edge,
+    /// [`MohrCoulomb`]: return to the apex of the pyramid.
+    Apex,
 }
 
 /// A constitutive model: kinematics and history in, Cauchy stress and new history out.
@@ -214,8 +232,10 @@ pub enum ModelKind {
     /// [`Fluid`] (weakly compressible Newtonian fluid), written `fluid`.
     Fluid,
     /// [`DruckerPrager`] (non-associated Drucker–Prager plasticity with a tension cutoff,
-    /// Jaumann-rate hypoelastic; explicit path), written `drucker_prager`.
+    /// Jaumann-rate hypoelastic or Hencky hyperelastic), written `drucker_prager`.
     DruckerPrager,
+    /// [`MohrCoulomb`] (Mohr–Coulomb plasticity in Hencky strain), written `mohr_coulomb`.
+    MohrCoulomb,
 }
 
 impl ModelKind {
@@ -229,6 +249,7 @@ impl ModelKind {
             Self::J2 => "j2",
             Self::Fluid => "fluid",
             Self::DruckerPrager => "drucker_prager",
+            Self::MohrCoulomb => "mohr_coulomb",
         }
     }
 }
@@ -258,8 +279,25 @@ pub enum Model<T> {
     /// Weakly compressible Newtonian fluid (Tait pressure plus viscosity).
     Fluid(Fluid<T>),
     /// Non-associated Drucker–Prager plasticity with a tension cutoff (Jaumann-rate
-    /// hypoelastic).
+    /// hypoelastic, or Hencky hyperelastic).
     DruckerPrager(DruckerPrager<T>),
+    /// Mohr–Coulomb plasticity in Hencky strain space.
+    MohrCoulomb(MohrCoulomb<T>),
+}
+
+impl<T> Model<T> {
+    /// The model's name ([`ModelKind`]).
+    pub fn kind(&self) -> ModelKind {
+        match self {
+            Self::LinearElastic(_) => ModelKind::LinearElastic,
+            Self::NeoHookean(_) => ModelKind::NeoHookean,
+            Self::Hencky(_) => ModelKind::Hencky,
+            Self::J2(_) => ModelKind::J2,
+            Self::Fluid(_) => ModelKind::Fluid,
+            Self::DruckerPrager(_) => ModelKind::DruckerPrager,
+            Self::MohrCoulomb(_) => ModelKind::MohrCoulomb,
+        }
+    }
 }
 
 impl<T: Scalar> Material<T> {
@@ -292,6 +330,14 @@ impl<T: Scalar> Material<T> {
                 dilation_angle: T::zero(),
                 cohesion: T::cst(f64::INFINITY),
                 tension_cutoff: None,
+                cone: Cone::PlaneStrain,
+                elasticity: Elasticity::Jaumann,
+            }),
+            ModelKind::MohrCoulomb => Model::MohrCoulomb(MohrCoulomb {
+                lame,
+                friction_angle: T::cst(std::f64::consts::FRAC_PI_6),
+                dilation_angle: T::zero(),
+                cohesion: T::cst(f64::INFINITY),
             }),
             ModelKind::Fluid => panic!(
                 "Material::elastic: model `fluid` takes a bulk modulus, not E and ν; \
@@ -350,6 +396,8 @@ impl<T: Scalar> Material<T> {
                 dilation_angle,
                 cohesion,
                 tension_cutoff,
+                cone: Cone::PlaneStrain,
+                elasticity: Elasticity::Jaumann,
             }),
         }
     }
@@ -369,6 +417,7 @@ impl<T: Scalar> Material<T> {
             Model::J2(m) => m,
             Model::Fluid(m) => m,
             Model::DruckerPrager(m) => m,
+            Model::MohrCoulomb(m) => m,
         }
     }
 
@@ -387,6 +436,7 @@ impl<T: Scalar> Material<T> {
             Model::J2(m) => m.stored_energy(state),
             Model::Fluid(m) => m.energy_density(f),
             Model::DruckerPrager(m) => m.stored_energy(f, state),
+            Model::MohrCoulomb(m) => m.stored_energy(state),
         }
     }
 
@@ -413,6 +463,10 @@ impl<T: Scalar> Material<T> {
             Model::J2(m) => m.kirchhoff_update(delta_f, state),
             Model::Fluid(m) => (m.kirchhoff_stress(f), *state),
             Model::DruckerPrager(m) => m.kirchhoff_update(delta_f, f, state),
+            Model::MohrCoulomb(m) => {
+                let (tau, state, _) = m.return_map(delta_f, state);
+                (tau, state)
+            }
         }
     }
 
@@ -437,11 +491,39 @@ impl<T: Scalar> Material<T> {
             Model::J2(m) => m.update_region(kin, state),
             Model::Fluid(m) => (m.update(kin, state), Region::Elastic),
             Model::DruckerPrager(m) => m.update_region(kin, state),
+            Model::MohrCoulomb(m) => m.update_region(kin, state),
         }
     }
 }
 
 impl Material<f64> {
+    /// The history state in which a model with elastic history carries the Kirchhoff stress
+    /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
+    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one. `None` for the models
+    /// whose stress is a function of `F` alone (the elastic models, the fluid): they carry a
+    /// stress only through their deformation. Whether `τ₀` lies inside the yield surface is
+    /// the caller's to check (a step with `ΔF = I` from the state returns it).
+    pub fn prestressed_state(&self, tau0: &Matrix3<f64>) -> Option<MaterialState<f64>> {
+        let hencky = |lame: &Lame<f64>| MaterialState {
+            plastic_strain: 0.0,
+            tensor: crate::spectral::symmetric_fn(
+                &(lame.strain(tau0) * 2.0),
+                &crate::spectral::Exp,
+            ),
+        };
+        match &self.model {
+            Model::J2(m) => Some(hencky(&m.lame)),
+            Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
+            Model::DruckerPrager(m) => Some(MaterialState {
+                plastic_strain: 0.0,
+                tensor: m.state_tensor(&m.compliance(tau0)),
+            }),
+            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
+                None
+            }
+        }
+    }
+
     /// The same material with its parameters as constants of another scalar type (zero
     /// derivative parts), e.g. to evaluate dual-number tangents with respect to the motion.
     pub fn lift<T: Scalar>(&self) -> Material<T> {
@@ -462,6 +544,7 @@ impl Material<f64> {
             }),
             Model::Fluid(m) => Model::Fluid(m.lift()),
             Model::DruckerPrager(m) => Model::DruckerPrager(m.lift()),
+            Model::MohrCoulomb(m) => Model::MohrCoulomb(m.lift()),
         };
         Material {
             density: T::cst(self.density),
@@ -476,5 +559,7 @@ mod drucker_prager_tests;
 mod fluid_tests;
 #[cfg(test)]
 mod j2_tests;
+#[cfg(test)]
+mod soil_tests;
 #[cfg(test)]
 mod tests;

@@ -201,11 +201,14 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     })
 }
 
-/// Whether a model reads and updates its history (J2, Drucker–Prager). The others return it
-/// unchanged and their stress does not depend on it, so its adjoint passes through a step as
-/// it is (`h̄ = h̄'`) without an evaluation.
+/// Whether a model reads and updates its history (J2, Drucker–Prager, Mohr–Coulomb). The
+/// others return it unchanged and their stress does not depend on it, so its adjoint passes
+/// through a step as it is (`h̄ = h̄'`) without an evaluation.
 pub fn carries_history<T>(material: &Material<T>) -> bool {
-    matches!(material.model, Model::J2(_) | Model::DruckerPrager(_))
+    matches!(
+        material.model,
+        Model::J2(_) | Model::DruckerPrager(_) | Model::MohrCoulomb(_)
+    )
 }
 
 /// The loads as `Dual64` constants.

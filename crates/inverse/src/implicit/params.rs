@@ -42,8 +42,8 @@ impl FromStr for ImplicitParam {
         let expected = || {
             format!(
                 "unknown parameter `{s}`; expected `materials[k].<constant>` (young, poisson, \
-                 yield_stress, hardening, density), `gravity[a]`, `point_loads[k].force[a]` or \
-                 `constraints[k].displacement[a]`"
+                 yield_stress, hardening, friction_angle, dilation_angle, cohesion, density), \
+                 `gravity[a]`, `point_loads[k].force[a]` or `constraints[k].displacement[a]`"
             )
         };
         let indexed = |t: &str, name: &str| -> Option<(usize, String)> {
@@ -75,6 +75,9 @@ impl FromStr for ImplicitParam {
                 MaterialField::Poisson,
                 MaterialField::YieldStress,
                 MaterialField::Hardening,
+                MaterialField::FrictionAngle,
+                MaterialField::DilationAngle,
+                MaterialField::Cohesion,
                 MaterialField::Density,
             ]
             .into_iter()

@@ -166,10 +166,10 @@ impl<const D: usize> Linearisation<D> {
         let (stress, jacobian) = match (model, D) {
             (Model::J2(_), 2) => j2_stress_jacobian::<18, D>(&materials.lanes7[material], inputs)?,
             (Model::J2(_), _) => j2_stress_jacobian::<28, D>(&materials.lanes7[material], inputs)?,
-            (Model::DruckerPrager(_), 2) => {
+            (Model::DruckerPrager(_) | Model::MohrCoulomb(_), 2) => {
                 stress_jacobian::<18, D>(&materials.lanes18[material], inputs)?
             }
-            (Model::DruckerPrager(_), _) => {
+            (Model::DruckerPrager(_) | Model::MohrCoulomb(_), _) => {
                 stress_jacobian::<28, D>(&materials.lanes28[material], inputs)?
             }
             (_, 2) => hyperelastic_stress_jacobian::<8, 4, D>(&materials.lanes4[material], inputs)?,

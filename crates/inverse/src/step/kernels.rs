@@ -3,7 +3,7 @@
 //! `loam_explicit::Solver::step` composes them, and packs its outputs.
 
 use crate::lanes::{Packed, Unpack};
-use loam_core::constitutive::{Material, MaterialState, Model};
+use loam_core::constitutive::{Elasticity, Material, MaterialState, Model};
 use loam_core::step::{EndOfStep, NodeLaw, NodeState, momentum_update, particle_end};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::Gathered;
@@ -60,8 +60,8 @@ impl End {
         let mut lanes: Vec<usize> = (start..start + D * D).collect();
         let s = start + D * D;
         let (stress, history) = match model {
-            Model::DruckerPrager(_) => (true, true),
-            Model::J2(_) => (false, true),
+            Model::DruckerPrager(dp) => (dp.elasticity == Elasticity::Jaumann, true),
+            Model::J2(_) | Model::MohrCoulomb(_) => (false, true),
             _ => (false, false),
         };
         if stress {

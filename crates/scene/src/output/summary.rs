@@ -34,8 +34,8 @@ pub struct EnergySample {
     pub total: f64,
 }
 
-/// One implicit load step: how Newton did.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// One implicit load step: how Newton did, and the reactions.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LoadStepSummary {
     /// Load step number (1-based).
     pub step: u64,
@@ -51,6 +51,11 @@ pub struct LoadStepSummary {
     pub linear_iterations: u64,
     /// Wall-clock time of the step (s).
     pub wall_time_s: f64,
+    /// Per `[[constraints]]` entry, in file order, the total force its prescribed
+    /// displacements exert on the material at the end of the step, one component per axis
+    /// (N; N per metre run in 2D; a footing pushed down has a negative vertical force).
+    #[serde(default)]
+    pub constraint_forces: Vec<Vec<f64>>,
 }
 
 /// What a run did, written as `summary.json` next to its frames. Non-finite numbers (say

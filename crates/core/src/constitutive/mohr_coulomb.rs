@@ -1,0 +1,287 @@
+//! Mohr–Coulomb plasticity in Hencky strain space, with the multi-surface return in principal
+//! stress space (de Souza Neto, Perić & Owen, *Computational Methods for Plasticity*, Wiley
+//! 2008, §8.2.2: main plane, the two edges and the apex).
+//!
+//! **Sign convention.** Stresses are tension positive, as everywhere in loam; principal values
+//! are ordered `τ₁ ≥ τ₂ ≥ τ₃` (so `τ₃` is the major compressive stress). In soil mechanics'
+//! compression-positive terms the yield condition below is `σ′₁ − σ′₃ = 2c cos φ + (σ′₁ + σ′₃)
+//! sin φ`, with `σ′₁/σ′₃ = (1 + sin φ)/(1 − sin φ)` when `c = 0`.
+//!
+//! **Elasticity.** Hyperelastic in the Hencky strain, as [`super::J2`]: with `F = Fₑ Fₚ`,
+//! `bₑ = Fₑ Fₑᵀ` and `εₑ = ½ ln bₑ`, the Kirchhoff stress is `τ = λ tr(εₑ) I + 2μ εₑ`, coaxial
+//! with `εₑ`, so in principal values `τ_i = Σ_j D_ij ε_j`, `D = λ 1⊗1 + 2μ I`.
+//!
+//! **Yield surface and plastic potential** (perfectly plastic; `ψ ≤ φ`, `ψ = φ` associated):
+//!
+//! ```text
+//! f = (τ₁ − τ₃) + (τ₁ + τ₃) sin φ − 2c cos φ,     g = (τ₁ − τ₃) + (τ₁ + τ₃) sin ψ
+//! ```
+//!
+//! **Return mapping** (closed form, no local iteration). The trial `bₑᵗʳ = ΔF bₑⁿ ΔFᵀ` gives the
+//! trial principal strains `εᵗʳ` and stresses `τᵗʳ = D εᵗʳ` (the principal directions are those
+//! of `bₑᵗʳ` and do not change in the return). With `N_a = ∂f_a/∂τ`, `A_a = D ∂g_a/∂τ`:
+//!
+//! 1. **main plane**: `Δγ = fᵗʳ / (N·A)`, `τ = τᵗʳ − Δγ A`; valid when the order
+//!    `τ₁ ≥ τ₂ ≥ τ₃` survives;
+//! 2. **edge** (two planes active; Koiter's rule): the compression edge `τ₁ = τ₂` when the main
+//!    plane return put `τ₂` above `τ₁`, otherwise the extension edge `τ₂ = τ₃`. The second plane
+//!    is the main plane with `τ₂` in place of `τ₁` (compression edge) or of `τ₃` (extension
+//!    edge); `[N_a·A_b] Δγ = fᵗʳ`, `τ = τᵗʳ − Δγ₁ A₁ − Δγ₂ A₂`; valid when both `Δγ ≥ 0` and the
+//!    pair stays on its side of the third stress (`τ₂ ≥ τ₃` on the compression edge, `τ₁ ≥ τ₂`
+//!    on the extension edge);
+//! 3. **apex**: otherwise `τ = c cot φ I` (for perfect plasticity the apex is a point).
+//!
+//! The stress tensor is `τ = Σ τ_i n_i n_iᵀ` on the eigenvectors of `bₑᵗʳ`, `εₑ = C⁻¹:τ`,
+//! `bₑ = exp(2εₑ)`, and the equivalent plastic strain grows by `√(2/3) ‖εᵗʳ − εₑ‖`.
+//!
+//! **Derivatives.** The principal return is applied through
+//! [`crate::spectral::isotropic_map`], which carries a dual perturbation through the
+//! eigenbasis of the real part with the divided differences `(τ_i − τ_j)/(ε_i − ε_j)` (their
+//! limit from the Jacobian of the return where two strains coincide, as in a triaxial test), so
+//! a dual evaluation gives the exact consistent tangent in every region, edges and apex
+//! included, and the derivative with respect to `c`, `φ`, `ψ`, `E`, `ν`.
+
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region, hencky_trial};
+use crate::scalar::Scalar;
+use crate::spectral::{Exp, Log, PrincipalMap, isotropic_map, symmetric_fn};
+use crate::tensor::det;
+use nalgebra::Matrix3;
+use num_dual::{Derivative, DualSVec64};
+
+/// Mohr–Coulomb elastoplasticity (perfectly plastic, non-associated) in Hencky strain space.
+/// Angles in radians. State ([`MaterialState`]): `tensor` is `bₑ`, `plastic_strain` the
+/// equivalent plastic strain. See the module docs for the equations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MohrCoulomb<T> {
+    /// Lamé parameters of the Hencky elastic law.
+    pub lame: Lame<T>,
+    /// Friction angle `φ` (radians), `0 < φ < π/2`.
+    pub friction_angle: T,
+    /// Dilation angle `ψ` (radians), `0 ≤ ψ ≤ φ`.
+    pub dilation_angle: T,
+    /// Cohesion `c ≥ 0` (Pa).
+    pub cohesion: T,
+}
+
+/// The principal return of a [`MohrCoulomb`] material, as a [`PrincipalMap`] of the trial
+/// principal Hencky strains to the principal Kirchhoff stresses.
+struct PrincipalReturn<'a, T>(&'a MohrCoulomb<T>);
+
+impl<T: Scalar> PrincipalMap<T> for PrincipalReturn<'_, T> {
+    type Tag = Region;
+
+    fn principal(&self, eps: [T; 3]) -> ([T; 3], Region) {
+        self.0.principal_return(eps)
+    }
+
+    fn jacobian(&self, eps: [f64; 3]) -> [[f64; 3]; 3] {
+        let real = self.0.real().lift::<DualSVec64<3>>();
+        let lanes: [DualSVec64<3>; 3] = std::array::from_fn(|i| {
+            let mut e = nalgebra::SVector::<f64, 3>::zeros();
+            e[i] = 1.0;
+            DualSVec64::new(eps[i], Derivative::some(e))
+        });
+        let (tau, _) = real.principal_return(lanes);
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| tau[i].eps.0.as_ref().map_or(0.0, |e| e[j]))
+        })
+    }
+}
+
+impl<T: Scalar> MohrCoulomb<T> {
+    /// The real parts of the parameters.
+    pub fn real(&self) -> MohrCoulomb<f64> {
+        MohrCoulomb {
+            lame: Lame {
+                mu: self.lame.mu.re(),
+                lambda: self.lame.lambda.re(),
+            },
+            friction_angle: self.friction_angle.re(),
+            dilation_angle: self.dilation_angle.re(),
+            cohesion: self.cohesion.re(),
+        }
+    }
+
+    /// The yield function `f = (τ₁ − τ₃) + (τ₁ + τ₃) sin φ − 2c cos φ` of principal stresses
+    /// in any order (negative inside the pyramid).
+    pub fn yield_function(&self, tau: [T; 3]) -> T {
+        let hi = max3(tau);
+        let lo = min3(tau);
+        (hi - lo) + (hi + lo) * self.friction_angle.sin()
+            - self.cohesion * T::cst(2.0) * self.friction_angle.cos()
+    }
+
+    /// Mean stress at the apex of the pyramid, `c cot φ`.
+    pub fn apex(&self) -> T {
+        self.cohesion / self.friction_angle.tan()
+    }
+
+    /// The return of trial principal strains `εᵗʳ` (any order) to principal Kirchhoff stresses
+    /// in the same order, with the region taken (see the module docs).
+    pub fn principal_return(&self, eps: [T; 3]) -> ([T; 3], Region) {
+        let (lambda, two_mu) = (self.lame.lambda, self.lame.mu * T::cst(2.0));
+        let tr = eps[0] + eps[1] + eps[2];
+        let trial: [T; 3] = std::array::from_fn(|i| lambda * tr + two_mu * eps[i]);
+        // Sorted descending on real parts: τ₁ ≥ τ₂ ≥ τ₃.
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| trial[b].re().total_cmp(&trial[a].re()));
+        let s: [T; 3] = std::array::from_fn(|k| trial[order[k]]);
+        let (sin_phi, sin_psi) = (self.friction_angle.sin(), self.dilation_angle.sin());
+        let two_c_cos = self.cohesion * T::cst(2.0) * self.friction_angle.cos();
+        let one = T::one();
+        let plane = |i: usize, j: usize, sin: T| -> [T; 3] {
+            // ∂/∂τ of (τ_i − τ_j) + (τ_i + τ_j) sin θ.
+            let mut n = [T::zero(); 3];
+            n[i] = one + sin;
+            n[j] = sin - one;
+            n
+        };
+        let f_of = |i: usize, j: usize| (s[i] - s[j]) + (s[i] + s[j]) * sin_phi - two_c_cos;
+        let f_main = f_of(0, 2);
+        if f_main.re() <= 0.0 {
+            return (trial, Region::Elastic);
+        }
+        let stiff = |n: [T; 3]| -> [T; 3] {
+            let trn = n[0] + n[1] + n[2];
+            std::array::from_fn(|i| lambda * trn + two_mu * n[i])
+        };
+        let dot = |a: [T; 3], b: [T; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let ordered = |t: &[T; 3]| t[0].re() >= t[1].re() && t[1].re() >= t[2].re();
+        let unsort = |t: [T; 3]| {
+            let mut out = [T::zero(); 3];
+            for k in 0..3 {
+                out[order[k]] = t[k];
+            }
+            out
+        };
+        let n1 = plane(0, 2, sin_phi);
+        let a1 = stiff(plane(0, 2, sin_psi));
+        let dgamma = f_main / dot(n1, a1);
+        let main: [T; 3] = std::array::from_fn(|i| s[i] - a1[i] * dgamma);
+        if ordered(&main) {
+            return (unsort(main), Region::Shear);
+        }
+        // Edge: τ₁ = τ₂ (compression) when the main return overshot τ₂ above τ₁, else τ₂ = τ₃.
+        let compression = main[1].re() > main[0].re();
+        let (n2, a2, f2) = if compression {
+            (
+                plane(1, 2, sin_phi),
+                stiff(plane(1, 2, sin_psi)),
+                f_of(1, 2),
+            )
+        } else {
+            (
+                plane(0, 1, sin_phi),
+                stiff(plane(0, 1, sin_psi)),
+                f_of(0, 1),
+            )
+        };
+        let (m11, m12, m21, m22) = (dot(n1, a1), dot(n1, a2), dot(n2, a1), dot(n2, a2));
+        let det = m11 * m22 - m12 * m21;
+        let g1 = (f_main * m22 - m12 * f2) / det;
+        let g2 = (m11 * f2 - m21 * f_main) / det;
+        let edge: [T; 3] = std::array::from_fn(|i| s[i] - a1[i] * g1 - a2[i] * g2);
+        // The edge makes two stresses equal (up to round-off, so only the third is compared).
+        let edge_ordered = if compression {
+            edge[1].re() >= edge[2].re()
+        } else {
+            edge[0].re() >= edge[1].re()
+        };
+        if g1.re() >= 0.0 && g2.re() >= 0.0 && edge_ordered {
+            return (unsort(edge), Region::Edge);
+        }
+        let apex = self.apex();
+        ([apex; 3], Region::Apex)
+    }
+
+    /// One step of the return mapping from the relative deformation gradient `ΔF` and the
+    /// state at the start of the step: the Kirchhoff stress, the new state and the region.
+    /// Pure; with dual `ΔF` its derivative is the consistent tangent.
+    pub fn return_map(
+        &self,
+        delta_f: &Matrix3<T>,
+        state: &MaterialState<T>,
+    ) -> (Matrix3<T>, MaterialState<T>, Region) {
+        let half = T::cst(0.5);
+        let (b_trial, eps_trial) = hencky_trial(delta_f, &state.tensor);
+        let (tau, region) = isotropic_map(&eps_trial, &PrincipalReturn(self));
+        let tau = (tau + tau.transpose()) * half;
+        if region == Region::Elastic {
+            let elastic = MaterialState {
+                plastic_strain: state.plastic_strain,
+                tensor: b_trial,
+            };
+            return (tau, elastic, region);
+        }
+        let eps_e = self.lame.strain(&tau);
+        let plastic = MaterialState {
+            plastic_strain: state.plastic_strain
+                + (eps_trial - eps_e).norm() * T::cst(2.0 / 3.0).sqrt(),
+            tensor: symmetric_fn(&(eps_e * T::cst(2.0)), &Exp),
+        };
+        (tau, plastic, region)
+    }
+
+    /// The explicit stress update: `σ = τ / det F` with `τ` from [`MohrCoulomb::return_map`]
+    /// on `kin.delta_f`; commits the new state and returns the region taken.
+    pub fn update_region(
+        &self,
+        kin: &Kinematics<'_, T>,
+        state: &mut MaterialState<T>,
+    ) -> (Matrix3<T>, Region) {
+        let (tau, new_state, region) = self.return_map(kin.delta_f, state);
+        *state = new_state;
+        (tau / det::<T, 3>(kin.f), region)
+    }
+
+    /// Elastic stored energy per unit reference volume, `ψ = μ εₑ:εₑ + ½λ (tr εₑ)²` with
+    /// `εₑ = ½ ln bₑ`.
+    pub fn stored_energy(&self, state: &MaterialState<T>) -> T {
+        self.lame
+            .energy(&(symmetric_fn(&state.tensor, &Log) * T::cst(0.5)))
+    }
+}
+
+impl MohrCoulomb<f64> {
+    /// The same parameters as constants of another scalar type (zero derivative parts).
+    pub fn lift<T: Scalar>(&self) -> MohrCoulomb<T> {
+        MohrCoulomb {
+            lame: self.lame.lift(),
+            friction_angle: T::cst(self.friction_angle),
+            dilation_angle: T::cst(self.dilation_angle),
+            cohesion: T::cst(self.cohesion),
+        }
+    }
+}
+
+impl<T: Scalar> Constitutive<T> for MohrCoulomb<T> {
+    /// `σ = τ / det F` with `τ` from [`MohrCoulomb::return_map`]; commits the new state.
+    fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
+        self.update_region(kin, state).0
+    }
+
+    /// `λ + 2μ`: the elastic constrained modulus bounds the wave speed.
+    fn p_wave_modulus(&self) -> f64 {
+        self.lame.p_wave_modulus().re()
+    }
+}
+
+fn max3<T: Scalar>(t: [T; 3]) -> T {
+    let mut m = t[0];
+    for x in &t[1..] {
+        if x.re() > m.re() {
+            m = *x;
+        }
+    }
+    m
+}
+
+fn min3<T: Scalar>(t: [T; 3]) -> T {
+    let mut m = t[0];
+    for x in &t[1..] {
+        if x.re() < m.re() {
+            m = *x;
+        }
+    }
+    m
+}
