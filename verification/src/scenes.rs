@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 22] = [
+pub const SCENES: [CaseScene; 23] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -56,6 +56,7 @@ pub const SCENES: [CaseScene; 22] = [
     case_scene!("adjoint_block"),
     case_scene!("adjoint_column"),
     case_scene!("adjoint_block_3d"),
+    case_scene!("obstacle_velocity"),
     case_scene!("inverse_v0"),
     case_scene!("inverse_friction"),
     case_scene!("inverse_mlp"),
