@@ -29,6 +29,7 @@ pub mod k0_layer;
 pub mod newmark_bar;
 pub mod newmark_energy;
 pub mod newton_quadratic;
+pub mod obstacle_velocity_fd;
 pub mod obstacles;
 mod output;
 pub mod runout;
@@ -351,6 +352,11 @@ pub fn cases() -> Vec<Case> {
             name: "adjoint-fd",
             description: "discrete adjoint vs forward-mode duals (1e-10) vs branch-aware central differences (1e-6), Taylor test: fluid on friction segments, Neo-Hookean block vs moving obstacle, Drucker–Prager column, 3D block; USL and MUSL",
             runner: Runner::Cpu(adjoint_fd::run),
+        },
+        Case {
+            name: "obstacle-velocity-fd",
+            description: "derivative w.r.t. a moving disk's velocity (pushed into water) by the adjoint and forward-mode duals vs central differences converged over three steps (1e-6); USL and MUSL",
+            runner: Runner::Cpu(obstacle_velocity_fd::run),
         },
         Case {
             name: "implicit-adjoint-fd",

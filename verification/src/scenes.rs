@@ -57,6 +57,7 @@ pub const SCENES: [CaseScene; 23] = [
     case_scene!("adjoint_block"),
     case_scene!("adjoint_column"),
     case_scene!("adjoint_block_3d"),
+    case_scene!("obstacle_velocity"),
     case_scene!("inverse_v0"),
     case_scene!("inverse_friction"),
     case_scene!("inverse_mlp"),

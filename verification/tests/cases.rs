@@ -200,6 +200,11 @@ fn adjoint_fd() {
 }
 
 #[test]
+fn obstacle_velocity_fd() {
+    check("obstacle-velocity-fd");
+}
+
+#[test]
 fn implicit_adjoint_fd() {
     check("implicit-adjoint-fd");
 }

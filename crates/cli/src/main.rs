@@ -97,8 +97,9 @@ enum Command {
     Gradient {
         /// Inversion file (.toml).
         file: PathBuf,
-        /// Also print, per parameter, the forward-mode dual derivative, a central finite
-        /// difference and a Taylor test.
+        /// Also print, per parameter, the forward-mode dual derivative, central finite
+        /// differences and a Taylor test; exit 1 when the adjoint and the dual differ, or
+        /// agree but differ from a converged central difference.
         #[arg(long)]
         check: bool,
         /// Memory the adjoint may keep (checkpoints and one traced segment), such as 512MB or

@@ -85,31 +85,10 @@ pub fn central_difference<const D: usize, O: ScalarObjective<D>>(
 ) -> Result<Option<Difference>, AdjointError> {
     let (config, particles) = problem.setup(theta)?;
     let base = branches(&config, &particles, problem.steps)?;
-    let moved = |d: f64| {
-        let mut t = theta.to_vec();
-        t[k] += d;
-        t
-    };
     // The estimate at every step, `None` where a perturbed run switches a branch.
     let mut estimates: Vec<Option<Difference>> = Vec::new();
     for relative_step in DIFFERENCE_STEPS {
-        let delta = relative_step * theta[k].abs().max(1e-3);
-        let points = [delta, -delta, 0.5 * delta, -0.5 * delta].map(moved);
-        let mut kept = true;
-        for t in &points {
-            kept &= same_branches(problem, t, &base)?;
-        }
-        if !kept {
-            estimates.push(None);
-            continue;
-        }
-        let [up, down, half_up, half_down] = points.map(|t| problem.loss(&t));
-        let d1 = (up? - down?) / (2.0 * delta);
-        let d2 = (half_up? - half_down?) / delta;
-        estimates.push(Some(Difference {
-            value: (4.0 * d2 - d1) / 3.0,
-            relative_step,
-        }));
+        estimates.push(difference_at(problem, theta, k, relative_step, &base)?);
     }
     let plateau = (estimates.windows(2))
         .filter_map(|w| match (w[0], w[1]) {
@@ -119,6 +98,108 @@ pub fn central_difference<const D: usize, O: ScalarObjective<D>>(
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(a, _)| a);
     Ok(plateau.or_else(|| estimates.into_iter().flatten().next()))
+}
+
+/// The relative steps [`converged_difference`] tries, largest first: a decade apart, so that
+/// agreement between neighbours shows the truncation error and the round-off are both small.
+pub const CONVERGENCE_STEPS: [f64; 3] = [1e-4, 1e-5, 1e-6];
+
+/// How close the central differences at two neighbouring steps of [`CONVERGENCE_STEPS`] must
+/// be, relative to the larger of the two, for [`converged_difference`] to call them converged.
+///
+/// On a loss that is smooth over the steps, the Richardson estimates at `δ = 10⁻⁴, 10⁻⁵ |θ|`
+/// differ by their truncation (O(δ⁴), below 1e-12 relative) and their round-off (that of the
+/// loss over `δ`, about 1e-10 relative on a loss of order one), so 1e-6 is met with room; a
+/// derivative that depends on the step (a kink or a jump within it) is not.
+pub const CONVERGENCE_TOLERANCE: f64 = 1e-6;
+
+/// The central differences of [`converged_difference`]: the estimate at each step and the
+/// converged value, if any.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Convergence {
+    /// The estimate at each step tried, largest first; `None` where a perturbed run switched
+    /// a branch.
+    pub estimates: Vec<Option<Difference>>,
+    /// The estimate at the smaller step of the first neighbouring pair that agrees to
+    /// [`CONVERGENCE_TOLERANCE`]; `None` when no pair does.
+    pub value: Option<Difference>,
+    /// The relative difference `|a − b| / max(|a|, |b|)` of that pair, or of the closest pair
+    /// when none agrees (`NaN` when fewer than two steps kept the branches).
+    pub spread: f64,
+}
+
+/// Branch-aware central differences of the loss with respect to the unknown `k` at `theta`
+/// at the steps of [`CONVERGENCE_STEPS`], largest first, each as in [`central_difference`]
+/// (Richardson-extrapolated, `None` where one of its perturbed runs switches a branch), until
+/// two neighbouring estimates agree to [`CONVERGENCE_TOLERANCE`]: the derivative of the loss
+/// on the smooth piece at `theta`, independent of the step, which a correct gradient must
+/// equal. A step-dependent estimate (the loss has a kink within the steps, or round-off
+/// dominates) gives no converged value.
+///
+/// # Errors
+/// As [`Problem::loss`].
+pub fn converged_difference<const D: usize, O: ScalarObjective<D>>(
+    problem: &Problem<D, O>,
+    theta: &[f64],
+    k: usize,
+) -> Result<Convergence, AdjointError> {
+    let (config, particles) = problem.setup(theta)?;
+    let base = branches(&config, &particles, problem.steps)?;
+    let mut out = Convergence {
+        estimates: Vec::new(),
+        value: None,
+        spread: f64::NAN,
+    };
+    for relative_step in CONVERGENCE_STEPS {
+        let estimate = difference_at(problem, theta, k, relative_step, &base)?;
+        if let (Some(a), Some(Some(b))) = (estimate, out.estimates.last()) {
+            let spread = (a.value - b.value).abs() / a.value.abs().max(b.value.abs());
+            if out.spread.is_nan() || spread < out.spread {
+                out.spread = spread;
+            }
+            if spread <= CONVERGENCE_TOLERANCE {
+                out.estimates.push(estimate);
+                out.value = Some(a);
+                out.spread = spread;
+                return Ok(out);
+            }
+        }
+        out.estimates.push(estimate);
+    }
+    Ok(out)
+}
+
+/// The Richardson estimate of [`central_difference`] at one relative step
+/// (`δ = relative_step · max(|θ_k|, 10⁻³)`), `None` when one of its four perturbed runs leaves
+/// the branches `base` of the run at `theta` ([`branches`]).
+///
+/// # Errors
+/// As [`Problem::loss`].
+pub fn difference_at<const D: usize, O: ScalarObjective<D>>(
+    problem: &Problem<D, O>,
+    theta: &[f64],
+    k: usize,
+    relative_step: f64,
+    base: &[Branches],
+) -> Result<Option<Difference>, AdjointError> {
+    let delta = relative_step * theta[k].abs().max(1e-3);
+    let points = [delta, -delta, 0.5 * delta, -0.5 * delta].map(|d| {
+        let mut t = theta.to_vec();
+        t[k] += d;
+        t
+    });
+    for t in &points {
+        if !same_branches(problem, t, base)? {
+            return Ok(None);
+        }
+    }
+    let [up, down, half_up, half_down] = points.map(|t| problem.loss(&t));
+    let d1 = (up? - down?) / (2.0 * delta);
+    let d2 = (half_up? - half_down?) / delta;
+    Ok(Some(Difference {
+        value: (4.0 * d2 - d1) / 3.0,
+        relative_step,
+    }))
 }
 
 /// The Taylor remainders `r(h) = |L(θ + h d) − L(θ) − h ∇L·d|` for `h = h₀, h₀/2, …`

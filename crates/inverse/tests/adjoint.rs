@@ -253,9 +253,10 @@ fn neo_hookean_block_against_a_moving_obstacle() {
         Param::ObstacleFriction(0),
         Param::Gravity(1),
     ];
-    // The obstacle's velocity also moves its geometry, which is `f64` (the contact layer's
-    // node set changes with it, a branch switch at any δ): its derivative is that of the
-    // contact law at the recorded geometry, checked against the dual run only.
+    // The obstacle's velocity also moves its surface, and the contact layer's node set
+    // changes with it (a branch switch at any δ here): its derivative, through the pushed
+    // velocity and the moving normal, is checked against the dual run only in this scene and
+    // against a converged central difference in `tests/obstacle_velocity.rs`.
     let no_difference = [Param::ObstacleVelocity(0, 0)];
     check::<2>(BLOCK_2D, 40, 3, [0.25, 0.2], &params, &no_difference);
 }

@@ -99,20 +99,21 @@ impl<const D: usize> Model<D> {
     pub fn check_legend(&self) -> &'static str {
         match self {
             Self::Explicit(_) => {
-                "  checks: dual = forward-mode Dual64 run; central difference with δ = 1e-4 max(|θ|, 1e-3);\n  \
+                "  checks: dual = forward-mode Dual64 run; central difference: Richardson-extrapolated, at δ = 1e-4, 1e-5, 1e-6 max(|θ|, 1e-3)\n  \
+                 until two neighbouring steps agree to 1e-6 (conv.: the smaller δ; perturbed runs that switch a branch are not used);\n  \
                  Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ| for h = 1e-2 max(|θ|, 1e-3) and h/2, h/4, h/8\n  \
                  (r falls 4× per halving where L is smooth; a stick/slip or yield switch within h shows as a smaller ratio)"
             }
             Self::Implicit { .. } => {
                 "  checks: dual = forward-mode Dual64 tangent of every sub-step; central difference\n  \
-                 (Richardson, δ = 1e-4 |θ| and δ/2) and Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ|\n  \
+                 (Richardson, at δ = 1e-4 and 1e-5 |θ|, converged when they agree to 1e-6) and Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ|\n  \
                  for h = 1e-2 |θ| and h/2, h/4, h/8, every run on the sub-steps of the run at θ\n  \
                  (r falls 4× per halving where L is smooth; a yield switch within h shows as a smaller ratio)"
             }
         }
     }
 
-    /// The dual derivative, the central difference and the Taylor remainders of unknown `k`
+    /// The dual derivative, the central differences and the Taylor remainders of unknown `k`
     /// at `theta`, where the loss is `loss` and the adjoint gives `adjoint`.
     ///
     /// # Errors
@@ -123,20 +124,14 @@ impl<const D: usize> Model<D> {
         loss: f64,
         adjoint: f64,
         k: usize,
-    ) -> Result<(f64, f64, [f64; 4]), AdjointError> {
+    ) -> Result<CheckRow, AdjointError> {
         let mut direction = vec![0.0; theta.len()];
         direction[k] = 1.0;
-        let (dual, fd, r) = match self {
+        match self {
             Self::Explicit(problem) => {
                 let dual = problem.dual_derivative(theta, k)?;
-                let at = |d: f64| {
-                    let mut t = theta.to_vec();
-                    t[k] += d;
-                    problem.loss(&t)
-                };
+                let c = check::converged_difference(problem, theta, k)?;
                 let size = theta[k].abs().max(1e-3);
-                let delta = 1e-4 * size;
-                let fd = (at(delta)? - at(-delta)?) / (2.0 * delta);
                 let r = check::taylor_remainders(
                     problem,
                     theta,
@@ -146,12 +141,36 @@ impl<const D: usize> Model<D> {
                     1e-2 * size,
                     4,
                 )?;
-                (dual, fd, r)
+                // Shown where nothing converged: the estimate at the largest step that kept
+                // the branches, or else a plain central difference at δ = 10⁻⁴ max(|θ|, 10⁻³).
+                let shown = match c
+                    .value
+                    .or_else(|| c.estimates.iter().flatten().next().copied())
+                {
+                    Some(d) => d.value,
+                    None => {
+                        let at = |d: f64| {
+                            let mut t = theta.to_vec();
+                            t[k] += d;
+                            problem.loss(&t)
+                        };
+                        let delta = 1e-4 * size;
+                        (at(delta)? - at(-delta)?) / (2.0 * delta)
+                    }
+                };
+                Ok(CheckRow {
+                    dual,
+                    difference: shown,
+                    converged: c.value.map(|d| (d.relative_step, c.spread)),
+                    remainders: [r[0], r[1], r[2], r[3]],
+                })
             }
             Self::Implicit { problem, .. } => {
                 let schedule = problem.schedule(theta)?;
                 let dual = problem.dual_derivative(theta, k)?;
                 let fd = implicit_check::central_difference(problem, theta, &schedule, k, 1e-4)?;
+                let fine = implicit_check::central_difference(problem, theta, &schedule, k, 1e-5)?;
+                let spread = (fd - fine).abs() / fd.abs().max(fine.abs());
                 let r = implicit_check::taylor_remainders(
                     problem,
                     theta,
@@ -162,9 +181,73 @@ impl<const D: usize> Model<D> {
                     1e-2 * theta[k].abs(),
                     4,
                 )?;
-                (dual, fd, r)
+                Ok(CheckRow {
+                    dual,
+                    difference: fine,
+                    converged: (spread <= check::CONVERGENCE_TOLERANCE).then_some((1e-5, spread)),
+                    remainders: [r[0], r[1], r[2], r[3]],
+                })
             }
-        };
-        Ok((dual, fd, [r[0], r[1], r[2], r[3]]))
+        }
+    }
+}
+
+/// How far (relative) the dual derivative may be from a converged central difference before
+/// `loam gradient --check` fails: ten times [`check::CONVERGENCE_TOLERANCE`], the agreement
+/// that made the difference converged (its truncation and round-off are below that), while a
+/// derivative that misses a dependence of the run on the parameter is off in the leading
+/// digits.
+pub const DIFFERENCE_TOLERANCE: f64 = 1e-5;
+
+/// What `loam gradient --check` measured for one unknown ([`Model::check_one`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CheckRow {
+    /// The forward-mode dual derivative.
+    pub dual: f64,
+    /// The central difference shown: the converged one where there is one.
+    pub difference: f64,
+    /// Where central differences at neighbouring steps agreed to
+    /// [`check::CONVERGENCE_TOLERANCE`]: the smaller relative step and their relative spread.
+    /// `None` when they did not (the loss has a kink within the steps, or round-off
+    /// dominates), and the difference says nothing about the gradient.
+    pub converged: Option<(f64, f64)>,
+    /// The Taylor remainders `r(h)`, `r(h/2)`, `r(h/4)`, `r(h/8)`.
+    pub remainders: [f64; 4],
+}
+
+impl CheckRow {
+    /// Whether the central differences converged and the dual derivative is further than
+    /// [`DIFFERENCE_TOLERANCE`] (relative) from them: then a gradient that agrees with the
+    /// dual misses a dependence of the run on the parameter, and `--check` fails.
+    pub fn misses_the_difference(&self) -> bool {
+        let scale = self.dual.abs().max(self.difference.abs());
+        self.converged.is_some()
+            && (self.dual - self.difference).abs() > DIFFERENCE_TOLERANCE * scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(dual: f64, difference: f64, converged: bool) -> CheckRow {
+        CheckRow {
+            dual,
+            difference,
+            converged: converged.then_some((1e-5, 1e-9)),
+            remainders: [0.0; 4],
+        }
+    }
+
+    /// A dual derivative 1.68× a converged difference (the figure of a moving disk's velocity
+    /// before its moving surface was differentiated) fails; one within round-off passes; an
+    /// unconverged difference (a kink within the steps) decides nothing.
+    #[test]
+    fn a_converged_difference_decides_the_check() {
+        assert!(row(4.944e-3, 2.9356e-3, true).misses_the_difference());
+        assert!(row(-1.0, 1.0, true).misses_the_difference());
+        assert!(!row(2.935_615_124e-3, 2.935_615_113e-3, true).misses_the_difference());
+        assert!(!row(4.944e-3, 2.9356e-3, false).misses_the_difference());
+        assert!(!row(0.0, 0.0, true).misses_the_difference());
     }
 }

@@ -302,7 +302,10 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
             }
             let bit = 1 << (2 * D + k);
             let vo = ob.velocity;
-            let n_in = Vector::<T, D>::from_fn(|a, _| T::cst(-n_out[a]));
+            // The layer (a branch) is decided on the real geometry; the normal carries the
+            // derivative of the surface's position `v_o t` in a run seeded on `v_o`.
+            let n_obs = ob.normal(&x, time, &n_out);
+            let n_in = Vector::<T, D>::from_fn(|a, _| -n_obs[a]);
             let mut vr = *v - vo;
             let touch = law(&mut vr, &n_in, ob.mu, bit);
             if touch != Touch::Separate {
@@ -327,7 +330,9 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
 impl<const D: usize> Contact<f64, D> {
     /// The same contact with its parameters (each segment's and obstacle's `μ`, each
     /// obstacle's velocity) as constants of another scalar type; seed the derivative parts of
-    /// the result to differentiate with respect to one of them.
+    /// the result to differentiate with respect to one of them. A seeded velocity also moves
+    /// the obstacle's surface, `x_o(t) = x_o(0) + v_o t`: the contact normal carries that
+    /// ([`Obstacle::normal`]).
     pub fn lift<T: Scalar>(&self) -> Contact<T, D> {
         Contact {
             segments: self
@@ -572,6 +577,75 @@ mod tests {
                         assert!(v.dot(&V2::from(nn)) >= -1e-12, "h {h} r {r} node {xi}");
                     }
                 });
+            }
+        }
+    }
+
+    /// The derivative of the contact law with respect to a moving obstacle's velocity in a
+    /// dual run equals the central difference of the `f64` law, in which the surface moves by
+    /// `v_o t`: it includes the turn of the normal at the node as the obstacle moves
+    /// (`−t (I − n nᵀ)/ρ` for a disk), not only the velocity the node is pushed to. Nodes off
+    /// the disk's centre line and off a box's face (in its corner region), where the normal
+    /// depends on the position, with the law sliding and sticking. The law is smooth in `v_o`
+    /// over ±1e-6 here (no node changes branch), so the difference is exact to its
+    /// truncation and round-off, 1e-8 leaving room for both.
+    #[test]
+    fn obstacle_velocity_derivative_includes_the_moving_surface() {
+        let g = Grid::<2>::new([0.0, 0.0], [20, 20], 0.1, 2);
+        let time = 0.2;
+        let shapes = [
+            ObstacleShape::disk([0.5, 1.0], 0.3),
+            ObstacleShape::Box {
+                lo: [0.1, 0.8],
+                hi: [0.42, 1.15],
+            },
+        ];
+        // Node (i, j) at ((i − 2)/10, (j − 2)/10).
+        let cases = [
+            ([9, 17], V2::new(2.0, -0.5), 0.5), // (0.7, 1.5): slides on the disk
+            ([8, 17], V2::new(0.1, -0.3), 0.9), // (0.6, 1.5): sticks to the disk
+            ([9, 16], V2::new(-1.0, -2.0), 0.2), // (0.7, 1.4): box corner region
+        ];
+        for (shape, (node, v0, mu)) in shapes.iter().zip(cases).chain([(&shapes[0], cases[2])]) {
+            let velocity = [0.4, 1.0];
+            let law = |vo: [f64; 2]| {
+                let mut c = Contact::<f64, 2>::default();
+                c.obstacles.push(Obstacle {
+                    shape: shape.clone(),
+                    velocity: Vector::from(vo),
+                    mu,
+                });
+                let mut v = v0;
+                let set = c.apply(&g, node, time, &mut v);
+                (v, set)
+            };
+            let (_, set) = law(velocity);
+            assert_ne!(set.active, 0, "{shape:?} {node:?}: the node is in contact");
+            for a in 0..2 {
+                let mut c = Contact::<f64, 2>::default();
+                c.obstacles.push(Obstacle {
+                    shape: shape.clone(),
+                    velocity: Vector::from(velocity),
+                    mu,
+                });
+                let mut lifted: Contact<Dual64, 2> = c.lift();
+                lifted.obstacles[0].velocity[a].eps = 1.0;
+                let mut v = v0.map(Dual64::from_re);
+                assert_eq!(lifted.apply(&g, node, time, &mut v), set);
+                let d = 1e-6;
+                let (mut up, mut down) = (velocity, velocity);
+                up[a] += d;
+                down[a] -= d;
+                let ((vp, sp), (vm, sm)) = (law(up), law(down));
+                assert_eq!((sp, sm), (set, set), "the branches are kept");
+                for b in 0..2 {
+                    let fd = (vp[b] - vm[b]) / (2.0 * d);
+                    assert!(
+                        (v[b].eps - fd).abs() <= 1e-8 * (1.0 + fd.abs()),
+                        "{shape:?} node {node:?}: dv[{b}]/dv_o[{a}] dual {} vs difference {fd}",
+                        v[b].eps
+                    );
+                }
             }
         }
     }

@@ -1,8 +1,10 @@
 //! Rigid obstacles: analytic signed distances and normals of boxes and cylinders that may move
 //! with a constant velocity.
 //!
-//! Geometry is plain `f64` (it is never differentiated); only the friction coefficient is a
-//! scalar `T`.
+//! The shapes are plain `f64`. An obstacle's velocity and friction coefficient are scalars
+//! `T`; since a moving obstacle's surface at time `t` is the shape's at `x − v_o t`, its normal
+//! depends on the velocity, and [`Obstacle::normal`] carries that dependence into a dual run
+//! (the node set of the contact layer, a branch, is decided on real parts).
 
 use crate::scalar::Scalar;
 use crate::tensor::Vector;
@@ -108,29 +110,40 @@ impl<const D: usize> ObstacleShape<D> {
     /// `|x_axis − c_axis|`) with half-extents `(r, L/2)`. Where a normal is undefined (the
     /// centre of a box or on a cylinder's axis) a coordinate direction is returned.
     pub fn distance(&self, x: &[f64; D]) -> (f64, [f64; D]) {
+        self.distance_at(x)
+    }
+
+    /// [`ObstacleShape::distance`] at a point of any scalar type: the branches (outside or
+    /// inside, nearest face) are taken on the real parts, and the distance and the normal carry
+    /// the derivative parts of `x` through the branch taken. A moving obstacle's geometry at
+    /// time `t` is the shape's at `x − v_o t`, so with a dual `v_o` this is how the normal
+    /// depends on the obstacle's velocity ([`Obstacle::normal`]).
+    pub fn distance_at<T: Scalar>(&self, x: &[T; D]) -> (T, [T; D]) {
+        // `max(q, 0)` with the branch on the real part.
+        let positive = |q: T| if q.re() > 0.0 { q } else { T::zero() };
         match self {
             Self::Box { lo, hi } => {
-                let mut q = [0.0; D];
+                let mut q = [T::zero(); D];
                 let mut sign = [0.0; D];
                 for a in 0..D {
                     let c = 0.5 * (lo[a] + hi[a]);
-                    let d = x[a] - c;
-                    sign[a] = if d < 0.0 { -1.0 } else { 1.0 };
-                    q[a] = d.abs() - 0.5 * (hi[a] - lo[a]);
+                    let d = x[a] - T::cst(c);
+                    sign[a] = if d.re() < 0.0 { -1.0 } else { 1.0 };
+                    q[a] = d * T::cst(sign[a]) - T::cst(0.5 * (hi[a] - lo[a]));
                 }
-                if q.iter().any(|&qa| qa > 0.0) {
-                    let out: [f64; D] = std::array::from_fn(|a| q[a].max(0.0));
-                    let phi = out.iter().map(|o| o * o).sum::<f64>().sqrt();
-                    (phi, std::array::from_fn(|a| sign[a] * out[a] / phi))
+                if q.iter().any(|qa| qa.re() > 0.0) {
+                    let out: [T; D] = std::array::from_fn(|a| positive(q[a]));
+                    let phi = out.iter().fold(T::zero(), |s, &o| s + o * o).sqrt();
+                    (phi, std::array::from_fn(|a| out[a] * T::cst(sign[a]) / phi))
                 } else {
                     let mut k = 0;
                     for a in 1..D {
-                        if q[a] > q[k] {
+                        if q[a].re() > q[k].re() {
                             k = a;
                         }
                     }
-                    let mut n = [0.0; D];
-                    n[k] = sign[k];
+                    let mut n = [T::zero(); D];
+                    n[k] = T::cst(sign[k]);
                     (q[k], n)
                 }
             }
@@ -140,34 +153,35 @@ impl<const D: usize> ObstacleShape<D> {
                 axis,
                 length,
             } => {
-                let mut radial = [0.0; D];
+                let mut radial = [T::zero(); D];
                 for a in (0..D).filter(|a| a != axis) {
-                    radial[a] = x[a] - centre[a];
+                    radial[a] = x[a] - T::cst(centre[a]);
                 }
-                let rho = radial.iter().map(|r| r * r).sum::<f64>().sqrt();
-                let r_hat: [f64; D] = if rho > 0.0 {
+                let rho = radial.iter().fold(T::zero(), |s, &r| s + r * r).sqrt();
+                let r_hat: [T; D] = if rho.re() > 0.0 {
                     std::array::from_fn(|a| radial[a] / rho)
                 } else {
                     // On the axis: any radial direction (the first axis that is not `axis`).
                     let first = if *axis == 0 { 1 } else { 0 };
-                    std::array::from_fn(|a| if a == first { 1.0 } else { 0.0 })
+                    std::array::from_fn(|a| if a == first { T::one() } else { T::zero() })
                 };
-                let q_r = rho - radius;
+                let q_r = rho - T::cst(*radius);
                 let (q_z, s_z) = if *axis < D {
-                    let d = x[*axis] - centre[*axis];
-                    (d.abs() - 0.5 * length, if d < 0.0 { -1.0 } else { 1.0 })
+                    let d = x[*axis] - T::cst(centre[*axis]);
+                    let s = if d.re() < 0.0 { -1.0 } else { 1.0 };
+                    (d * T::cst(s) - T::cst(0.5 * length), s)
                 } else {
-                    (f64::NEG_INFINITY, 0.0)
+                    (T::cst(f64::NEG_INFINITY), 0.0)
                 };
-                let e_z = |a: usize| if a == *axis { s_z } else { 0.0 };
-                if q_r > 0.0 || q_z > 0.0 {
-                    let (or, oz) = (q_r.max(0.0), q_z.max(0.0));
+                let e_z = |a: usize| T::cst(if a == *axis { s_z } else { 0.0 });
+                if q_r.re() > 0.0 || q_z.re() > 0.0 {
+                    let (or, oz) = (positive(q_r), positive(q_z));
                     let phi = (or * or + oz * oz).sqrt();
                     (
                         phi,
                         std::array::from_fn(|a| (or * r_hat[a] + oz * e_z(a)) / phi),
                     )
-                } else if q_r >= q_z {
+                } else if q_r.re() >= q_z.re() {
                     (q_r, r_hat)
                 } else {
                     (q_z, std::array::from_fn(e_z))
@@ -184,7 +198,8 @@ pub struct Obstacle<T: Scalar, const D: usize> {
     /// The shape at time 0.
     pub shape: ObstacleShape<D>,
     /// Constant velocity `v_o` (m/s); zero for a static obstacle. A `T`, so that the contact
-    /// law is differentiable in it; the geometry moves with its real part (geometry is `f64`).
+    /// law is differentiable in it, through the relative velocity and through the normal of
+    /// the surface that has moved by `v_o t` ([`Obstacle::normal`]).
     pub velocity: Vector<T, D>,
     /// Coulomb friction coefficient `μ ≥ 0` (0: frictionless).
     pub mu: T,
@@ -206,6 +221,20 @@ impl<T: Scalar, const D: usize> Obstacle<T, D> {
     pub fn distance(&self, x: &[f64; D], time: f64) -> (f64, [f64; D]) {
         let x0: [f64; D] = std::array::from_fn(|a| x[a] - self.velocity[a].re() * time);
         self.shape.distance(&x0)
+    }
+
+    /// The outward normal at `x` and time `t` as a `T`, given `n_re`, its real part from
+    /// [`Obstacle::distance`]: the shape's normal at `x − v_o t` with `v_o` a `T`, so that in a
+    /// dual run it carries `∂n/∂v_o = −t ∂n/∂x` (for a disk, `−t (I − n nᵀ)/ρ`). With a
+    /// constant velocity (every `f64` run, and a dual run not seeded on it) this is `n_re`.
+    #[inline]
+    pub fn normal(&self, x: &[f64; D], time: f64, n_re: &[f64; D]) -> [T; D] {
+        if self.velocity.iter().all(Scalar::is_constant) {
+            return n_re.map(T::cst);
+        }
+        let t = T::cst(time);
+        let x0: [T; D] = std::array::from_fn(|a| T::cst(x[a]) - self.velocity[a] * t);
+        self.shape.distance_at(&x0).1
     }
 }
 
