@@ -298,5 +298,10 @@ fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
         F::Cohesion => m.cohesion = Some(v),
         F::YieldStress => m.yield_stress = Some(v),
         F::Hardening => m.hardening = Some(v),
+        F::Lambda => m.lambda = Some(v),
+        F::Kappa => m.kappa = Some(v),
+        F::CriticalStateSlope => m.critical_state_slope = Some(v),
+        F::VoidRatio => m.void_ratio = Some(v),
+        F::ShearModulus => m.shear_modulus = Some(v),
     }
 }
