@@ -38,7 +38,7 @@ pub mod tangent_fd;
 pub mod triaxial;
 
 pub use device::Device;
-pub use output::{Series, write_csv, write_plot, write_text};
+pub use output::{Panel, Series, write_csv, write_panels, write_plot, write_text};
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
