@@ -39,7 +39,7 @@ pub mod triaxial;
 pub mod triaxial_mcc;
 
 pub use device::Device;
-pub use output::{Series, write_csv, write_plot, write_text};
+pub use output::{Panel, Series, write_csv, write_panels, write_plot, write_text};
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};

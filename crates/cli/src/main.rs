@@ -33,6 +33,11 @@ struct Cli {
     /// /proc/meminfo). `run` and `check` refuse a scene whose estimate exceeds it.
     #[arg(long, global = true, value_name = "GIB")]
     memory_limit: Option<f64>,
+    /// The most steps a run may take (default 1e8; 1e6 for each run of an inversion).
+    /// `run` and `check` refuse a scene estimated at more (an end time or a stiffness in the
+    /// wrong unit), `gradient`, `invert` and `check` an inversion file.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    max_steps: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -236,6 +241,11 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let memory_limit = preflight::MemoryLimit::new(cli.memory_limit);
+    let max_steps = preflight::StepLimit::new(cli.max_steps, preflight::MAX_STEPS);
+    let inversion = invert::Limits {
+        memory: memory_limit,
+        steps: preflight::StepLimit::new(cli.max_steps, preflight::MAX_INVERSION_STEPS),
+    };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -266,6 +276,7 @@ fn main() -> ExitCode {
                 quiet,
                 progress_every,
                 memory_limit,
+                max_steps,
                 checkpoint_every: checkpoint_every
                     .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
                 device: device.map(Device::scene),
@@ -279,19 +290,21 @@ fn main() -> ExitCode {
             }
         }
         Command::Material { file, out, quiet } => material::material(&file, out.as_deref(), quiet),
-        Command::Check { scene } if invert::is_inversion(&scene) => invert::check(&scene),
-        Command::Check { scene } => check::check(&scene, memory_limit),
+        Command::Check { scene } if invert::is_inversion(&scene) => {
+            invert::check(&scene, inversion)
+        }
+        Command::Check { scene } => check::check(&scene, memory_limit, max_steps),
         Command::Gradient {
             file,
             check,
             memory,
-        } => hold(|| invert::gradient(&file, check, memory)),
+        } => hold(|| invert::gradient(&file, check, memory, inversion)),
         Command::Invert {
             file,
             out,
             resume,
             memory,
-        } => hold(|| invert::invert(&file, out.as_deref(), resume, memory)),
+        } => hold(|| invert::invert(&file, out.as_deref(), resume, memory, inversion)),
         Command::Verify {
             cases,
             list,

@@ -134,7 +134,8 @@ fn skew<const D: usize>(omega: &[f64]) -> Tensor<f64, D> {
 /// Reads a body's velocities from a CSV file: a header naming the columns (`vx, vy[, vz]`,
 /// and optionally the positions `x, y[, z]` as a check of the order), then one row per
 /// particle of the body in generation order. Blank lines and lines starting with `#` are
-/// skipped. The error names the line and the column.
+/// skipped, and so is a byte-order mark before the header. The error names the line and the
+/// column.
 fn read_velocities<const D: usize>(
     file: &Path,
     x: &[SVector<f64, D>],
@@ -142,7 +143,7 @@ fn read_velocities<const D: usize>(
 ) -> Result<Vec<SVector<f64, D>>, String> {
     const POSITIONS: [&str; 3] = ["x", "y", "z"];
     const VELOCITIES: [&str; 3] = ["vx", "vy", "vz"];
-    let text = std::fs::read_to_string(file).map_err(|e| format!("cannot read it: {e}"))?;
+    let text = crate::csv::read_csv(file).map_err(|e| format!("cannot read it: {e}"))?;
     let mut lines = text
         .lines()
         .enumerate()

@@ -424,6 +424,46 @@ fn several_issues_are_reported_one_per_line() {
     assert_eq!(err.to_string().lines().count(), 3);
 }
 
+/// Serde stops at the first key a struct does not know; the loaders go on, so a file with
+/// four misspelt keys in four sections (one inside a tagged shape table) lists all four, each
+/// with its path, in TOML (with its line) and in JSON.
+#[test]
+fn every_unknown_key_is_reported_with_its_path() {
+    let text = std::fs::read_to_string(fixture("good/box_2d.toml"))
+        .unwrap()
+        .replace("cell_size = 0.02", "cell_size = 0.02\ncellsize = 0.02")
+        .replace("poisson_ratio = 0.3", "poisson_ratio = 0.3\npoisson = 0.3")
+        .replace("hi = [0.3, 0.3] }", "hi = [0.3, 0.3], radius = 1.0 }")
+        .replace("end_time = 0.5", "end_time = 0.5\nsheme = \"usl\"");
+    let err = Scene::from_toml_str(&text).unwrap_err();
+    let msg = err.to_string();
+    let wanted = [
+        "grid.cellsize: unknown field `cellsize`",
+        "materials[0].poisson: unknown field `poisson`",
+        "bodies[0].shape: unknown field `radius`",
+        "solver.sheme: unknown field `sheme`",
+    ];
+    for want in wanted {
+        assert!(msg.contains(want), "{want} missing from:\n{msg}");
+    }
+    assert_eq!(err.issues().len(), 4, "{msg}");
+    assert!(msg.contains("(line 6, column 1)"), "{msg}");
+    // The same scene in JSON.
+    let scene: toml::Table =
+        toml::from_str(&std::fs::read_to_string(fixture("good/box_2d.toml")).unwrap()).unwrap();
+    let mut json = serde_json::to_value(&scene).unwrap();
+    json["grid"]["cellsize"] = 0.02.into();
+    json["materials"][0]["poisson"] = 0.3.into();
+    json["bodies"][0]["shape"]["radius"] = 1.0.into();
+    json["solver"]["sheme"] = "usl".into();
+    let err = Scene::from_json_str(&json.to_string()).unwrap_err();
+    let msg = err.to_string();
+    for want in wanted {
+        assert!(msg.contains(want), "{want} missing from:\n{msg}");
+    }
+    assert_eq!(err.issues().len(), 4, "{msg}");
+}
+
 #[test]
 fn unknown_extension_and_missing_file_are_errors() {
     let err = Scene::from_path("scene.yaml").unwrap_err();

@@ -545,11 +545,10 @@ mod tests {
             }
         }
         let e = &step.end;
-        let (f, b) = (e.f.transpose(), e.history.tensor.transpose());
+        let f = e.f.transpose();
         let values = (e.x.iter().copied())
             .chain(f.iter().copied())
-            .chain(std::iter::once(e.history.plastic_strain))
-            .chain(b.iter().copied())
+            .chain(e.history.components())
             .chain(e.v.iter().copied())
             .chain(std::iter::once(e.mass));
         for (v, w) in values.zip(cot.end) {
