@@ -50,6 +50,12 @@ pub struct Solver<T: Scalar, const D: usize> {
     mass_floor: f64,
     steps: usize,
     time: f64,
+    /// Per obstacle, the impulse it has given the material since the solver was made or its
+    /// clock set ([`Solver::obstacle_impulse`]).
+    obstacle_impulse: Vec<[f64; D]>,
+    /// Per row group and obstacle, the group's part of one step's impulse (scratch: summed
+    /// in group order, so the total does not depend on the thread count).
+    group_impulse: Vec<Vec<[f64; D]>>,
 }
 
 /// Minimum nodal mass (relative to the largest particle mass) below which a node is treated
@@ -134,6 +140,8 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             sums: Vec::new(),
             wave_speed,
             mass_floor: 0.0,
+            obstacle_impulse: vec![[0.0; D]; config.contact.obstacles.len()],
+            group_impulse: Vec::new(),
             config,
             steps: 0,
             time: 0.0,
@@ -163,6 +171,20 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
     pub fn set_clock(&mut self, time: f64, steps: usize) {
         self.time = time;
         self.steps = steps;
+        self.obstacle_impulse.fill([0.0; D]);
+    }
+
+    /// Per obstacle (in the order of the configuration's contact), the impulse it has given
+    /// the material since the solver was made or its clock set: `I_k = Σ_steps Σ_i m_i Δv_ik`,
+    /// the sum over the nodes where obstacle `k` acted in the grid update of the change of
+    /// velocity it made there ([`loam_core::contact::Contact::apply_measured`]), so that
+    /// `(I_k(t₂) − I_k(t₁)) / (t₂ − t₁)` is the mean force the obstacle exerted on the
+    /// material over `[t₁, t₂]` (N·s and N; per metre of thickness in 2D; a footing pushed
+    /// down has a negative vertical force, as the reactions of implicit runs). With APIC or
+    /// PIC transfers, momentum balances exactly: `P(t₂) − P(t₁) = M g (t₂ − t₁) + I(t₂) −
+    /// I(t₁)` plus the walls' impulses, `P` the particles' total momentum.
+    pub fn obstacle_impulse(&self) -> &[[f64; D]] {
+        &self.obstacle_impulse
     }
 
     /// Nodal masses of the last step (scratch, for inspection and tests).
@@ -533,6 +555,13 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         let law = NodeLaw::new(grid, boundary, &cfg.contact, self.time + dt);
         let flip = cfg.transfer.needs_old_grid_velocity();
         let (blocks, n) = (&self.blocks, self.blocks.row_len());
+        let obstacles = cfg.contact.obstacles.len();
+        self.group_impulse
+            .resize_with(blocks.groups().len(), Vec::new);
+        for g in &mut self.group_impulse {
+            g.clear();
+            g.resize(obstacles, [0.0; D]);
+        }
         // With `TRACE`, per row group: its part of `self.sums` and its entry of `trace`.
         let kept: Vec<Option<Kept<'_, T, D>>> = if TRACE {
             self.sums.resize(grid.num_nodes(), NodeSums::zero());
@@ -555,53 +584,73 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             .zip(blocks.split_groups(&mut self.velocity))
             .zip(blocks.split_groups(&mut self.active))
             .zip(kept)
+            .zip(self.group_impulse.par_iter_mut())
             .zip(blocks.groups().par_iter())
             .with_min_len(MIN_ROWS_PER_TASK)
-            .for_each(|(((((m, v_old), v), active), mut kept), &(r0, r1))| {
-                let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
-                for r in r0..r1 {
-                    let at = rows(r);
-                    blocks.gather_row(r, &mut m[at.clone()], &mut v_old[at.clone()], &mut v[at]);
-                }
-                let nodes = r0 * n..r1 * n;
-                boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
-                if let Some((sums, _)) = &mut kept {
-                    for (k, s) in sums.iter_mut().enumerate() {
-                        *s = NodeSums {
-                            m: m[k],
-                            p: v_old[k],
-                            f: v[k],
-                        };
+            .for_each(
+                |((((((m, v_old), v), active), mut kept), impulse), &(r0, r1))| {
+                    let rows = |r: usize| (r - r0) * n..(r - r0 + 1) * n;
+                    for r in r0..r1 {
+                        let at = rows(r);
+                        blocks.gather_row(
+                            r,
+                            &mut m[at.clone()],
+                            &mut v_old[at.clone()],
+                            &mut v[at],
+                        );
                     }
-                }
-                for r in r0..r1 {
-                    let at = rows(r);
-                    let (m, v_old, v) =
-                        (&m[at.clone()], &mut v_old[at.clone()], &mut v[at.clone()]);
-                    let active = &mut active[at];
-                    let mut node = blocks.row_node(r);
-                    blocks.for_each_visited(r, |i| {
-                        let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
-                        if m.re() > floor {
-                            // `v_old` holds the momentum and `v` the force until here.
-                            (*v_old, *v) = momentum_update(m, v_old, v, &gravity, dtt);
-                            node[0] = i;
-                            active[i] = law.apply(node, v);
-                        } else {
-                            *v_old = Vector::zeros();
-                            *v = Vector::zeros();
+                    let nodes = r0 * n..r1 * n;
+                    boundary.fold_ghosts_in(grid, nodes.clone(), Some(m), v_old, Some(v));
+                    if let Some((sums, _)) = &mut kept {
+                        for (k, s) in sums.iter_mut().enumerate() {
+                            *s = NodeSums {
+                                m: m[k],
+                                p: v_old[k],
+                                f: v[k],
+                            };
                         }
-                    });
+                    }
+                    for r in r0..r1 {
+                        let at = rows(r);
+                        let (m, v_old, v) =
+                            (&m[at.clone()], &mut v_old[at.clone()], &mut v[at.clone()]);
+                        let active = &mut active[at];
+                        let mut node = blocks.row_node(r);
+                        blocks.for_each_visited(r, |i| {
+                            let (m, v_old, v) = (m[i], &mut v_old[i], &mut v[i]);
+                            if m.re() > floor {
+                                // `v_old` holds the momentum and `v` the force until here.
+                                (*v_old, *v) = momentum_update(m, v_old, v, &gravity, dtt);
+                                node[0] = i;
+                                active[i] = law.apply_measured(node, v, |k, dv| {
+                                    // The obstacle's impulse on the node, `m Δv`.
+                                    for (a, c) in impulse[k].iter_mut().enumerate() {
+                                        *c += m.re() * dv[a].re();
+                                    }
+                                });
+                            } else {
+                                *v_old = Vector::zeros();
+                                *v = Vector::zeros();
+                            }
+                        });
+                    }
+                    boundary.reflect_ghosts_in(grid, nodes.clone(), v);
+                    if flip {
+                        boundary.reflect_ghosts_in(grid, nodes.clone(), v_old);
+                    }
+                    if let Some((sums, trace)) = kept {
+                        let span = (nodes.start, nodes.end);
+                        trace.keep(span, sums, v, v_old, active, floor, flip);
+                    }
+                },
+            );
+        for group in &self.group_impulse {
+            for (total, part) in self.obstacle_impulse.iter_mut().zip(group) {
+                for (t, p) in total.iter_mut().zip(part) {
+                    *t += p;
                 }
-                boundary.reflect_ghosts_in(grid, nodes.clone(), v);
-                if flip {
-                    boundary.reflect_ghosts_in(grid, nodes.clone(), v_old);
-                }
-                if let Some((sums, trace)) = kept {
-                    let span = (nodes.start, nodes.end);
-                    trace.keep(span, sums, v, v_old, active, floor, flip);
-                }
-            });
+            }
+        }
     }
 
     /// USL: stage 3, G2P ([`G2p::particle`]), then stage 4 with the velocity gradient of the

@@ -212,6 +212,15 @@ pub fn run<const D: usize>(
     };
     rec.summary.warnings.extend(warnings);
     rec.summary.end_time = plan.end_time;
+    // The obstacles' forces: measured by the CPU solver, from the clock the run starts at.
+    let obstacles: Vec<[f64; D]> = (config.contact.obstacles.iter())
+        .map(|o| std::array::from_fn(|a| o.velocity[a]))
+        .collect();
+    if !obstacles.is_empty() && matches!(engine, Engine::Gpu(_)) {
+        let note = "the obstacles' forces (obstacle_forces.csv) are measured by CPU runs only";
+        eprintln!("note: {}: {note}", target.scene.display());
+        rec.summary.warnings.push(note.to_string());
+    }
     let mut checkpoints = match start.checkpoints {
         None => None,
         Some((text, every)) => {
@@ -241,6 +250,11 @@ pub fn run<const D: usize>(
         end: plan.end_time,
     };
     let mut stop = None;
+    if let Engine::Cpu(solver) = &engine
+        && !obstacles.is_empty()
+    {
+        rec.obstacle_forces(from.0, from.1, solver.obstacle_impulse(), &obstacles);
+    }
     // A resumed run continues after the frames it kept.
     let first = rec.frames_written();
     for (k, &at) in frames.iter().enumerate().skip(first) {
@@ -258,12 +272,30 @@ pub fn run<const D: usize>(
                 break;
             }
         }
+        if let Engine::Cpu(solver) = &engine
+            && !obstacles.is_empty()
+        {
+            let impulse = solver.obstacle_impulse();
+            rec.obstacle_forces(engine.steps(), engine.time(), impulse, &obstacles);
+        }
         if let Err(e) = rec.frame(engine.steps(), engine.time(), &particles) {
             stop = Some(e);
             break;
         }
     }
     progress.finish();
+    // A run stopped between frames keeps the forces up to where it stopped.
+    if let Engine::Cpu(solver) = &engine
+        && stop.is_some()
+        && !obstacles.is_empty()
+    {
+        rec.obstacle_forces(
+            engine.steps(),
+            engine.time(),
+            solver.obstacle_impulse(),
+            &obstacles,
+        );
+    }
     rec.summary.checkpoint = checkpoints.and_then(|c| c.last);
     let wall = clock.start.elapsed().as_secs_f64();
     let steps = engine.steps();

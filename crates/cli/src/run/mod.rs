@@ -25,7 +25,8 @@ use loam_core::Particles;
 use loam_core::energy::energy;
 use loam_core::tensor::Vector;
 use loam_scene::output::{
-    EnergySample, FrameWriter, OutputError, RunStatus, RunSummary, write_summary,
+    EnergySample, FrameWriter, ObstacleForceSample, OutputError, RunStatus, RunSummary,
+    write_obstacle_forces, write_summary,
 };
 use loam_scene::{Built, Device, Scene, SolverKind, SolverPlan};
 use std::path::{Path, PathBuf};
@@ -239,6 +240,9 @@ pub struct Recorder<const D: usize> {
     materials: Vec<loam_core::Material<f64>>,
     /// Steps completed before this run started (those of a resumed run's checkpoint).
     first_step: usize,
+    /// The time and the obstacles' impulses at the last frame
+    /// ([`Recorder::obstacle_forces`]).
+    impulse_mark: Option<(f64, Vec<[f64; D]>)>,
     /// The summary being filled in.
     pub summary: RunSummary,
 }
@@ -253,6 +257,7 @@ impl<const D: usize> Recorder<D> {
             gravity: built.gravity,
             materials: built.materials.clone(),
             first_step: 0,
+            impulse_mark: None,
             summary: RunSummary {
                 scene: scene.display().to_string(),
                 dimension: D,
@@ -271,6 +276,7 @@ impl<const D: usize> Recorder<D> {
                 energy: Vec::new(),
                 frames: Vec::new(),
                 load_steps: Vec::new(),
+                obstacle_forces: Vec::new(),
                 resumed_from: None,
                 checkpoint: None,
                 device: None,
@@ -300,6 +306,11 @@ impl<const D: usize> Recorder<D> {
         if let Some(earlier) = earlier {
             s.energy = earlier
                 .energy
+                .into_iter()
+                .filter(|e| e.time <= time)
+                .collect();
+            s.obstacle_forces = earlier
+                .obstacle_forces
                 .into_iter()
                 .filter(|e| e.time <= time)
                 .collect();
@@ -345,6 +356,37 @@ impl<const D: usize> Recorder<D> {
         Ok(())
     }
 
+    /// Records the mean force of each obstacle on the material over the interval since the
+    /// last call, `(I − I_mark) / (t − t_mark)`, from the solver's impulses `impulse` at the
+    /// frame (`step`, `time`), with each obstacle's displacement `v t` from `velocity`. The
+    /// first call, at the run's first frame or its resumed clock (where the solver's impulses
+    /// start from zero), only sets the mark.
+    pub fn obstacle_forces(
+        &mut self,
+        step: usize,
+        time: f64,
+        impulse: &[[f64; D]],
+        velocity: &[[f64; D]],
+    ) {
+        if let Some((since, before)) = &self.impulse_mark
+            && time > *since
+        {
+            let span = time - since;
+            self.summary.obstacle_forces.push(ObstacleForceSample {
+                step: step as u64,
+                time,
+                since: *since,
+                forces: (impulse.iter().zip(before))
+                    .map(|(i, b)| (0..D).map(|a| (i[a] - b[a]) / span).collect())
+                    .collect(),
+                displacements: (velocity.iter())
+                    .map(|v| v.iter().map(|c| c * time).collect())
+                    .collect(),
+            });
+        }
+        self.impulse_mark = Some((time, impulse.to_vec()));
+    }
+
     /// Completes the summary, writes it and prints the outcome: `done` on success, the error
     /// or the interruption and what was kept otherwise.
     pub fn finish(
@@ -376,6 +418,14 @@ impl<const D: usize> Recorder<D> {
         if let Err(e) = write_summary(&summary_path, &self.summary) {
             eprintln!("error: {e}");
             return Outcome::Failed;
+        }
+        let forces = &self.summary.obstacle_forces;
+        if !forces.is_empty() {
+            let path = self.writer.dir().join(FrameWriter::OBSTACLE_FORCES_NAME);
+            if let Err(e) = write_obstacle_forces(&path, forces) {
+                eprintln!("error: {e}");
+                return Outcome::Failed;
+            }
         }
         let mut kept = format!(
             "the {} frame(s) written up to {reached:.4} remain valid in {}; summary: {}",

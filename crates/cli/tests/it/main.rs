@@ -6,4 +6,5 @@ mod gpu;
 mod initial_state;
 mod invert;
 mod invert_implicit;
+mod obstacle_forces;
 mod restart;

@@ -224,7 +224,23 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         time: f64,
         v: &mut Vector<T, D>,
     ) -> ContactSet {
-        self.act(grid, node, time, v, None)
+        self.act(grid, node, time, v, None, |_, _| ())
+    }
+
+    /// [`Contact::apply`], reporting to `on_obstacle(k, Δv)` the change `Δv` of the node's
+    /// velocity that obstacle `k` made (for each obstacle the node approached): `m Δv` is the
+    /// impulse obstacle `k` gave the node of mass `m` over the step, and `−m Δv / Δt` the
+    /// force the node exerts on the obstacle.
+    #[inline]
+    pub fn apply_measured(
+        &self,
+        grid: &Grid<D>,
+        node: [usize; D],
+        time: f64,
+        v: &mut Vector<T, D>,
+        on_obstacle: impl FnMut(usize, Vector<T, D>),
+    ) -> ContactSet {
+        self.act(grid, node, time, v, None, on_obstacle)
     }
 
     /// Non-penetration on another velocity of the node (MUSL's second projection), exactly on
@@ -242,11 +258,12 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         active: u64,
     ) {
         if active != 0 {
-            self.act(grid, node, time, v, Some(active));
+            self.act(grid, node, time, v, Some(active), |_, _| ());
         }
     }
 
-    /// [`Contact::apply`] (`given = None`) and [`Contact::enforce`] (`given`: the active set).
+    /// [`Contact::apply`] (`given = None`) and [`Contact::enforce`] (`given`: the active set);
+    /// `on_obstacle(k, Δv)` is told the change of velocity each obstacle that acted made.
     #[inline(always)]
     fn act(
         &self,
@@ -255,6 +272,7 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
         time: f64,
         v: &mut Vector<T, D>,
         given: Option<u64>,
+        mut on_obstacle: impl FnMut(usize, Vector<T, D>),
     ) -> ContactSet {
         let mut acted = ContactSet::default();
         if self.is_empty() {
@@ -309,7 +327,9 @@ impl<T: Scalar, const D: usize> Contact<T, D> {
             let mut vr = *v - vo;
             let touch = law(&mut vr, &n_in, ob.mu, bit);
             if touch != Touch::Separate {
+                let before = *v;
                 *v = vr + vo;
+                on_obstacle(k, *v - before);
             }
             record(touch, bit);
         }

@@ -81,10 +81,24 @@ impl<'a, T: Scalar, const D: usize> NodeLaw<'a, T, D> {
     /// Applies contact and the walls to the trial velocity `v` of `node`; returns what acted.
     #[inline(always)]
     pub fn apply(&self, node: [usize; D], v: &mut Vector<T, D>) -> NodeState {
+        self.apply_measured(node, v, |_, _| ())
+    }
+
+    /// [`NodeLaw::apply`], telling `on_obstacle(k, Δv)` the change of velocity obstacle `k`
+    /// made ([`Contact::apply_measured`]).
+    #[inline(always)]
+    pub fn apply_measured(
+        &self,
+        node: [usize; D],
+        v: &mut Vector<T, D>,
+        on_obstacle: impl FnMut(usize, Vector<T, D>),
+    ) -> NodeState {
         let face = on_a_face(self.grid, node);
         let mut state = NodeState::default();
         if face && self.segments || self.obstacles {
-            state.contact = self.contact.apply(self.grid, node, self.time, v);
+            state.contact = self
+                .contact
+                .apply_measured(self.grid, node, self.time, v, on_obstacle);
         }
         if face {
             state.walls = self.boundary.apply(self.grid, node, v);

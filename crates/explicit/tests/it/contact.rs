@@ -167,3 +167,40 @@ fn a_moving_box_pushes_a_block() {
     let left = after.x.iter().fold(f64::INFINITY, |m, x| m.min(x[0]));
     assert!(left >= 0.15 + 0.3 - 1e-9, "{left}");
 }
+
+/// The impulse an obstacle gives the material ([`Solver::obstacle_impulse`], what `loam run`
+/// reports as each obstacle's force) is all of the material's change of momentum when
+/// nothing else acts (no gravity, free walls): APIC and PIC transfers carry momentum between
+/// particles and grid exactly (`Σ_p m_p v_p = Σ_i m_i v_i`, the internal forces sum to zero),
+/// so `P(t) − P(0) = I(t)` to the round-off of the sums (about 1e-13 of `|P|` over the run's
+/// few hundred steps; the bound 1e-10 leaves room), normal and, with friction, tangential.
+#[test]
+fn the_obstacle_impulse_is_the_change_of_momentum() {
+    for (mu, transfer, scheme) in [
+        (0.0, Transfer::Apic, Scheme::Musl),
+        (0.3, Transfer::Apic, Scheme::Musl),
+        (0.3, Transfer::Pic, Scheme::Usl),
+    ] {
+        let (before, after, solver, _) = impact(wall_box(mu), [2.0, 0.5], 0.2, transfer, scheme);
+        let (p0, p1) = (before.momentum(), after.momentum());
+        let impulse = solver.obstacle_impulse()[0];
+        println!(
+            "μ = {mu}, {transfer:?} {scheme:?}: ΔP = ({:.6}, {:.6}), I = ({:.6}, {:.6})",
+            p1[0] - p0[0],
+            p1[1] - p0[1],
+            impulse[0],
+            impulse[1]
+        );
+        assert!(p1[0] < 0.0, "the impact happened: {p1}");
+        for a in 0..2 {
+            assert!(
+                (impulse[a] - (p1[a] - p0[a])).abs() <= 1e-10 * p0.norm(),
+                "axis {a}: I = {impulse:?}, ΔP = {}",
+                p1 - p0
+            );
+        }
+        if mu > 0.0 {
+            assert!(impulse[1].abs() > 0.0, "friction acted");
+        }
+    }
+}

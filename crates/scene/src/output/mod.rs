@@ -20,7 +20,8 @@ mod vtu;
 pub use field::{Field, hencky_strain, pressure, von_mises};
 pub use pvd::{PvdEntry, read_pvd, write_pvd};
 pub use summary::{
-    CheckpointNote, EnergySample, LoadStepSummary, RunStatus, RunSummary, write_summary,
+    CheckpointNote, EnergySample, LoadStepSummary, ObstacleForceSample, RunStatus, RunSummary,
+    write_obstacle_forces, write_summary,
 };
 pub use vtu::write_vtu;
 
@@ -119,6 +120,10 @@ impl FrameWriter {
     /// File name of the run summary in the output folder.
     pub const SUMMARY_NAME: &'static str = "summary.json";
 
+    /// File name of the obstacles' forces of an explicit run in the output folder
+    /// ([`write_obstacle_forces`]).
+    pub const OBSTACLE_FORCES_NAME: &'static str = "obstacle_forces.csv";
+
     /// A writer into `dir` (created if missing) that writes the given point-data fields.
     ///
     /// The files of an earlier run in `dir` are removed first ([`FrameWriter::is_run_file`]:
@@ -202,15 +207,18 @@ impl FrameWriter {
     }
 
     /// Whether a file name is one a run writes: `frame_<digits>.vtu`, the collection
-    /// [`FrameWriter::PVD_NAME`], the summary [`FrameWriter::SUMMARY_NAME`], or one of these
-    /// with `.tmp` appended.
+    /// [`FrameWriter::PVD_NAME`], the summary [`FrameWriter::SUMMARY_NAME`], the obstacles'
+    /// forces [`FrameWriter::OBSTACLE_FORCES_NAME`], or one of these with `.tmp` appended.
     pub fn is_run_file(name: &str) -> bool {
         let name = name.strip_suffix(".tmp").unwrap_or(name);
         let frame = name
             .strip_prefix("frame_")
             .and_then(|rest| rest.strip_suffix(".vtu"))
             .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
-        frame || name == Self::PVD_NAME || name == Self::SUMMARY_NAME
+        frame
+            || name == Self::PVD_NAME
+            || name == Self::SUMMARY_NAME
+            || name == Self::OBSTACLE_FORCES_NAME
     }
 
     /// The output folder.
@@ -243,6 +251,7 @@ mod tests {
             "particles.pvd.tmp",
             "summary.json",
             "summary.json.tmp",
+            "obstacle_forces.csv",
         ] {
             assert!(FrameWriter::is_run_file(name), "{name}");
         }

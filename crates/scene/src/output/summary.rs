@@ -58,6 +58,27 @@ pub struct LoadStepSummary {
     pub constraint_forces: Vec<Vec<f64>>,
 }
 
+/// The mean force of every rigid obstacle on the material over the interval that ends at a
+/// frame of an explicit run (CPU): `(I(t) − I(t_prev)) / (t − t_prev)`, `I` the impulse the
+/// obstacle has given the material (`loam_explicit::Solver::obstacle_impulse`). Explicit
+/// forces ring from step to step with the material's waves; the mean over the interval
+/// between frames is their physically meaningful part.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObstacleForceSample {
+    /// Step number at the frame.
+    pub step: u64,
+    /// Simulated time at the frame (s).
+    pub time: f64,
+    /// Start of the interval: the time of the previous frame (s).
+    pub since: f64,
+    /// Per `[[obstacles]]` entry, in file order, the mean force it exerted on the material
+    /// over `[since, time]`, one component per axis (N; N per metre run in 2D; a footing
+    /// pushed down has a negative vertical force, as the reactions of implicit runs).
+    pub forces: Vec<Vec<f64>>,
+    /// Per obstacle, its displacement `v t` at `time` (m), one component per axis.
+    pub displacements: Vec<Vec<f64>>,
+}
+
 /// What a run did, written as `summary.json` next to its frames. Non-finite numbers (say
 /// `dt_min` of a run that failed before its first step) are written as JSON `null`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -99,6 +120,11 @@ pub struct RunSummary {
     /// Implicit runs: the Newton report of every load step (empty for explicit runs).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub load_steps: Vec<LoadStepSummary>,
+    /// Explicit runs on the CPU with `[[obstacles]]`: the mean force of each obstacle on the
+    /// material between consecutive frames (also written as
+    /// [`FrameWriter::OBSTACLE_FORCES_NAME`](super::FrameWriter::OBSTACLE_FORCES_NAME)).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub obstacle_forces: Vec<ObstacleForceSample>,
     /// A run continued from a checkpoint (`loam run --resume`): the state it started from.
     /// `steps` and `time_reached` count from the start of the original run; the timings
     /// cover the continued part only.
@@ -131,4 +157,38 @@ pub fn write_summary(path: &Path, summary: &RunSummary) -> Result<(), OutputErro
     let mut json = serde_json::to_string_pretty(summary).map_err(OutputError::Json)?;
     json.push('\n');
     write_atomically(path, json.as_bytes())
+}
+
+/// Writes the samples of the obstacles' forces as CSV, atomically: one row per sample,
+/// `step,time,since` and then per obstacle `k` its force `obstacles[k].f<axis>` (N, N/m in 2D)
+/// and displacement `obstacles[k].u<axis>` (m), with the axes `x, y(, z)`.
+pub fn write_obstacle_forces(
+    path: &Path,
+    samples: &[ObstacleForceSample],
+) -> Result<(), OutputError> {
+    let obstacles = samples.first().map_or(0, |s| s.forces.len());
+    let dim = samples
+        .first()
+        .and_then(|s| s.forces.first())
+        .map_or(0, Vec::len);
+    let axes = &["x", "y", "z"][..dim];
+    let mut text = String::from("step,time,since");
+    for k in 0..obstacles {
+        for what in ["f", "u"] {
+            for a in axes {
+                text.push_str(&format!(",obstacles[{k}].{what}{a}"));
+            }
+        }
+    }
+    text.push('\n');
+    for s in samples {
+        text.push_str(&format!("{},{:e},{:e}", s.step, s.time, s.since));
+        for (f, u) in s.forces.iter().zip(&s.displacements) {
+            for c in f.iter().chain(u) {
+                text.push_str(&format!(",{c:e}"));
+            }
+        }
+        text.push('\n');
+    }
+    write_atomically(path, text.as_bytes())
 }

@@ -3,8 +3,8 @@
 
 use loam_core::Particles;
 use loam_scene::output::{
-    CheckpointNote, EnergySample, Field, FrameWriter, OutputError, RunStatus, RunSummary,
-    write_summary, write_vtu,
+    CheckpointNote, EnergySample, Field, FrameWriter, ObstacleForceSample, OutputError, RunStatus,
+    RunSummary, write_obstacle_forces, write_summary, write_vtu,
 };
 use nalgebra::{Matrix2, Matrix3, SVector, vector};
 use vtkio::model::{Attribute, DataSet, IOBuffer, Piece, Vtk};
@@ -284,6 +284,13 @@ fn run_summary_is_written_as_json() {
         }],
         frames: vec!["frame_0000.vtu".into()],
         load_steps: vec![],
+        obstacle_forces: vec![ObstacleForceSample {
+            step: 200,
+            time: 0.2,
+            since: 0.1,
+            forces: vec![vec![0.5, -120.0]],
+            displacements: vec![vec![0.0, -0.01]],
+        }],
         resumed_from: None,
         checkpoint: Some(CheckpointNote {
             path: "out/checkpoint/state.ckpt".into(),
@@ -296,4 +303,33 @@ fn run_summary_is_written_as_json() {
     assert!(text.contains("\"status\": \"failed\""));
     let back: RunSummary = serde_json::from_str(&text).unwrap();
     assert_eq!(back, summary);
+}
+
+/// The obstacles' forces as CSV: a header naming each obstacle's components, one row per
+/// sample with the numbers as given.
+#[test]
+fn obstacle_forces_are_written_as_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("obstacle_forces.csv");
+    let sample = |step: u64, fy: f64| ObstacleForceSample {
+        step,
+        time: step as f64 / 1000.0,
+        since: (step - 100) as f64 / 1000.0,
+        forces: vec![vec![0.25, fy], vec![0.0, -1.5]],
+        displacements: vec![vec![0.0, -(step as f64) / 1000.0], vec![0.0; 2]],
+    };
+    write_obstacle_forces(&path, &[sample(100, -20.0), sample(200, -40.0)]).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(
+        lines[0],
+        "step,time,since,obstacles[0].fx,obstacles[0].fy,obstacles[0].ux,obstacles[0].uy,\
+         obstacles[1].fx,obstacles[1].fy,obstacles[1].ux,obstacles[1].uy"
+    );
+    assert_eq!(lines.len(), 3);
+    let row: Vec<f64> = lines[2].split(',').map(|c| c.parse().unwrap()).collect();
+    assert_eq!(
+        row,
+        [200.0, 0.2, 0.1, 0.25, -40.0, 0.0, -0.2, 0.0, -1.5, 0.0, 0.0]
+    );
 }
