@@ -12,6 +12,7 @@ mod j2;
 mod linear_elastic;
 mod mohr_coulomb;
 mod neo_hookean;
+mod strength;
 
 pub use drucker_prager::{Cone, DruckerPrager, Elasticity};
 pub use fluid::Fluid;
