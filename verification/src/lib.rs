@@ -37,9 +37,10 @@ pub mod scenes;
 pub mod slope_fos;
 pub mod tangent_fd;
 pub mod triaxial;
+pub mod triaxial_mcc;
 
 pub use device::Device;
-pub use output::{Series, write_csv, write_plot, write_text};
+pub use output::{Panel, Series, write_csv, write_panels, write_plot, write_text};
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -328,6 +329,11 @@ pub fn cases() -> Vec<Case> {
             name: "triaxial-mc",
             description: "drained triaxial compression and extension of Mohr–Coulomb soil vs σ′₁/σ′₃ = (1 + sin φ)/(1 − sin φ) (+ cohesion); tangent vs central differences in every return region",
             runner: Runner::Cpu(triaxial::run_mc),
+        },
+        Case {
+            name: "triaxial-mcc",
+            description: "Modified Cam-Clay, normally consolidated: undrained path vs its closed form, p′_f/p′₀ = 0.574 and s_u/p′₀ = 0.287; drained q_f = 3Mp′₀/(3 − M); oedometer slopes λ and κ",
+            runner: Runner::Cpu(triaxial_mcc::run),
         },
         Case {
             name: "disk-collision",

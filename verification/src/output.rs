@@ -6,6 +6,7 @@
 //! that no system font library is needed.
 
 use crate::VerifyError;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -58,7 +59,7 @@ fn register_font() {
     });
 }
 
-/// Draws the series on one set of axes and writes a PNG.
+/// Draws the series on one set of axes and writes a PNG (900 × 560, with a legend).
 pub fn write_plot(
     path: &Path,
     title: &str,
@@ -67,6 +68,116 @@ pub fn write_plot(
     series: &[Series],
 ) -> Result<(), VerifyError> {
     register_font();
+    let (x, y) = ranges(series);
+    let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
+    let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x, y)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .draw()?;
+        draw_series(&mut chart, series, 0)?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|e| io_err(path, e))
+}
+
+/// One panel of [`write_panels`]: its y-axis label (with the unit) and its curves.
+#[derive(Clone, Debug)]
+pub struct Panel {
+    /// The y-axis label, with the unit.
+    pub y_label: String,
+    /// The curves.
+    pub series: Vec<Series>,
+}
+
+/// Writes `panels` as one PNG (900 wide, 240 a panel), stacked, each with its own y range
+/// and legend over a shared x range, so that quantities of different magnitude (a Young's
+/// modulus of 10⁶ Pa beside a Poisson's ratio of 0.3) each fill their panel. The x axis
+/// counts iterations: its ticks are whole numbers. The series of all panels take the colours
+/// in turn, so no two share one.
+pub fn write_panels(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    panels: &[Panel],
+) -> Result<(), VerifyError> {
+    register_font();
+    let all: Vec<Series> = panels.iter().flat_map(|p| p.series.clone()).collect();
+    let (x, _) = ranges(&all);
+    // At most one label per whole number: the "nice" steps plotters picks (1, 2, 5, 10, …
+    // times a power of ten) are then whole numbers from 0.
+    let labels = ((x.end - x.start).round() as usize + 1).clamp(2, 11);
+    let height = 60 + 240 * panels.len().max(1) as u32;
+    let root = BitMapBackend::new(path, (900, height)).into_drawing_area();
+    let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+        root.fill(&WHITE)?;
+        let body = root.titled(title, ("sans-serif", 22))?;
+        let mut colour = 0;
+        for (area, panel) in body
+            .split_evenly((panels.len().max(1), 1))
+            .iter()
+            .zip(panels)
+        {
+            let (_, y) = ranges(&panel.series);
+            let mut chart = ChartBuilder::on(area)
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(90)
+                .build_cartesian_2d(x.clone(), y)?;
+            chart
+                .configure_mesh()
+                .x_desc(x_label)
+                .y_desc(panel.y_label.as_str())
+                .x_labels(labels)
+                .x_label_formatter(&|v| format!("{v:.0}"))
+                .y_label_formatter(&|v| tick(*v))
+                .draw()?;
+            draw_series(&mut chart, &panel.series, colour)?;
+            colour += panel.series.len();
+        }
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|e| io_err(path, e))
+}
+
+/// A y tick label: four significant digits, in exponent form outside `[10⁻³, 10⁴)`.
+fn tick(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e4).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    }
+}
+
+/// The colours of the curves, in turn.
+const COLOURS: [RGBColor; 8] = [
+    BLUE,
+    RED,
+    GREEN,
+    MAGENTA,
+    CYAN,
+    BLACK,
+    RGBColor(230, 140, 0),
+    RGBColor(120, 70, 20),
+];
+
+/// The x and y ranges of the finite points of `series`: the x range as it is (a unit range
+/// where it is a point), the y range padded by 5 %.
+fn ranges(series: &[Series]) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
     let (mut x0, mut x1, mut y0, mut y1) = (
         f64::INFINITY,
         f64::NEG_INFINITY,
@@ -99,47 +210,41 @@ pub fn write_plot(
             .abs()
             .max(1e-6 * y0.abs().max(y1.abs()))
             .max(1e-12);
-    let root = BitMapBackend::new(path, (900, 560)).into_drawing_area();
-    let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
-        root.fill(&WHITE)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 22))
-            .margin(12)
-            .x_label_area_size(44)
-            .y_label_area_size(70)
-            .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .draw()?;
-        let colours = [BLUE, RED, GREEN, MAGENTA, CYAN, BLACK];
-        for (k, s) in series.iter().enumerate() {
-            let colour = colours[k % colours.len()];
-            if s.markers {
-                chart
-                    .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, colour.filled())))?
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
-            } else {
-                chart
-                    .draw_series(LineSeries::new(
-                        s.points.iter().copied(),
-                        colour.stroke_width(2),
-                    ))?
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                    });
-            }
+    (x0..x1, (y0 - pad)..(y1 + pad))
+}
+
+/// Draws `series` on `chart` with their legend, colours from the `first`-th on.
+fn draw_series<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    series: &[Series],
+    first: usize,
+) -> Result<(), Box<dyn std::error::Error + 'a>>
+where
+    DB::ErrorType: 'static,
+{
+    for (k, s) in series.iter().enumerate() {
+        let colour = COLOURS[(first + k) % COLOURS.len()];
+        if s.markers {
+            chart
+                .draw_series(s.points.iter().map(|&p| Circle::new(p, 2, colour.filled())))?
+                .label(s.name.as_str())
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+        } else {
+            chart
+                .draw_series(LineSeries::new(
+                    s.points.iter().copied(),
+                    colour.stroke_width(2),
+                ))?
+                .label(s.name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()?;
-        root.present()?;
-        Ok(())
-    };
-    draw().map_err(|e| io_err(path, e))
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
 }

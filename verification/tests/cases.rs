@@ -170,6 +170,11 @@ fn triaxial_mc() {
 }
 
 #[test]
+fn triaxial_mcc() {
+    check("triaxial-mcc");
+}
+
+#[test]
 fn axial_bar_newmark() {
     check("axial-bar-newmark");
 }

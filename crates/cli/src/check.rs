@@ -2,14 +2,14 @@
 //! and make the checks a run makes before its first step.
 
 use crate::Outcome;
-use crate::preflight::{self, MemoryLimit};
+use crate::preflight::{self, MemoryLimit, StepLimit};
 use loam_explicit::Solver;
 use loam_scene::{Built, Scene, SolverPlan};
 use std::path::Path;
 
 /// Validates `path`, printing a summary with the estimates and any warnings, or the
-/// problems.
-pub fn check(path: &Path, memory_limit: Option<MemoryLimit>) -> Outcome {
+/// problems (a run of more steps than `max_steps` among them).
+pub fn check(path: &Path, memory_limit: Option<MemoryLimit>, max_steps: StepLimit) -> Outcome {
     let scene = match Scene::read_path(path) {
         Ok(s) => s,
         Err(e) => {
@@ -17,7 +17,9 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>) -> Outcome {
             return Outcome::BadInput;
         }
     };
-    let size = match preflight::size(&scene, memory_limit) {
+    let size = match preflight::size(&scene, memory_limit)
+        .and_then(|size| preflight::implicit_steps(&scene, max_steps).map(|()| size))
+    {
         Ok(s) => s,
         Err(msg) => {
             eprintln!("error: {}: {msg}", path.display());
@@ -29,8 +31,8 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>) -> Outcome {
         return Outcome::BadInput;
     }
     let checked = match scene.dim() {
-        2 => check_dim::<2>(&scene),
-        _ => check_dim::<3>(&scene),
+        2 => check_dim::<2>(&scene, max_steps),
+        _ => check_dim::<3>(&scene, max_steps),
     };
     let (particles, steps, warnings) = match checked {
         Ok(c) => c,
@@ -62,14 +64,18 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>) -> Outcome {
 
 /// Builds the scene and makes the solver's checks: the particle count, the estimated steps
 /// (explicit) and the warnings, or the problem.
-fn check_dim<const D: usize>(scene: &Scene) -> Result<(usize, Option<f64>, Vec<String>), String> {
+fn check_dim<const D: usize>(
+    scene: &Scene,
+    max_steps: StepLimit,
+) -> Result<(usize, Option<f64>, Vec<String>), String> {
     let built: Built<D> = scene.build().map_err(|e| e.to_string())?;
     let n = built.particles.len();
     match built.plan {
         SolverPlan::Explicit(plan) => {
             let config = built.explicit_config().expect("an explicit plan");
             let solver = Solver::new(config, &built.particles).map_err(|e| e.to_string())?;
-            let warnings = preflight::explicit(&built, &plan, &solver, &built.particles)?;
+            let warnings =
+                preflight::explicit(&built, &plan, &solver, &built.particles, max_steps)?;
             let steps = preflight::explicit_steps(&plan, &solver, &built.particles);
             Ok((n, Some(steps), warnings))
         }

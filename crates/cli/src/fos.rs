@@ -7,7 +7,7 @@
 //! done so far written (status `interrupted`, exit 130).
 
 use crate::Outcome;
-use crate::preflight::{self, MemoryLimit};
+use crate::preflight::{self, MemoryLimit, StepLimit};
 use crate::run::interrupt;
 use loam_implicit::ImplicitError;
 use loam_implicit::strength_reduction::{
@@ -29,6 +29,8 @@ pub struct Options<'a> {
     pub quiet: bool,
     /// The memory the runs may use.
     pub memory_limit: Option<MemoryLimit>,
+    /// The most load steps one trial may take.
+    pub max_steps: StepLimit,
 }
 
 /// The summary file's name in the output folder.
@@ -171,7 +173,9 @@ pub fn fos(path: &Path, options: &Options) -> Outcome {
             return Outcome::BadInput;
         }
     };
-    if let Err(msg) = preflight::size(&scene, options.memory_limit) {
+    let checked = preflight::size(&scene, options.memory_limit)
+        .and_then(|_| preflight::implicit_steps(&scene, options.max_steps));
+    if let Err(msg) = checked {
         eprintln!("error: {}: {msg}", path.display());
         return Outcome::BadInput;
     }

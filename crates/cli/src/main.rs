@@ -4,8 +4,8 @@
 //! GPU adapter is found); 2 the input (scene file, arguments) is invalid, or the scene would
 //! not fit in memory or run stably, or uses a feature the GPU path lacks (with `--device gpu`);
 //! 130 a run or a `loam fos` search was interrupted by a signal (its summary says
-//! `interrupted`). A closed stdout
-//! or stderr pipe ends the process by SIGPIPE, as for other Unix tools.
+//! `interrupted`). A closed stdout or stderr pipe ends the process by SIGPIPE, as for other
+//! Unix tools.
 
 mod bench;
 mod check;
@@ -35,6 +35,12 @@ struct Cli {
     /// /proc/meminfo). `run` and `check` refuse a scene whose estimate exceeds it.
     #[arg(long, global = true, value_name = "GIB")]
     memory_limit: Option<f64>,
+    /// The most steps a run may take (default 1e8; 1e6 for each run of an inversion).
+    /// `run` and `check` refuse a scene estimated at more (an end time or a stiffness in the
+    /// wrong unit), `fos` a scene with more load steps per trial, `gradient`, `invert` and
+    /// `check` an inversion file.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    max_steps: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -86,7 +92,7 @@ enum Command {
         out: Option<PathBuf>,
         /// Stop when the bracket [stable, failed] of F is this narrow (default: the scene's
         /// `fos.tolerance`, else 0.01).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         tolerance: Option<f64>,
         /// No table of trials.
         #[arg(long)]
@@ -256,6 +262,11 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     let memory_limit = preflight::MemoryLimit::new(cli.memory_limit);
+    let max_steps = preflight::StepLimit::new(cli.max_steps, preflight::MAX_STEPS);
+    let inversion = invert::Limits {
+        memory: memory_limit,
+        steps: preflight::StepLimit::new(cli.max_steps, preflight::MAX_INVERSION_STEPS),
+    };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -286,6 +297,7 @@ fn main() -> ExitCode {
                 quiet,
                 progress_every,
                 memory_limit,
+                max_steps,
                 checkpoint_every: checkpoint_every
                     .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
                 device: device.map(Device::scene),
@@ -321,21 +333,24 @@ fn main() -> ExitCode {
                 tolerance,
                 quiet,
                 memory_limit,
+                max_steps,
             },
         ),
-        Command::Check { scene } if invert::is_inversion(&scene) => invert::check(&scene),
-        Command::Check { scene } => check::check(&scene, memory_limit),
+        Command::Check { scene } if invert::is_inversion(&scene) => {
+            invert::check(&scene, inversion)
+        }
+        Command::Check { scene } => check::check(&scene, memory_limit, max_steps),
         Command::Gradient {
             file,
             check,
             memory,
-        } => hold(|| invert::gradient(&file, check, memory)),
+        } => hold(|| invert::gradient(&file, check, memory, inversion)),
         Command::Invert {
             file,
             out,
             resume,
             memory,
-        } => hold(|| invert::invert(&file, out.as_deref(), resume, memory)),
+        } => hold(|| invert::invert(&file, out.as_deref(), resume, memory, inversion)),
         Command::Verify {
             cases,
             list,

@@ -87,7 +87,7 @@ fn write(
     states: &[PointState],
     stage_of: &[usize],
 ) -> Result<(), String> {
-    let e0 = test.initial.void_ratio;
+    let e0 = test.void_ratio();
     let rows: Vec<Vec<f64>> = states
         .iter()
         .zip(stage_of)

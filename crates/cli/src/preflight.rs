@@ -1,6 +1,9 @@
 //! Checks made before a run starts, shared by `loam check` and `loam run`: whether the scene
-//! fits in memory (estimated from its fields, before a particle is generated), whether a fixed
-//! time step is stable for the initial state, and whether the run can end in reasonable time.
+//! fits in memory (estimated from its fields, before a particle is generated, with the
+//! bookkeeping of every frame), whether a fixed time step is stable for the initial state,
+//! and whether the run can end: a run of more steps than the step limit
+//! ([`StepLimit`], `--max-steps`) is refused, one of very many particle-steps or frames
+//! warned about.
 
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{MaterialState, Particles, ShapeFunction, Stencil, TimeStep};
@@ -9,9 +12,16 @@ use loam_scene::{Built, Estimate, ExplicitPlan, Scene, SolverKind};
 use nalgebra::Matrix3;
 use std::mem::size_of;
 
-/// Above this many steps a run gets a warning: at the 10⁴–10⁵ steps per second a small scene
-/// reaches, that is hours to days.
-const MANY_STEPS: f64 = 1e8;
+/// The most steps a run may take unless `--max-steps` allows more: at the 10⁴–10⁵ steps per
+/// second a small scene reaches, 10⁸ steps are hours to days, and a run estimated at more
+/// comes from a value typed in the wrong unit (an end time of 10¹² s, a Young's modulus of
+/// 10³⁰⁰ Pa whose stability limit is a step of 10⁻¹⁵⁰ s) far more often than from a run
+/// anyone means to wait for.
+pub const MAX_STEPS: f64 = 1e8;
+
+/// The most steps of one run of an inversion unless `--max-steps` allows more: an inversion
+/// runs its scene forward and backward for every gradient, tens to hundreds of times.
+pub const MAX_INVERSION_STEPS: f64 = 1e6;
 
 /// Above this many particle-steps a run gets a warning: more than a day at 10⁷
 /// particle-steps per second, a good rate for a many-core machine.
@@ -20,7 +30,56 @@ const MANY_PARTICLE_STEPS: f64 = 1e12;
 /// Above this many frames a run gets a warning (a file each).
 const MANY_FRAMES: usize = 100_000;
 
+/// Memory kept per frame of a run, whatever its particle count (bytes, rounded up): the frame
+/// point (16), its time or step (16), the collection entry with its file name (about 64), the
+/// summary's frame path (about 100) and energy sample (48), and the summary and collection
+/// texts written from them (about 300).
+const FRAME_BYTES: f64 = 600.0;
+
 const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// The most steps a run may take, and where the figure comes from.
+#[derive(Clone, Copy, Debug)]
+pub struct StepLimit {
+    steps: f64,
+    /// Where the figure comes from, as a phrase after it.
+    source: &'static str,
+}
+
+impl StepLimit {
+    /// `--max-steps N` when given, else `default` ([`MAX_STEPS`] for a run,
+    /// [`MAX_INVERSION_STEPS`] for an inversion).
+    pub fn new(flag: Option<u64>, default: f64) -> Self {
+        match flag {
+            Some(n) => Self {
+                steps: n as f64,
+                source: "allowed by --max-steps",
+            },
+            None => Self {
+                steps: default,
+                source: "a run may take unless --max-steps N allows more",
+            },
+        }
+    }
+
+    /// What is wrong when `steps` (estimated; `what` says of what) is above the limit.
+    pub fn exceeded(&self, steps: f64, what: &str) -> Option<String> {
+        (steps > self.steps).then(|| {
+            format!(
+                "about {steps:.2e} steps ({what}), more than the {:.0e} steps {}",
+                self.steps, self.source
+            )
+        })
+    }
+
+    /// [`StepLimit::exceeded`] as an error naming `field`.
+    pub fn check(&self, steps: f64, field: &str, what: &str) -> Result<(), String> {
+        match self.exceeded(steps, what) {
+            Some(msg) => Err(format!("{field}: {msg}")),
+            None => Ok(()),
+        }
+    }
+}
 
 /// The memory a run may use, in bytes, and where the figure comes from.
 #[derive(Clone, Copy, Debug)]
@@ -56,10 +115,26 @@ impl MemoryLimit {
     }
 }
 
+impl MemoryLimit {
+    /// What is wrong when `bytes` (what `what` needs) is above the limit.
+    pub fn exceeded(&self, bytes: f64, what: &str) -> Option<String> {
+        (bytes > self.bytes).then(|| {
+            format!(
+                "{what} need about {}, more than the {} {}",
+                gib(bytes),
+                gib(self.bytes),
+                self.source
+            )
+        })
+    }
+}
+
 /// What the size check found.
 pub struct Size {
     /// The estimated counts.
     pub estimate: Estimate,
+    /// The frames the run writes.
+    pub frames: f64,
     /// Estimated peak memory of a run (bytes).
     pub bytes: f64,
     /// The limit it was checked against.
@@ -67,7 +142,7 @@ pub struct Size {
 }
 
 impl Size {
-    /// One line: particles, nodes, memory and the limit.
+    /// One line: particles, nodes, frames, memory and the limit.
     pub fn describe(&self) -> String {
         let limit = self
             .limit
@@ -87,32 +162,44 @@ fn gib(bytes: f64) -> String {
 
 /// Estimates the scene's particles, grid nodes and memory from its fields (which must be
 /// sound) and refuses a scene whose estimate exceeds the limit, naming `grid.cell_size` (or
-/// the particles per cell, when the particles are most of it).
+/// the particles per cell, when the particles are most of it, or `output.frames`, when the
+/// frames' bookkeeping is).
 pub fn size(scene: &Scene, limit: Option<MemoryLimit>) -> Result<Size, String> {
     let estimate = scene.estimate();
     let (per_particle, per_node) = match scene.dim() {
         2 => bytes_per_item::<2>(),
         _ => bytes_per_item::<3>(),
     };
-    let mut bytes = estimate.particles * per_particle + estimate.nodes * per_node;
+    let particles = estimate.particles * per_particle;
+    let mut grid = estimate.nodes * per_node;
     if scene.solver.kind == SolverKind::Implicit {
-        bytes += estimate.body_nodes * implicit_bytes_per_node(scene);
+        grid += estimate.body_nodes * implicit_bytes_per_node(scene);
     }
+    let frame_count = frames(scene);
+    let frames = frame_count * FRAME_BYTES;
+    let bytes = particles + grid + frames;
     let size = Size {
         estimate,
+        frames: frame_count,
         bytes,
         limit,
     };
     match limit {
         Some(l) if bytes > l.bytes => {
-            let field = if estimate.particles * per_particle > estimate.nodes * per_node {
+            let field = if frames > particles.max(grid) {
+                "output.frames"
+            } else if particles > grid {
                 "grid.cell_size (and bodies[].particles_per_cell)"
             } else {
                 "grid.cell_size"
             };
+            let remedy = if field == "output.frames" {
+                "write fewer frames"
+            } else {
+                "use a larger cell size or a smaller domain"
+            };
             Err(format!(
-                "{field}: the scene needs {}, more than the {} {}; use a larger cell size \
-                 or a smaller domain",
+                "{field}: the scene needs {}, more than the {} {}; {remedy}",
                 size.describe_needs(),
                 gib(l.bytes),
                 l.source
@@ -122,12 +209,40 @@ pub fn size(scene: &Scene, limit: Option<MemoryLimit>) -> Result<Size, String> {
     }
 }
 
+/// The frames a run of the scene writes, from its fields: `output.frames`, or the steps
+/// where there are fewer (frames tied to steps, a fixed explicit step or load steps, are
+/// written at most once a step).
+fn frames(scene: &Scene) -> f64 {
+    let s = &scene.solver;
+    let frames = scene.output.frames as f64;
+    let steps = match (s.kind, s.time_step, s.end_time, s.load_steps) {
+        (SolverKind::Explicit, Some(TimeStep::Fixed { dt }), Some(t), _) => (t / dt).round(),
+        (SolverKind::Implicit, _, _, Some(n)) => n as f64,
+        _ => f64::INFINITY,
+    };
+    frames.min(steps)
+}
+
+/// Refuses an implicit run of more load steps than `limit`, naming `solver.load_steps`
+/// (an explicit run's steps are checked on its initial state, [`explicit`]).
+pub fn implicit_steps(scene: &Scene, limit: StepLimit) -> Result<(), String> {
+    match (scene.solver.kind, scene.solver.load_steps) {
+        (SolverKind::Implicit, Some(n)) => limit.check(
+            n as f64,
+            "solver.load_steps",
+            "load steps of the implicit run",
+        ),
+        _ => Ok(()),
+    }
+}
+
 impl Size {
     fn describe_needs(&self) -> String {
         format!(
-            "about {:.3e} particles and {:.3e} grid nodes, {} of memory",
+            "about {:.3e} particles and {:.3e} grid nodes, {} frames, {} of memory",
             self.estimate.particles,
             self.estimate.nodes,
+            self.frames,
             gib(self.bytes)
         )
     }
@@ -174,12 +289,16 @@ fn implicit_bytes_per_node(scene: &Scene) -> f64 {
 
 /// The explicit solver's checks of the initial state: a fixed step above the stability limit
 /// `h / (c + |v|)` is an error naming `solver.time_step.dt`, the limit and the particle and
-/// material that set it; a run of very many steps or frames gets warnings (returned).
+/// material that set it; so is a run of more steps than `max_steps` (its estimate: the fixed
+/// step count, or `end_time` over the first adaptive step, and at least a step per frame),
+/// naming `solver.end_time` (or `output.frames`, when the frames set the count); a run of
+/// very many particle-steps or frames gets warnings (returned).
 pub fn explicit<const D: usize>(
     built: &Built<D>,
     plan: &ExplicitPlan,
     solver: &Solver<f64, D>,
     particles: &Particles<f64, D>,
+    max_steps: StepLimit,
 ) -> Result<Vec<String>, String> {
     let (limit, particle, wave_speed, speed) = solver.stability_limit(particles);
     let material = particles
@@ -201,17 +320,33 @@ pub fn explicit<const D: usize>(
         }
         TimeStep::Adaptive { cfl, max_dt } => (cfl * limit).min(max_dt),
     };
-    let steps = plan.fixed_steps().map_or(plan.end_time / dt, |n| n as f64);
+    let frames = built.output.frames;
+    let steps = explicit_steps(plan, solver, particles);
+    let set_by = match plan.time_step {
+        TimeStep::Fixed { .. } => "solver.time_step.dt".to_owned(),
+        TimeStep::Adaptive { .. } => format!(
+            "the adaptive step, at least: set by the stability limit {limit:.3e} s of the \
+             initial state at particle {particle}{material}"
+        ),
+    };
+    let what = format!("Δt = {dt:.3e} s, {set_by}");
+    if matches!(plan.time_step, TimeStep::Adaptive { .. }) && frames as f64 > steps {
+        // Each frame ends a step: the frames set the count.
+        max_steps.check(
+            frames as f64,
+            "output.frames",
+            "a step at least per frame of an adaptive run",
+        )?;
+    }
+    max_steps.check(steps, "solver.end_time", &what)?;
     let mut warnings = Vec::new();
     let particle_steps = steps * particles.len() as f64;
-    if steps > MANY_STEPS || particle_steps > MANY_PARTICLE_STEPS {
+    if particle_steps > MANY_PARTICLE_STEPS {
         warnings.push(format!(
-            "solver.end_time: about {steps:.2e} steps of {dt:.3e} s (at least: the step is set by \
-             the stability limit {limit:.3e} s of the initial state, at particle \
-             {particle}{material}), {particle_steps:.2e} particle-steps: this run may take days"
+            "solver.end_time: about {steps:.2e} steps ({what}), {particle_steps:.2e} \
+             particle-steps: this run may take days"
         ));
     }
-    let frames = built.output.frames;
     if frames > MANY_FRAMES {
         warnings.push(format!(
             "output.frames: {frames} frames, a file each of {} particles",
@@ -221,19 +356,19 @@ pub fn explicit<const D: usize>(
     Ok(warnings)
 }
 
-/// The estimated number of steps of an explicit run, for `loam check`'s summary: the fixed
-/// step count, or `end_time` over the first adaptive step.
+/// The estimated number of steps of an explicit run: the fixed step count
+/// `round(end_time / Δt)` (as a float, so that a step of 10⁻³⁰⁰ s counts 10³⁰⁰ steps), or
+/// `end_time` over the first adaptive step.
 pub fn explicit_steps<const D: usize>(
     plan: &ExplicitPlan,
     solver: &Solver<f64, D>,
     particles: &Particles<f64, D>,
 ) -> f64 {
-    match (plan.fixed_steps(), plan.time_step) {
-        (Some(n), _) => n as f64,
-        (None, TimeStep::Adaptive { cfl, max_dt }) => {
+    match plan.time_step {
+        TimeStep::Fixed { dt } => (plan.end_time / dt).round(),
+        TimeStep::Adaptive { cfl, max_dt } => {
             plan.end_time / (cfl * solver.stability_limit(particles).0).min(max_dt)
         }
-        (None, TimeStep::Fixed { dt }) => plan.end_time / dt,
     }
 }
 

@@ -447,22 +447,148 @@ end_time = 1.0
 }
 
 #[test]
-fn check_warns_of_runs_that_cannot_finish_in_reasonable_time() {
-    // A stable fixed step of 1e-6 s to 1000 s: 1e9 steps; and 200,000 frames.
+fn runs_that_cannot_finish_are_refused_and_long_ones_warned_about() {
+    // A stable fixed step of 1e-6 s to 1000 s: 1e9 steps, above the 1e8 a run may take; and
+    // 200,000 frames.
     let dir = tempfile::tempdir().expect("tempdir");
     let text = readme_scene(1.0e6, 1000.0, 200_000).replace(
         r#"time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }"#,
         r#"time_step = { type = "fixed", dt = 1e-6 }"#,
     );
     let scene = scene_file(dir.path(), "long.toml", &text);
-    let out = loam(&["check", &scene]);
+    let out_dir = dir.path().join("out");
+    for command in ["check", "run"] {
+        let mut args = vec![command, scene.as_str()];
+        if command == "run" {
+            args.extend(["--out", out_dir.to_str().expect("path")]);
+        }
+        let out = loam(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{command}: {stderr}");
+        for want in [
+            "solver.end_time: about 1.00e9 steps",
+            "solver.time_step.dt",
+            "--max-steps",
+        ] {
+            assert!(stderr.contains(want), "{want} missing from {stderr}");
+        }
+    }
+    assert!(!out_dir.exists());
+    // `--max-steps` allows it; then 1.26e12 particle-steps and the frames are warned about.
+    let out = loam(&["--max-steps", "2000000000", "check", &scene]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
-        stderr.contains("warning:") && stderr.contains("solver.end_time: about 1.00e9 steps"),
+        stderr.contains("warning:") && stderr.contains("particle-steps: this run may take days"),
         "{stderr}"
     );
     assert!(stderr.contains("output.frames: 200000 frames"), "{stderr}");
+}
+
+/// Values in the wrong unit that would make a run last for ever or abort: a Young's modulus
+/// of 1e300 Pa (its stability limit, h/c ≈ 5e-151 s, is 5e150 steps per second of run), an
+/// end time of 1e12 s, a fixed step of 1e-300 s, a billion frames (8 GB of frame times alone;
+/// with an adaptive step a step each) and 1e12 load steps of an implicit run. Each is refused
+/// by `check` and `run` (exit 2, nothing written), naming the field.
+#[test]
+fn runs_of_values_in_the_wrong_unit_are_refused_naming_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let implicit = std::fs::read_to_string(
+        workspace().join("crates/scene/tests/fixtures/good/implicit_2d.toml"),
+    )
+    .expect("fixture")
+    .replace("load_steps = 20", "load_steps = 1000000000000");
+    let cases = [
+        (
+            readme_scene(1.0e300, 1.0, 20),
+            "solver.end_time",
+            "stability limit",
+            None,
+        ),
+        (
+            readme_scene(1.0e6, 1.0e12, 20),
+            "solver.end_time",
+            "4.59e15 steps",
+            None,
+        ),
+        (
+            readme_scene(1.0e6, 1.0, 20).replace(
+                r#"time_step = { type = "adaptive", cfl = 0.4, max_dt = 1e-3 }"#,
+                r#"time_step = { type = "fixed", dt = 1e-300 }"#,
+            ),
+            "solver.end_time",
+            "1.00e300 steps",
+            None,
+        ),
+        // The frames' bookkeeping, about 600 bytes a frame: 560 GiB.
+        (
+            readme_scene(1.0e6, 1.0, 1_000_000_000),
+            "output.frames",
+            "GiB of memory",
+            Some("4"),
+        ),
+        // Where the memory allows it: a step at least per frame.
+        (
+            readme_scene(1.0e6, 1.0, 1_000_000_000),
+            "output.frames",
+            "about 1.00e9 steps",
+            Some("1000"),
+        ),
+        (implicit, "solver.load_steps", "1.00e12 steps", None),
+    ];
+    for (k, (text, field, words, memory)) in cases.iter().enumerate() {
+        let scene = scene_file(dir.path(), &format!("case{k}.toml"), text);
+        let out_dir = dir.path().join(format!("out{k}"));
+        for command in ["check", "run"] {
+            let mut args = Vec::new();
+            if let Some(gib) = memory {
+                args.extend(["--memory-limit", gib]);
+            }
+            args.extend([command, scene.as_str()]);
+            if command == "run" {
+                args.extend(["--out", out_dir.to_str().expect("path")]);
+            }
+            let out = loam(&args);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(2), "case {k} {command}: {stderr}");
+            assert!(
+                stderr.contains(&format!("{field}: ")) && stderr.contains(words),
+                "case {k} {command}: {stderr}"
+            );
+        }
+        assert!(!out_dir.exists(), "case {k}");
+    }
+}
+
+/// An output folder that cannot be written (here, a path through a file: refused even to
+/// root) is invalid input: `run` and `invert` exit 2 naming the folder, before a step.
+#[test]
+fn an_unwritable_output_folder_is_invalid_input() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = scene_file(dir.path(), "ok.toml", &readme_scene(1.0e6, 0.01, 2));
+    let inversion = workspace().join("examples/inverse/friction.toml");
+    let file = dir.path().join("a_file");
+    std::fs::write(&file, "").expect("a file");
+    let blocked = file.join("out");
+    let blocked = blocked.to_str().expect("path");
+    let runs = [
+        vec!["run", scene.as_str(), "--quiet", "--out", blocked],
+        vec![
+            "invert",
+            inversion.to_str().expect("path"),
+            "--out",
+            blocked,
+        ],
+    ];
+    for args in runs {
+        let out = loam(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("cannot write to the output folder") && stderr.contains(blocked),
+            "{args:?}: {stderr}"
+        );
+    }
 }
 
 #[test]
@@ -962,12 +1088,17 @@ fn a_run_resumed_from_its_checkpoint_rewrites_the_later_frames_with_the_same_byt
     let last = std::fs::read(out.join("frame_0004.vtu")).expect("last frame");
 
     // Continue from the checkpoint: the frames after it are written again, identically,
-    // and the series lists every frame once.
+    // and the series lists every frame once. The scene file was edited in between: the run
+    // says so and continues with the recorded copy (the frames are those of the first run).
+    std::fs::write(&scene, SAND.replace("mu = 0.4", "mu = 0.1")).expect("edit the scene");
     let resumed = loam(&["run", "--resume", out.to_str().expect("path"), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
     assert!(
-        resumed.status.success(),
-        "{}",
-        String::from_utf8_lossy(&resumed.stderr)
+        stderr.contains("note: ")
+            && stderr.contains("sand.toml has changed since the run started")
+            && stderr.contains("checkpoint/scene.toml"),
+        "{stderr}"
     );
     assert_eq!(
         std::fs::read_to_string(out.join("particles.pvd")).expect("pvd"),

@@ -135,6 +135,10 @@ fn fos_refuses_bad_input_with_exit_2_naming_the_field() {
             "--tolerance -1",
         ),
         (
+            vec!["fos", scene.as_str(), "--tolerance", "-1"],
+            "--tolerance -1: expected a positive number",
+        ),
+        (
             vec!["fos", scene.as_str(), "--tolerance", "0"],
             "--tolerance 0",
         ),
@@ -199,9 +203,9 @@ fn fos_refuses_bad_input_with_exit_2_naming_the_field() {
     );
 }
 
-/// Ctrl-C: a real SIGINT during the second trial ends the search before its next load step,
-/// with fos.json written (`interrupted`, the first trial complete, the interrupted one
-/// recorded as such) and the exit code 130.
+/// Ctrl-C: a real SIGINT after the first trial ends the search before the next load step,
+/// with fos.json written (`interrupted`, the first trial complete, the second, when it had
+/// started, recorded as interrupted) and the exit code 130.
 #[cfg(unix)]
 #[test]
 fn sigint_ends_a_search_with_what_was_done_written() {
@@ -230,6 +234,10 @@ fn sigint_ends_a_search_with_what_was_done_written() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+    // The second trial starts as soon as the first is written; half a second into its
+    // 400 load steps (seconds in all) it is running, but a slow machine may still be
+    // between the trials, where the search stops without starting it.
+    std::thread::sleep(Duration::from_millis(500));
     let kill = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -243,8 +251,13 @@ fn sigint_ends_a_search_with_what_was_done_written() {
     assert_eq!(s["status"], "interrupted");
     assert!(s["factor_of_safety"].is_null());
     let trials = s["trials"].as_array().expect("trials");
-    assert_eq!(trials.len(), 2, "{trials:?}");
+    assert!(matches!(trials.len(), 1 | 2), "{} trials", trials.len());
     assert_eq!(trials[0]["outcome"], "stable");
-    assert_eq!(trials[1]["outcome"], "interrupted");
+    assert_eq!(trials[0]["load_steps"].as_array().expect("steps").len(), 400);
+    if let Some(second) = trials.get(1) {
+        assert_eq!(second["outcome"], "interrupted");
+        let steps = second["load_steps"].as_array().expect("steps").len();
+        assert!(steps < 400, "{steps} load steps");
+    }
     assert!(out_dir.join("fos.png").exists());
 }

@@ -406,6 +406,101 @@ fn malformed_inversion_files_exit_2_naming_the_field() {
     assert_refused(dir.path(), &cases);
 }
 
+/// Inversions that cannot mean what they say: a run of 10⁸ steps (memory grew without a
+/// word), observations that do not fit the scene (millimetres for metres, a position of
+/// 1e300 m, a particle given twice at one step, the initial state only, a header and no rows)
+/// or observe nothing (`every` past the last step), and a friction coefficient of 1e308. Each
+/// is refused by `gradient` and `check`, naming the field (and the file and line).
+#[test]
+fn implausible_inversions_exit_2_naming_the_field_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = example("dambreak_small.toml");
+    let head = format!("scene = \"{}\"\nsteps = 20\n", scene.display());
+    let param = "[[parameters]]\nname = \"friction[1]\"\ninitial = 0.5\ntruth = 0.1\n";
+    let synth = "[synthetic]\nparticles = 5\nevery = 10\n";
+    let data = |name: &str, text: &str| {
+        std::fs::write(dir.path().join(name), text).unwrap();
+        format!("{head}{param}[observations]\ntracked = \"{name}\"\n")
+    };
+    let cases = [
+        (
+            format!(
+                "{}{param}{synth}",
+                head.replace("steps = 20", "steps = 100000000")
+            ),
+            "steps",
+            "more than the 1e6 steps",
+        ),
+        (
+            data("mm.csv", "step,id,x,y\n10,3,0.05,0.01\n20,3,56.25,12.5\n"),
+            "observations.tracked",
+            "mm.csv line 3: position 56.25, 12.5 m is outside the grid",
+        ),
+        (
+            data("huge.csv", "step,id,x,y\n10,3,1e300,0.01\n"),
+            "observations.tracked",
+            "huge.csv line 2",
+        ),
+        (
+            data("twice.csv", "step,id,x,y\n10,3,0.05,0.01\n10,3,0.06,0.01\n"),
+            "observations.tracked",
+            "twice.csv line 3: step 10, id `3` is given again (first on line 2)",
+        ),
+        (
+            data("initial.csv", "step,id,x,y\n0,3,0.05,0.01\n0,4,0.06,0.01\n"),
+            "observations.tracked",
+            "initial.csv line 2: every row is at step 0",
+        ),
+        (
+            data("header.csv", "step,id,x,y\n"),
+            "observations.tracked",
+            "header.csv line 1: a header and no rows",
+        ),
+        (
+            format!("{head}{param}[synthetic]\nparticles = 5\nevery = 50\n"),
+            "synthetic.every",
+            "nothing would be observed",
+        ),
+        (
+            format!(
+                "{head}{synth}[[parameters]]\nname = \"friction[1]\"\ninitial = 1e308\ntruth = 0.1\n"
+            ),
+            "parameters[0].initial",
+            "physical range of a Coulomb friction coefficient",
+        ),
+    ];
+    assert_refused(dir.path(), &cases);
+    // A monitor velocity of 1e200 m/s: the loss at the first guess is infinite.
+    std::fs::write(
+        dir.path().join("v.csv"),
+        "step,monitor,vx,vy\n10,g,1e200,0\n",
+    )
+    .unwrap();
+    let file = dir.path().join("inf.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "{head}{param}[observations]\nvelocity = \"v.csv\"\n[[observations.monitors]]\n\
+             name = \"g\"\nlo = [0.0, 0.0]\nhi = [0.5, 0.25]\n"
+        ),
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let (file, out_dir) = (file.to_str().unwrap(), out_dir.to_str().unwrap());
+    for args in [
+        vec!["gradient", file],
+        vec!["invert", file, "--out", out_dir],
+    ] {
+        let out = loam(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("inf.toml: the loss at the first guess is inf"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 /// `--memory` chooses the adjoint's segments: a budget the whole run fits in gives the same
 /// gradient, bit for bit, as the default; a budget below the least the run needs, a malformed
 /// size and a budget beside the file's `segment` exit 2 with what is wrong.

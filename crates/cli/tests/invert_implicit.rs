@@ -242,10 +242,38 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
             "observations.reactions",
             "applies to implicit scenes",
         ),
+        // A run of 10⁸ load steps (each kept for the adjoint), a first observed step past
+        // the last, and a displacement of a kilometre (in millimetres?) on a 2 m beam.
+        (
+            format!("{}steps = 100000000\n{young}{synth}", on(&beam)),
+            "steps",
+            "more than the 1e6 steps",
+        ),
+        (
+            format!(
+                "{}steps = 10\n{young}[synthetic]\nids = [31]\nevery = 20\n",
+                on(&beam)
+            ),
+            "synthetic.every",
+            "nothing would be observed",
+        ),
+        (
+            format!(
+                "{}{young}[observations]\ndisplacement = \"u.csv\"\n",
+                on(&beam)
+            ),
+            "observations.displacement",
+            "u.csv line 3: displacement",
+        ),
     ];
     std::fs::write(
         dir.path().join("obs.csv"),
         "step,reaction,force\n0,r,-1.0\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("u.csv"),
+        "step,id,ux,uy\n1,31,0.0,-0.01\n2,31,0.0,-1000.0\n",
     )
     .unwrap();
     assert_refused(dir.path(), &cases);

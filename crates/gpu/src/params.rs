@@ -65,7 +65,8 @@ pub(crate) fn transfer_code(transfer: Transfer) -> u32 {
 }
 
 /// The model of a material as constitutive.wgsl numbers it (`MODEL_*`); `None` for the
-/// models the kernels do not hold: Mohr–Coulomb and the Hencky form of Drucker–Prager.
+/// models the kernels do not hold: Mohr–Coulomb, Modified Cam-Clay and the Hencky form of
+/// Drucker–Prager.
 fn gpu_model_code(model: &Model<f32>) -> Option<u32> {
     match model {
         Model::Fluid(_) => Some(0),
@@ -74,7 +75,7 @@ fn gpu_model_code(model: &Model<f32>) -> Option<u32> {
         Model::DruckerPrager(dp) if dp.elasticity == Elasticity::Jaumann => Some(3),
         Model::LinearElastic(_) => Some(4),
         Model::J2(_) => Some(5),
-        Model::DruckerPrager(_) | Model::MohrCoulomb(_) => None,
+        Model::DruckerPrager(_) | Model::MohrCoulomb(_) | Model::ModifiedCamClay(_) => None,
     }
 }
 
@@ -233,7 +234,9 @@ fn material_entries(material: &Material<f32>) -> [[f32; 4]; MATERIAL_ENTRIES] {
                 [m.alpha_psi(), c, 0.0, 0.0],
             ]
         }
-        Model::MohrCoulomb(_) => unreachable!("refused by check_models"),
+        Model::MohrCoulomb(_) | Model::ModifiedCamClay(_) => {
+            unreachable!("refused by check_models")
+        }
         Model::J2(m) => [
             [
                 code,

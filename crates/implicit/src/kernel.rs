@@ -51,15 +51,6 @@ pub fn delta_f<S: Scalar, T: Scalar + From<S>, const D: usize>(
     g
 }
 
-/// Lifts a real state into scalar type `T` (zero derivative part).
-#[inline]
-pub fn lift_state<T: Scalar>(s: &MaterialState<f64>) -> MaterialState<T> {
-    MaterialState {
-        plastic_strain: T::cst(s.plastic_strain),
-        tensor: s.tensor.map(T::cst),
-    }
-}
-
 /// The stress update of one particle for a trial `ΔF`: returns `V⁰ τ ΔF⁻ᵀ` (the in-plane
 /// `D × D` block whose product with `∇N_i` is the internal force on node `i`), the Kirchhoff
 /// stress and the new history, or `None` if `det ΔF ≤ 0` (an inverted trial state).
@@ -72,7 +63,7 @@ pub fn particle_stress<T: Scalar, const D: usize>(
     stress_update(
         material,
         &frozen.f_n.map(T::cst),
-        &lift_state(&frozen.state),
+        &frozen.state.lift(),
         T::cst(frozen.volume0),
         delta_f,
     )

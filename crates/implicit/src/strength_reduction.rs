@@ -17,7 +17,9 @@
 //!    this is the structure's secant stiffness over the step falling below `1/growth_limit`
 //!    of its initial (elastic) value: a mechanism has formed. Material points need this
 //!    second test: a slope that slides can come to rest again in a new, converged
-//!    configuration metres away, which the first test alone would call stable; or
+//!    configuration far from its start (0.48 m for the slope of `loam verify slope-fos` at
+//!    F = 1.47, where the test fails it from F = 1.39 on), which the first test alone would
+//!    call stable; or
 //! 3. with [`SearchSettings::displacement_limit`], `δ` exceeds that limit after a converged
 //!    load step.
 //!
@@ -231,7 +233,8 @@ pub fn reduced_config<const D: usize>(
         return Err(ImplicitError::Config {
             field: "materials".into(),
             msg: "no material has a strength to reduce (expected a mohr_coulomb, \
-                  drucker_prager or j2 material)"
+                  drucker_prager or j2 material; the elastic models, the fluid and modified \
+                  Cam-Clay have none)"
                 .into(),
         });
     }
@@ -337,8 +340,9 @@ pub fn run_trial<const D: usize>(
 }
 
 /// Searches the factor of safety of the loading of `config` from `particles` (see the module
-/// docs), calling `on_trial` after every trial; `stop()` is asked before every load step and
-/// ends the search with [`SearchEnd::Interrupted`].
+/// docs), calling `on_trial` after every trial; `stop()` is asked before every trial and every
+/// load step and ends the search with [`SearchEnd::Interrupted`] (a trial it stops part-way
+/// is recorded as [`TrialOutcome::Interrupted`] and counts neither way).
 ///
 /// # Errors
 /// Settings out of range or a configuration the solver refuses ([`ImplicitError::Config`]).
@@ -396,6 +400,10 @@ pub fn search<const D: usize>(
             found.end = SearchEnd::Bracketed;
             return Ok(found);
         };
+        if stop() {
+            found.end = SearchEnd::Interrupted;
+            return Ok(found);
+        }
         let trial = run_trial(config, particles, factor, settings, stop)?;
         on_trial(&trial);
         let outcome = trial.outcome.clone();

@@ -159,16 +159,18 @@ fn a_vertical_cut_converges_to_its_limit_analysis_height() {
 }
 
 /// A stop request ends the trial in progress before its next load step, and the search with
-/// it; nothing is concluded from the interrupted trial.
+/// it; nothing is concluded from the interrupted trial. A request made between trials starts
+/// no new one.
 #[test]
 fn a_stop_request_ends_the_search_after_the_load_step_in_progress() {
     let (config, particles) = cut(1.0);
     let asked = std::cell::Cell::new(0);
-    // Stop before the second load step (the first, an eighth of gravity, is stable at
-    // F = 1, where the cut stands up to about 0.45 of gravity).
+    // Asked before the first trial, before its first load step, then before its second: stop
+    // there (the first load step, an eighth of gravity, is stable at F = 1, where the cut
+    // stands up to about 0.45 of gravity).
     let stop = || {
         asked.set(asked.get() + 1);
-        asked.get() > 1
+        asked.get() > 2
     };
     let found = search(
         &config,
@@ -184,6 +186,24 @@ fn a_stop_request_ends_the_search_after_the_load_step_in_progress() {
     assert_eq!(trial.outcome, TrialOutcome::Interrupted);
     assert_eq!(trial.steps.len(), 1);
     assert_eq!(found.bracket, Bracket::default());
+    assert_eq!(found.factor_of_safety(), None);
+    // Asked between trials: the first trial stands (F = 0.25 of the cut's strength
+    // multiplied by 4: elastic), the stop comes before the second, which is not started.
+    let asked = std::cell::Cell::new(0);
+    let per_trial = config.load_steps + 1;
+    let stop = || {
+        asked.set(asked.get() + 1);
+        asked.get() > per_trial
+    };
+    let settings = SearchSettings {
+        start: 0.25,
+        ..SearchSettings::default()
+    };
+    let found = search(&config, &particles, &settings, &stop, |_| {}).expect("valid set-up");
+    assert_eq!(found.end, SearchEnd::Interrupted);
+    assert_eq!(found.trials.len(), 1);
+    assert!(found.trials[0].stable(), "{:?}", found.trials[0].outcome);
+    assert_eq!(found.bracket.stable, Some(0.25));
     assert_eq!(found.factor_of_safety(), None);
 }
 

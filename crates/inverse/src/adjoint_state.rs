@@ -1,5 +1,6 @@
 //! The adjoint of the particle state.
 
+use loam_core::constitutive::MaterialState;
 use loam_core::tensor::{Tensor, Vector};
 use nalgebra::Matrix3;
 
@@ -21,10 +22,8 @@ pub struct ParticleAdjoint<const D: usize> {
     pub f: Vec<Tensor<f64, D>>,
     /// `σ̄_p` (3×3).
     pub stress: Vec<Matrix3<f64>>,
-    /// Adjoint of the equivalent plastic strain.
-    pub plastic_strain: Vec<f64>,
-    /// Adjoint of the tensor-valued history variable.
-    pub tensor: Vec<Matrix3<f64>>,
+    /// Adjoint of the history ([`MaterialState`], component by component).
+    pub history: Vec<MaterialState<f64>>,
     /// `m̄_p`, summed over the run.
     pub mass: Vec<f64>,
     /// `V̄⁰_p`, summed over the run.
@@ -40,8 +39,7 @@ impl<const D: usize> ParticleAdjoint<D> {
             c: vec![Tensor::zeros(); n],
             f: vec![Tensor::zeros(); n],
             stress: vec![Matrix3::zeros(); n],
-            plastic_strain: vec![0.0; n],
-            tensor: vec![Matrix3::zeros(); n],
+            history: vec![MaterialState::zeros(); n],
             mass: vec![0.0; n],
             volume0: vec![0.0; n],
         }
@@ -51,8 +49,9 @@ impl<const D: usize> ParticleAdjoint<D> {
     pub fn bytes(n: usize) -> u64 {
         let per_particle = 2 * size_of::<Vector<f64, D>>()
             + 2 * size_of::<Tensor<f64, D>>()
-            + 2 * size_of::<Matrix3<f64>>()
-            + 3 * size_of::<f64>();
+            + size_of::<Matrix3<f64>>()
+            + size_of::<MaterialState<f64>>()
+            + 2 * size_of::<f64>();
         (n * per_particle) as u64
     }
 

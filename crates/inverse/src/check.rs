@@ -308,3 +308,256 @@ pub fn taylor_test<const D: usize, O: ScalarObjective<D>>(
         same_branches: false,
     })
 }
+
+/// A jump of the loss along a line through `θ`: `L(θ + d e)` changes by about `size` between
+/// `d = lo` and `d = hi`, however close they are brought.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Jump {
+    /// The near end of the interval that holds the jump (`θ + lo`).
+    pub lo: f64,
+    /// The far end.
+    pub hi: f64,
+    /// `L(θ + hi) − L(θ + lo)` less the slope's share: the jump.
+    pub size: f64,
+}
+
+impl Jump {
+    /// Whether the points `θ + d` for `d` in `[from, to]` (either order) can lie on both
+    /// sides of the jump: the interval reaches into `[lo, hi]`.
+    pub fn straddled_by(&self, from: f64, to: f64) -> bool {
+        let (a, b) = (from.min(to), from.max(to));
+        let (lo, hi) = (self.lo.min(self.hi), self.lo.max(self.hi));
+        a < hi && b > lo
+    }
+}
+
+/// The relative steps of the ladder [`find_jumps`] samples on each side of `θ` (times
+/// `max(|θ|, 10⁻³)` on the explicit path): from the Taylor test's first step down to the
+/// smallest difference step.
+pub const JUMP_LADDER: [f64; 5] = [1e-2, 1e-3, 1e-4, 1e-5, 1e-6];
+
+/// How many times [`find_jumps`] halves the interval it suspects: a smooth loss keeps 2⁻¹²
+/// of its excess over the slope, a jump all of it.
+pub const JUMP_BISECTIONS: usize = 12;
+
+/// Looks for jumps of `along(d) = L(θ + d e)` near `θ`, given `L(θ)` (`loss`), the slope
+/// `dL/dd` of the smooth piece at `θ` (the adjoint's, `slope`) and the sampling scale `size`:
+/// the nearest to `θ` on each side, nearer first.
+///
+/// `L` is sampled at `d = ±size · s` for `s` in [`JUMP_LADDER`]; between neighbouring samples
+/// the excess `|ΔL − slope Δd|` is what the slope does not explain. Each interval, nearest to
+/// `θ` first, is halved up to [`JUMP_BISECTIONS`] times, each time keeping the half with the
+/// larger excess, as long as that half keeps at least half the interval's first excess and
+/// the other half at most a quarter of the kept one. Over an interval of width `w` a smooth
+/// loss, a kink or a wrong slope leave an excess of order `w`, shared between the halves
+/// (the bisection stops within a halving or two), a jump its whole size, in one half;
+/// round-off does not shrink either, but is as large in both halves. An interval that passes
+/// every halving holds a jump; the search goes on on the other side only.
+///
+/// # Errors
+/// Those of `along`.
+pub fn find_jumps<E>(
+    loss: f64,
+    slope: f64,
+    size: f64,
+    mut along: impl FnMut(f64) -> Result<f64, E>,
+) -> Result<Vec<Jump>, E> {
+    let mut samples = vec![(0.0, loss)];
+    for s in JUMP_LADDER {
+        for d in [size * s, -size * s] {
+            samples.push((d, along(d)?));
+        }
+    }
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let excess = |a: (f64, f64), b: (f64, f64)| (b.1 - a.1 - slope * (b.0 - a.0)).abs();
+    let mut intervals: Vec<((f64, f64), (f64, f64))> =
+        samples.windows(2).map(|w| (w[0], w[1])).collect();
+    intervals.sort_by(|p, q| {
+        let near = |(a, b): &((f64, f64), (f64, f64))| a.0.abs().min(b.0.abs());
+        near(p).total_cmp(&near(q))
+    });
+    let mut jumps: Vec<Jump> = Vec::new();
+    'intervals: for (mut a, mut b) in intervals {
+        // Samples are on one side of θ or end at it: the side is the sign of the far end.
+        let side = (a.0 + b.0).signum();
+        let first = excess(a, b);
+        if jumps.iter().any(|j| j.hi.signum() == side) || !(first > 0.0 && first.is_finite()) {
+            continue;
+        }
+        for _ in 0..JUMP_BISECTIONS {
+            let m = 0.5 * (a.0 + b.0);
+            let mid = (m, along(m)?);
+            let (left, right) = (excess(a, mid), excess(mid, b));
+            let (kept, other) = (left.max(right), left.min(right));
+            if kept < 0.5 * first || other > 0.25 * kept {
+                continue 'intervals;
+            }
+            if left >= right {
+                b = mid;
+            } else {
+                a = mid;
+            }
+        }
+        // The near end first.
+        let (lo, hi) = if a.0.abs() <= b.0.abs() {
+            (a.0, b.0)
+        } else {
+            (b.0, a.0)
+        };
+        jumps.push(Jump {
+            lo,
+            hi,
+            size: b.1 - a.1 - slope * (b.0 - a.0),
+        });
+    }
+    Ok(jumps)
+}
+
+impl Convergence {
+    /// The differences without those whose stencil (`±δ`, `δ = relative_step · size`)
+    /// straddles one of `jumps`, and the converged value among the rest (the first
+    /// neighbouring pair that agrees to [`CONVERGENCE_TOLERANCE`]): a difference across a
+    /// jump measures the jump, not the derivative.
+    pub fn clear_of(&self, jumps: &[Jump], size: f64) -> Self {
+        let clear = |d: &Difference| {
+            let delta = d.relative_step * size;
+            !jumps.iter().any(|j| j.straddled_by(-delta, delta))
+        };
+        Self::of(self.estimates.iter().map(|e| e.filter(clear)).collect())
+    }
+
+    /// The estimates at steps largest first (`None` where a step is not used) and the first
+    /// neighbouring pair that agrees to [`CONVERGENCE_TOLERANCE`]: its smaller step's
+    /// estimate is the converged value.
+    pub fn of(estimates: Vec<Option<Difference>>) -> Self {
+        let mut out = Self {
+            estimates,
+            value: None,
+            spread: f64::NAN,
+        };
+        for w in out.estimates.windows(2) {
+            if let (Some(a), Some(b)) = (w[0], w[1]) {
+                let spread = (a.value - b.value).abs() / a.value.abs().max(b.value.abs());
+                if out.spread.is_nan() || spread < out.spread {
+                    out.spread = spread;
+                }
+                if spread <= CONVERGENCE_TOLERANCE {
+                    out.value = Some(b);
+                    out.spread = spread;
+                    break;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The first Taylor step `h₀` of `steps` (largest first; relative, times `size`) whose points
+/// `θ + h₀/2ⁱ` stay on `θ`'s side of every one of `jumps`: `None` when every one reaches one.
+pub fn taylor_step_clear_of(jumps: &[Jump], size: f64, steps: &[f64]) -> Option<f64> {
+    steps
+        .iter()
+        .map(|s| s * size)
+        .find(|&h0| !jumps.iter().any(|j| j.straddled_by(0.0, h0)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::convert::Infallible;
+
+    /// `L(θ + d) = (1 + d)² + J H(d − s)`: slope 2 at θ and a jump of `J` at `s`.
+    fn stepped(jump: f64, at: f64) -> impl Fn(f64) -> Result<f64, Infallible> {
+        move |d: f64| Ok((1.0 + d).powi(2) + if d > at { jump } else { 0.0 })
+    }
+
+    /// The central differences of [`converged_difference`] at its steps, as it would take
+    /// them on `f` (no branches here), all of them.
+    fn differences(f: &dyn Fn(f64) -> Result<f64, Infallible>) -> Convergence {
+        let estimates = CONVERGENCE_STEPS
+            .iter()
+            .map(|&s| {
+                let at = |d: f64| f(d).unwrap();
+                let d1 = (at(s) - at(-s)) / (2.0 * s);
+                let d2 = (at(0.5 * s) - at(-0.5 * s)) / s;
+                Some(Difference {
+                    value: (4.0 * d2 - d1) / 3.0,
+                    relative_step: s,
+                })
+            })
+            .collect();
+        Convergence {
+            estimates,
+            value: None,
+            spread: f64::NAN,
+        }
+    }
+
+    /// A jump of 10⁻⁹ at `d = 3·10⁻⁶`: the differences at `δ = 10⁻⁴` and `10⁻⁵` straddle it
+    /// (off by `J/δ`, up to 10⁻⁴ of the slope) and are dropped, the one at `10⁻⁶` is the slope
+    /// to round-off; the Taylor test starts at `h₀ = 10⁻⁶`, below the jump, where its
+    /// remainder is the smooth `h²`. The jump is found within `2⁻¹²` of the ladder's interval.
+    #[test]
+    fn a_jump_is_found_and_the_steps_that_straddle_it_are_left_out() {
+        let f = stepped(1e-9, 3e-6);
+        let jumps = find_jumps(1.0, 2.0, 1.0, &f).unwrap();
+        let [jump] = jumps[..] else {
+            panic!("one jump: {jumps:?}")
+        };
+        assert!(jump.lo < 3e-6 && 3e-6 <= jump.hi, "{jump:?}");
+        assert!(jump.hi - jump.lo < 1e-5 / 4000.0, "{jump:?}");
+        assert!((jump.size - 1e-9).abs() < 1e-11, "{jump:?}");
+        let all = differences(&f);
+        // Before: the largest step is off by the jump over it.
+        let first = all.estimates[0].unwrap().value;
+        assert!((first - 2.0).abs() > 1e-6, "{first}");
+        let clear = all.clear_of(&jumps, 1.0);
+        assert!(clear.estimates[0].is_none() && clear.estimates[1].is_none());
+        let kept = clear.estimates[2].expect("δ = 1e-6 is clear").value;
+        // Round-off of a loss of 1 over δ = 1e-6: about 1e-10.
+        assert!((kept - 2.0).abs() < 1e-8, "{kept}");
+        assert_eq!(clear.value, None, "one difference alone does not converge");
+        let h0 = taylor_step_clear_of(&jumps, 1.0, &JUMP_LADDER).expect("a clear step");
+        assert_eq!(h0, 1e-6);
+        // On the other side of θ the jump leaves the Taylor test alone.
+        let left = stepped(1e-9, -3e-6);
+        let jumps = find_jumps(left(0.0).unwrap(), 2.0, 1.0, &left).unwrap();
+        assert!(
+            jumps.len() == 1 && jumps[0].hi <= -3e-6 && -3e-6 < jumps[0].lo,
+            "{jumps:?}"
+        );
+        assert_eq!(taylor_step_clear_of(&jumps, 1.0, &JUMP_LADDER), Some(1e-2));
+        // One on each side: both are found, the nearer first, and both are kept clear of.
+        let both = |d: f64| Ok::<_, Infallible>(f(d)? + left(d)? - (1.0 + d).powi(2));
+        let jumps = find_jumps(both(0.0).unwrap(), 2.0, 1.0, both).unwrap();
+        assert_eq!(jumps.len(), 2, "{jumps:?}");
+        assert!(jumps[0].lo.abs() <= jumps[1].lo.abs(), "{jumps:?}");
+        assert_eq!(taylor_step_clear_of(&jumps, 1.0, &JUMP_LADDER), Some(1e-6));
+    }
+
+    /// A jump between the difference steps (at `d = 3·10⁻⁵`): the two smaller steps agree
+    /// and converge to the slope once the straddling one is left out.
+    #[test]
+    fn differences_clear_of_a_jump_converge() {
+        let f = stepped(1e-7, 3e-5);
+        let jumps = find_jumps(1.0, 2.0, 1.0, &f).unwrap();
+        assert_eq!(jumps.len(), 1, "{jumps:?}");
+        let clear = differences(&f).clear_of(&jumps, 1.0);
+        let value = clear.value.expect("converged").value;
+        assert!((value - 2.0).abs() < 1e-8, "{value}");
+    }
+
+    /// No jump in a smooth loss, in one with a kink (`|d − s|`) or under a wrong slope.
+    #[test]
+    fn smooth_losses_and_kinks_have_no_jump() {
+        let smooth = |d: f64| Ok::<_, Infallible>((1.0 + d).sin() * 1e3);
+        assert_eq!(
+            find_jumps(1f64.sin() * 1e3, 1f64.cos() * 1e3, 1.0, smooth),
+            Ok(vec![])
+        );
+        let kink = |d: f64| Ok::<_, Infallible>((1.0 + d).powi(2) + 0.5 * (d - 3e-6).abs());
+        assert_eq!(find_jumps(1.0 + 1.5e-6, 1.5, 1.0, kink), Ok(vec![]));
+        let wrong = |d: f64| Ok::<_, Infallible>((1.0 + d).powi(2));
+        assert_eq!(find_jumps(1.0, 2.7, 1.0, wrong), Ok(vec![]));
+    }
+}

@@ -13,11 +13,12 @@
 //! and [`Unpack`] reads the typed fields in a fixed order.
 
 use loam_core::Scalar;
+use loam_core::constitutive::{HISTORY_LEN, MaterialState};
 use loam_core::tensor::{Tensor, Vector};
 use nalgebra::Matrix3;
 use num_dual::Dual64;
 
-/// The most values a local kernel packs: the 3D particle end has 58 inputs.
+/// The most values a local kernel packs: the 3D particle end has 59 inputs.
 pub const MAX_LANES: usize = 64;
 
 /// A flat list of at most [`MAX_LANES`] values, written field by field.
@@ -103,6 +104,17 @@ impl<X: Copy> Packed<X> {
     {
         self.tensor::<3>(t);
     }
+
+    /// Appends a history state's components ([`MaterialState::components`]).
+    #[inline]
+    pub fn history(&mut self, h: &MaterialState<X>)
+    where
+        X: nalgebra::Scalar,
+    {
+        for x in h.components() {
+            self.push(x);
+        }
+    }
 }
 
 /// Reads typed fields back from a flat list, in the order [`Packed`] wrote them.
@@ -148,6 +160,14 @@ impl<'a, X: Copy + nalgebra::Scalar> Unpack<'a, X> {
     #[inline]
     pub fn matrix3(&mut self) -> Matrix3<X> {
         self.tensor::<3>()
+    }
+
+    /// The next [`HISTORY_LEN`] values as a history state.
+    #[inline]
+    pub fn history(&mut self) -> MaterialState<X> {
+        let start = self.at;
+        self.at += HISTORY_LEN;
+        MaterialState::from_components(|k| self.values[start + k])
     }
 }
 

@@ -300,6 +300,17 @@ impl Optimiser {
     }
 }
 
+/// The norm of the gradient over the variables not held on a bound the gradient pushes
+/// against (those `project` sends back, as [`Optimiser::iterate`] holds them): zero at a
+/// minimum, also one on a bound.
+pub fn free_gradient_norm(at: &Evaluation, project: &dyn Fn(&mut [f64])) -> f64 {
+    let held = blocked(at, project);
+    let free: Vec<f64> = (at.gradient.iter().zip(&held))
+        .map(|(g, h)| if *h { 0.0 } else { *g })
+        .collect();
+    norm(&free)
+}
+
 /// Which variables sit on a bound that the gradient pushes against: a step of `10⁻⁷ (1 + |zᵢ|)`
 /// down the gradient is projected back to less than half of it.
 fn blocked(at: &Evaluation, project: &dyn Fn(&mut [f64])) -> Vec<bool> {
@@ -406,6 +417,19 @@ mod tests {
     }
 
     fn free(_: &mut [f64]) {}
+
+    /// On the bound `z₀ ≥ 2` of the quadratic (whose minimum, `z₀ = 1`, is beyond it) the
+    /// gradient pushes against the bound and only the other variables count: a minimum there
+    /// has no free gradient; away from the bound every component counts.
+    #[test]
+    fn the_free_gradient_leaves_out_variables_held_on_a_bound() {
+        let bound = |z: &mut [f64]| z[0] = z[0].max(2.0);
+        let on_bound = quadratic(&[2.0, -2.0, 0.5]).unwrap();
+        assert_eq!(norm(&on_bound.gradient), 1.0);
+        assert_eq!(free_gradient_norm(&on_bound, &bound), 0.0);
+        let inside = quadratic(&[3.0, -1.0, 0.5]).unwrap();
+        assert_eq!(free_gradient_norm(&inside, &bound), norm(&inside.gradient));
+    }
 
     #[test]
     fn lbfgs_solves_a_quadratic_and_rosenbrock() {

@@ -12,7 +12,7 @@
 
 use crate::error::AdjointError;
 use loam_core::Material;
-use loam_core::constitutive::{Lame, Model};
+use loam_core::constitutive::{Lame, Model, Shear};
 use loam_explicit::Config;
 use num_dual::Dual64;
 use std::fmt;
@@ -45,6 +45,16 @@ pub enum MaterialField {
     YieldStress,
     /// J2 linear hardening modulus `H`.
     Hardening,
+    /// Modified Cam-Clay slope `λ` of the normal compression line.
+    Lambda,
+    /// Modified Cam-Clay slope `κ` of the unloading–reloading line.
+    Kappa,
+    /// Modified Cam-Clay critical state slope `M`.
+    CriticalStateSlope,
+    /// Modified Cam-Clay initial void ratio `e₀` (through `λ/(1 + e₀)`, `κ/(1 + e₀)`).
+    VoidRatio,
+    /// Modified Cam-Clay constant shear modulus `G`.
+    ShearModulus,
 }
 
 impl MaterialField {
@@ -63,6 +73,11 @@ impl MaterialField {
             Self::Cohesion => "cohesion",
             Self::YieldStress => "yield_stress",
             Self::Hardening => "hardening",
+            Self::Lambda => "lambda",
+            Self::Kappa => "kappa",
+            Self::CriticalStateSlope => "critical_state_slope",
+            Self::VoidRatio => "void_ratio",
+            Self::ShearModulus => "shear_modulus",
         }
     }
 }
@@ -96,7 +111,7 @@ impl fmt::Display for Param {
 
 impl MaterialField {
     /// Every constant, in the order of the enum.
-    pub const ALL: [MaterialField; 12] = [
+    pub const ALL: [MaterialField; 17] = [
         Self::Young,
         Self::Poisson,
         Self::Density,
@@ -109,6 +124,11 @@ impl MaterialField {
         Self::Cohesion,
         Self::YieldStress,
         Self::Hardening,
+        Self::Lambda,
+        Self::Kappa,
+        Self::CriticalStateSlope,
+        Self::VoidRatio,
+        Self::ShearModulus,
     ];
 }
 
@@ -334,6 +354,18 @@ pub(crate) fn seed_material(
     };
     let value = match (field, &mut out.model) {
         (F::Density, _) => one(&mut out.density),
+        (F::Poisson, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Poisson(nu) => one(nu),
+            Shear::Modulus(_) => return None,
+        },
+        (F::ShearModulus, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Modulus(g) => one(g),
+            Shear::Poisson(_) => return None,
+        },
+        (F::Lambda, Model::ModifiedCamClay(x)) => one(&mut x.lambda),
+        (F::Kappa, Model::ModifiedCamClay(x)) => one(&mut x.kappa),
+        (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => one(&mut x.critical_state_slope),
+        (F::VoidRatio, Model::ModifiedCamClay(x)) => one(&mut x.void_ratio),
         (F::Young | F::Poisson, model) => {
             let mut stored = m.model.clone();
             let (seeded, value) = seed_lame(lame_of(&mut stored)?, field == F::Young);
@@ -371,7 +403,7 @@ fn lame_of<T>(model: &mut Model<T>) -> Option<&mut Lame<T>> {
         Model::J2(x) => Some(&mut x.lame),
         Model::DruckerPrager(x) => Some(&mut x.lame),
         Model::MohrCoulomb(x) => Some(&mut x.lame),
-        Model::Fluid(_) => None,
+        Model::Fluid(_) | Model::ModifiedCamClay(_) => None,
     }
 }
 
@@ -381,6 +413,18 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
     let density = m.density;
     match (field, &mut m.model) {
         (F::Density, _) => m.density = value,
+        (F::Poisson, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Poisson(nu) => *nu = value,
+            Shear::Modulus(_) => return None,
+        },
+        (F::ShearModulus, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Modulus(g) => *g = value,
+            Shear::Poisson(_) => return None,
+        },
+        (F::Lambda, Model::ModifiedCamClay(x)) => x.lambda = value,
+        (F::Kappa, Model::ModifiedCamClay(x)) => x.kappa = value,
+        (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => x.critical_state_slope = value,
+        (F::VoidRatio, Model::ModifiedCamClay(x)) => x.void_ratio = value,
         (F::Young | F::Poisson, model) => {
             let lame = lame_of(model)?;
             let (e, nu) = young_poisson(lame);

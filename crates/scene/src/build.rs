@@ -7,7 +7,9 @@ use crate::schema::{
     DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, Device, LinearKind,
     LinearSpec, MaterialSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
 };
-use loam_core::constitutive::{DruckerPrager, Elasticity, Lame, Model, MohrCoulomb};
+use loam_core::constitutive::{
+    DruckerPrager, Elasticity, Lame, Model, ModifiedCamClay, MohrCoulomb, Preconsolidation, Shear,
+};
 use loam_core::{
     Boundary, Contact, Grid, Material, ModelKind, NodeConstraint, Particles, PointLoad, Scheme,
     Shape, TimeStep, Transfer,
@@ -648,6 +650,23 @@ impl MaterialSpec {
                     friction_angle: m.friction_angle.unwrap_or(f64::NAN).to_radians(),
                     dilation_angle: m.dilation_angle.unwrap_or(0.0).to_radians(),
                     cohesion: m.cohesion.unwrap_or(0.0),
+                }),
+            },
+            ModelKind::ModifiedCamClay => Material {
+                density: m.density,
+                model: Model::ModifiedCamClay(ModifiedCamClay {
+                    lambda: m.lambda.unwrap_or(f64::NAN),
+                    kappa: m.kappa.unwrap_or(f64::NAN),
+                    critical_state_slope: m.critical_state_slope.unwrap_or(f64::NAN),
+                    void_ratio: m.void_ratio.unwrap_or(f64::NAN),
+                    shear: match m.shear_modulus {
+                        Some(g) => Shear::Modulus(g),
+                        None => Shear::Poisson(poisson),
+                    },
+                    preconsolidation: match m.preconsolidation_pressure {
+                        Some(p) => Preconsolidation::Pressure(p),
+                        None => Preconsolidation::Ratio(m.ocr.unwrap_or(1.0)),
+                    },
                 }),
             },
             ModelKind::Fluid => Material::fluid(

@@ -8,7 +8,7 @@
 //! ```text
 //! offset  size  field
 //!  0       8    magic "LOAMCKPT"
-//!  8       4    format version (u32, currently 1)
+//!  8       4    format version (u32, currently 2)
 //! 12       4    dimension D (u32, 2 or 3)
 //! 16       4    bytes per scalar (u32, 8: f64)
 //! 20       4    length S of the scene path in bytes (u32)
@@ -20,7 +20,7 @@
 //! 56 + S  ...   the particle fields, field after field, each for particles 0..N:
 //!               x (N·D f64), v (N·D), a (N·D), F (N·D², column-major), C (N·D²),
 //!               stress (N·9), mass (N), volume0 (N), half_width0 (N·D), material (N u32),
-//!               plastic strain (N f64), state tensor (N·9)
+//!               plastic strain (N f64), state tensor (N·9), hardening variable (N)
 //! end − 8  8    checksum (u64, FNV-1a 64 of every byte before it)
 //! ```
 //!
@@ -44,7 +44,7 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: [u8; 8] = *b"LOAMCKPT";
 
 /// The format version this crate writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Bytes of the fixed part of the header (before the scene path).
 const HEADER_BYTES: usize = 56;
@@ -242,9 +242,9 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The number of `f64` values a particle takes in the file: x, v, a (`D` each), F and C
 /// (`D²` each), the stress (9), mass and reference volume, the half-widths (`D`), the plastic
-/// strain and the state tensor (9).
+/// strain, the state tensor (9) and the hardening variable.
 fn scalars_per_particle(d: usize) -> usize {
-    4 * d + 2 * d * d + 21
+    4 * d + 2 * d * d + 22
 }
 
 /// The file length a header announces, `None` on overflow (a damaged count).
@@ -305,6 +305,7 @@ pub fn write_checkpoint<const D: usize>(
         &mut out,
         &mut p.state.iter().flat_map(|s| s.tensor.iter().copied()),
     );
+    put(&mut out, &mut p.state.iter().map(|s| s.hardening));
     let checksum = fnv1a(&out);
     out.extend_from_slice(&checksum.to_le_bytes());
     write_file_atomically(path, &out).map_err(|source| CheckpointError::Io {
@@ -375,12 +376,12 @@ pub fn read_checkpoint<const D: usize>(
     let material = (0..n).map(|_| r.u32()).collect();
     let plastic = r.scalars(n);
     let tensors = r.tensors::<3>(n);
-    let state = plastic
-        .into_iter()
-        .zip(tensors)
-        .map(|(plastic_strain, tensor)| MaterialState {
+    let hardening = r.scalars(n);
+    let state = (plastic.into_iter().zip(tensors).zip(hardening))
+        .map(|((plastic_strain, tensor), hardening)| MaterialState {
             plastic_strain,
             tensor,
+            hardening,
         })
         .collect();
     let particles = Particles {

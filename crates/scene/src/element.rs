@@ -251,6 +251,26 @@ impl ElementTest {
                 format!("must be positive, got {e0}"),
             );
         }
+        let cam_clay = self.material.model == loam_core::ModelKind::ModifiedCamClay;
+        if cam_clay && ip.p.is_finite() && ip.p <= 0.0 {
+            issue(
+                "initial.p".into(),
+                "model \"modified_cam_clay\" has no stiffness at zero stress: give the \
+                 initial mean effective stress p (Pa, positive)"
+                    .into(),
+            );
+        }
+        if let (Some(e0), Some(model_e0)) = (ip.void_ratio, self.material.void_ratio)
+            && e0 != model_e0
+        {
+            issue(
+                "initial.void_ratio".into(),
+                format!(
+                    "differs from material.void_ratio = {model_e0}, the model's e₀; give it \
+                     once, in the material"
+                ),
+            );
+        }
         if ip.p > 0.0 && stateless_model(&self.material) {
             issue(
                 "initial.p".into(),
@@ -310,7 +330,31 @@ impl ElementTest {
                 );
             }
         }
+        if issues.is_empty()
+            && let loam_core::constitutive::Model::ModifiedCamClay(m) = self.material().model
+        {
+            let start = self.start(&self.material());
+            let tau = start.stress;
+            let p = -tau.trace() / 3.0;
+            let q = crate::output::von_mises(&tau);
+            let p_c = start.history.hardening;
+            if m.yield_function(p, q, p_c) > 1e-9 * p_c * p_c {
+                issues.push(Issue::new(
+                    "material.preconsolidation_pressure",
+                    format!(
+                        "{p_c} Pa puts the initial state (p′ = {p} Pa, q = {q} Pa) outside the \
+                         yield ellipse; raise it, or give ocr instead"
+                    ),
+                ));
+            }
+        }
         issues
+    }
+
+    /// The initial void ratio: `initial.void_ratio`, or the material's `e₀`
+    /// (`modified_cam_clay`).
+    pub fn void_ratio(&self) -> Option<f64> {
+        self.initial.void_ratio.or(self.material.void_ratio)
     }
 
     /// The material (a `drucker_prager` one Hencky unless the file says otherwise).

@@ -4,6 +4,7 @@
 //! them. `docs/scene-format.md` documents the keys and the CSV columns.
 
 use crate::error::Issue;
+use crate::output::von_mises;
 use crate::schema::{BodySpec, InitialStressSpec, Scene};
 use loam_core::constitutive::{DruckerPrager, Elasticity, Hencky, Kinematics, Model};
 use loam_core::tensor::{Tensor, det, to3};
@@ -133,7 +134,8 @@ fn skew<const D: usize>(omega: &[f64]) -> Tensor<f64, D> {
 /// Reads a body's velocities from a CSV file: a header naming the columns (`vx, vy[, vz]`,
 /// and optionally the positions `x, y[, z]` as a check of the order), then one row per
 /// particle of the body in generation order. Blank lines and lines starting with `#` are
-/// skipped. The error names the line and the column.
+/// skipped, and so is a byte-order mark before the header. The error names the line and the
+/// column.
 fn read_velocities<const D: usize>(
     file: &Path,
     x: &[SVector<f64, D>],
@@ -141,7 +143,7 @@ fn read_velocities<const D: usize>(
 ) -> Result<Vec<SVector<f64, D>>, String> {
     const POSITIONS: [&str; 3] = ["x", "y", "z"];
     const VELOCITIES: [&str; 3] = ["vx", "vy", "vz"];
-    let text = std::fs::read_to_string(file).map_err(|e| format!("cannot read it: {e}"))?;
+    let text = crate::csv::read_csv(file).map_err(|e| format!("cannot read it: {e}"))?;
     let mut lines = text
         .lines()
         .enumerate()
@@ -373,6 +375,12 @@ fn default_k0(material: &Material<f64>) -> f64 {
         }
         // Jaky's value lies inside the pyramid for every φ: (1 − sin φ)(1 + sin φ) ≤ 1.
         Model::MohrCoulomb(mc) => 1.0 - mc.friction_angle.sin(),
+        // Jaky's with the friction angle of the critical state line in triaxial compression,
+        // sin φ′ = 3M/(6 + M).
+        Model::ModifiedCamClay(m) => {
+            let slope = m.critical_state_slope;
+            1.0 - 3.0 * slope / (6.0 + slope)
+        }
         model => {
             let lame = match model {
                 Model::LinearElastic(m) => m.lame,
@@ -380,7 +388,10 @@ fn default_k0(material: &Material<f64>) -> f64 {
                 Model::Hencky(m) => m.lame,
                 Model::J2(m) => m.lame,
                 // Validated: geostatic is not offered for fluids.
-                Model::Fluid(_) | Model::DruckerPrager(_) | Model::MohrCoulomb(_) => return 1.0,
+                Model::Fluid(_)
+                | Model::DruckerPrager(_)
+                | Model::MohrCoulomb(_)
+                | Model::ModifiedCamClay(_) => return 1.0,
             };
             let nu = lame.lambda / (2.0 * (lame.lambda + lame.mu));
             nu / (1.0 - nu)
@@ -467,7 +478,30 @@ fn state_at_rest<const D: usize>(
             let state = MaterialState {
                 plastic_strain: 0.0,
                 tensor: Matrix3::identity() + dp.compliance(&stress) * 2.0,
+                hardening: 0.0,
             };
+            let f = Tensor::<f64, D>::identity();
+            return Ok(Rest { f, stress, state });
+        }
+        Model::ModifiedCamClay(m) => {
+            // No stiffness at zero stress: the stress is carried by the history at F = I.
+            let stress = Matrix3::from_diagonal(&target.into());
+            let state = m.initial_state(&stress).ok_or_else(|| {
+                format!(
+                    "model \"modified_cam_clay\" needs a compressive mean effective stress, \
+                     got {} Pa",
+                    -stress.trace() / 3.0
+                )
+            })?;
+            let (p, q) = (-stress.trace() / 3.0, von_mises(&stress));
+            if m.yield_function(p, q, state.hardening) > 1e-9 * state.hardening.powi(2) {
+                return Err(format!(
+                    "the stress{k0_text} (p′ = {p:.6e} Pa, q = {q:.6e} Pa) lies outside the \
+                     Modified Cam-Clay ellipse of p′c0 = {:.6e} Pa (raise \
+                     preconsolidation_pressure, or give ocr instead)",
+                    state.hardening
+                ));
+            }
             let f = Tensor::<f64, D>::identity();
             return Ok(Rest { f, stress, state });
         }

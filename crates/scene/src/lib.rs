@@ -51,6 +51,8 @@
 //!   is generated; [`Scene::validate`] then checks the particle generation.
 //! - [`output`] writes `.vtu` frames, the `.pvd` series and the JSON run summary.
 //! - [`checkpoint`] writes and reads the restartable state of an explicit run.
+//! - [`read_csv`] reads the CSV files scenes and inversions take (a spreadsheet's
+//!   byte-order mark dropped).
 //! - [`element`] reads element-test files (`loam material`): one material point through
 //!   laboratory paths.
 //!
@@ -60,6 +62,7 @@
 mod build;
 pub mod checkpoint;
 mod contact;
+mod csv;
 pub mod element;
 mod error;
 mod estimate;
@@ -72,8 +75,10 @@ mod schema;
 mod validate;
 
 pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, SolverPlan};
+pub use csv::read_csv;
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
+pub use load::parse_file;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Device, Face,
     FosSpec, FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec,

@@ -3,12 +3,15 @@
 //!
 //! Parsing goes through `serde_path_to_error`, so a field that is missing, unknown or of the
 //! wrong type is reported with its path (`solver.sheme: unknown field ...`) and, where the
-//! parser knows it, its line and column.
+//! parser knows it, its line and column. Every unknown key is reported, not only the first
+//! ([`keys`]).
 
 use crate::error::{Issue, Location, SceneError, SceneFormat};
 use crate::schema::Scene;
 use serde::de::DeserializeOwned;
 use std::path::Path;
+
+mod keys;
 
 impl Scene {
     /// Reads, parses and validates a scene file; the format follows the extension
@@ -83,6 +86,20 @@ impl Scene {
     }
 }
 
+/// Parses the text of `path`, a file of loam's in the scene's formats other than a scene (an
+/// inversion file), into `S` without validating it; errors name `path`, and every unknown key
+/// is reported.
+///
+/// # Errors
+/// A syntax error, or the fields that are missing, unknown or of the wrong type.
+pub fn parse_file<S: DeserializeOwned>(
+    path: &Path,
+    text: &str,
+    format: SceneFormat,
+) -> Result<S, SceneError> {
+    parse(text, format).map_err(|e| e.in_file(path))
+}
+
 /// Parses without validating (a scene, or another file of loam's in the scene's formats).
 pub(crate) fn parse<S: DeserializeOwned>(text: &str, format: SceneFormat) -> Result<S, SceneError> {
     match format {
@@ -92,32 +109,94 @@ pub(crate) fn parse<S: DeserializeOwned>(text: &str, format: SceneFormat) -> Res
 }
 
 fn parse_toml<S: DeserializeOwned>(text: &str) -> Result<S, SceneError> {
-    let location = |e: &toml::de::Error| e.span().map(|s| Location::from_offset(text, s.start));
-    let de = toml::Deserializer::parse(text).map_err(|e| SceneError::Syntax {
+    let location =
+        |span: Option<std::ops::Range<usize>>| span.map(|s| Location::from_offset(text, s.start));
+    let root = toml::de::DeTable::parse(text).map_err(|e| SceneError::Syntax {
         file: None,
         format: SceneFormat::Toml,
-        location: location(&e),
+        location: location(e.span()),
         message: e.message().trim_end().to_owned(),
     })?;
-    serde_path_to_error::deserialize(de).map_err(|e| {
-        let at = location(e.inner());
-        field_error(e.path(), e.inner().message(), at)
+    let span = root.span();
+    let mut document = toml::de::DeValue::Table(root.into_inner());
+    every_problem(&mut document, |document| {
+        let toml::de::DeValue::Table(table) = document else {
+            unreachable!("the document is a table")
+        };
+        let de = toml::Deserializer::from(toml::Spanned::new(span.clone(), table.clone()));
+        serde_path_to_error::deserialize(de).map_err(|e| Failure {
+            at: location(e.inner().span()),
+            message: e.inner().message().to_owned(),
+            path: e.path().clone(),
+        })
     })
 }
 
 fn parse_json<S: DeserializeOwned>(text: &str) -> Result<S, SceneError> {
     let mut de = serde_json::Deserializer::from_str(text);
-    let scene: S = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+    let first = serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let inner = e.inner();
         if inner.is_data() {
-            field_error(e.path(), &json_message(inner), json_location(inner))
+            Ok(Failure {
+                at: json_location(inner),
+                message: json_message(inner),
+                path: e.path().clone(),
+            })
         } else {
-            json_syntax_error(inner)
+            Err(json_syntax_error(inner))
         }
-    })?;
-    // Nothing but whitespace may follow the document.
-    de.end().map_err(|e| json_syntax_error(&e))?;
-    Ok(scene)
+    });
+    let first = match first {
+        Ok(scene) => {
+            // Nothing but whitespace may follow the document.
+            de.end().map_err(|e| json_syntax_error(&e))?;
+            return Ok(scene);
+        }
+        Err(failure) => failure?,
+    };
+    // The text is well-formed JSON: look for the other problems in its value (they are
+    // reported without a line, which only the text has).
+    let mut document: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| json_syntax_error(&e))?;
+    let mut first = Some(first);
+    every_problem(&mut document, |document| match first.take() {
+        Some(failure) => Err(failure),
+        None => serde_path_to_error::deserialize(document.clone()).map_err(|e| Failure {
+            at: None,
+            message: json_message(e.inner()),
+            path: e.path().clone(),
+        }),
+    })
+}
+
+/// Why deserializing a document failed: where, and the parser's message.
+struct Failure {
+    path: serde_path_to_error::Path,
+    message: String,
+    at: Option<Location>,
+}
+
+/// Deserializes `document` with `attempt` until it succeeds or fails on something other
+/// than an unknown key, removing each unknown key it fails on ([`keys`]): every unknown key
+/// is reported, each with its path, not only the first serde meets.
+fn every_problem<S, N: keys::Node>(
+    document: &mut N,
+    mut attempt: impl FnMut(&N) -> Result<S, Failure>,
+) -> Result<S, SceneError> {
+    let mut issues = Vec::new();
+    loop {
+        let failure = match attempt(document) {
+            Ok(scene) if issues.is_empty() => return Ok(scene),
+            Ok(_) => return Err(SceneError::invalid(issues)),
+            Err(failure) => failure,
+        };
+        issues.push(field_issue(&failure.path, &failure.message, failure.at));
+        let removed = keys::unknown_key(&failure.message)
+            .is_some_and(|key| keys::remove(document, &failure.path, key));
+        if !removed || issues.len() >= keys::MOST {
+            return Err(SceneError::invalid(issues));
+        }
+    }
 }
 
 fn json_syntax_error(e: &serde_json::Error) -> SceneError {
@@ -146,11 +225,7 @@ fn json_message(e: &serde_json::Error) -> String {
 }
 
 /// A missing, unknown or mistyped field, as one issue naming its path.
-fn field_error(
-    path: &serde_path_to_error::Path,
-    message: &str,
-    at: Option<Location>,
-) -> SceneError {
+fn field_issue(path: &serde_path_to_error::Path, message: &str, at: Option<Location>) -> Issue {
     // The root (a missing or unknown section) has no useful path or location.
     let path = path.to_string();
     let (path, at) = if path == "." {
@@ -162,5 +237,5 @@ fn field_error(
         Some(at) => format!("{message} ({at})"),
         None => message.to_owned(),
     };
-    SceneError::invalid(vec![Issue::new(path, message)])
+    Issue::new(path, message)
 }

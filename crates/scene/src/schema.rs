@@ -152,6 +152,35 @@ pub struct MaterialSpec {
     /// the explicit solver and the one the GPU runs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub elasticity: Option<Elasticity>,
+    /// Model `modified_cam_clay`: slope `λ` of the normal compression line in `e–ln p′`
+    /// (required, positive).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lambda: Option<f64>,
+    /// Model `modified_cam_clay`: slope `κ` of the unloading–reloading line in `e–ln p′`,
+    /// `0 < κ < λ` (required).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kappa: Option<f64>,
+    /// Model `modified_cam_clay`: slope `M` of the critical state line in `p′–q` (required,
+    /// positive; `M = 6 sin φ′/(3 − sin φ′)` in triaxial compression).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub critical_state_slope: Option<f64>,
+    /// Model `modified_cam_clay`: initial void ratio `e₀` (required, positive), which turns
+    /// `λ`, `κ` into the slopes `λ/(1 + e₀)`, `κ/(1 + e₀)` of `ln v–ln p′`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub void_ratio: Option<f64>,
+    /// Model `modified_cam_clay`: a constant shear modulus `G` (Pa), instead of
+    /// `poisson_ratio` (which gives `G = 3(1 − 2ν)/(2(1 + ν)) · p′/κ̃`, growing with `p′`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shear_modulus: Option<f64>,
+    /// Model `modified_cam_clay`: the initial preconsolidation pressure `p′c0` (Pa, the same
+    /// for every point), instead of `ocr`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preconsolidation_pressure: Option<f64>,
+    /// Model `modified_cam_clay`: the overconsolidation ratio `R ≥ 1` on the size of the yield
+    /// locus, `p′c0 = R (p′₀ + q₀²/(M² p′₀))` from each point's initial stress (`1`: normally
+    /// consolidated), instead of `preconsolidation_pressure`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ocr: Option<f64>,
 }
 
 /// Default Tait exponent of model `fluid` (water).

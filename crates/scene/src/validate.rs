@@ -17,6 +17,7 @@ use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
 use std::collections::HashSet;
 
 mod contact;
+mod material_keys;
 
 /// Tolerance, relative to the domain size, for a body's bounding box to stick out of the
 /// domain and for the domain to be a whole number of cells.
@@ -143,9 +144,10 @@ impl Scene {
     }
 
     /// Checks that `loam fos` can search this scene's factor of safety (whether or not it has
-    /// a `[fos]` section): a quasi-static implicit scene, loaded by gravity or point loads,
-    /// with a material whose strength can be reduced. [`Scene::validate`] makes the same
-    /// checks when the scene has a `[fos]` section.
+    /// a `[fos]` section): a quasi-static implicit scene, loaded by gravity or point loads that
+    /// ramp over the load steps (no body with an initial stress), with a material whose
+    /// strength can be reduced. [`Scene::validate`] makes the same checks when the scene has
+    /// a `[fos]` section.
     pub fn check_fos(&self) -> Result<(), SceneError> {
         self.issues_to_result(self.fos_issues())
     }
@@ -178,6 +180,16 @@ impl Scene {
                  fails, so it needs gravity or [[point_loads]]",
             );
         }
+        for (i, body) in self.bodies.iter().enumerate() {
+            if body.initial_stress.is_some() {
+                c.issue(
+                    format!("bodies[{i}].initial_stress"),
+                    "the factor of safety is searched over gravity switch-on, and with an \
+                     initial stress gravity acts in full from the first load step (the first \
+                     step is the elastic reference of the failure test); remove it",
+                );
+            }
+        }
         if !self.materials.iter().any(|m| {
             matches!(
                 m.model,
@@ -187,7 +199,9 @@ impl Scene {
             c.issue(
                 "materials",
                 "no material has a strength to reduce: expected a \"mohr_coulomb\", \
-                 \"drucker_prager\" or \"j2\" material",
+                 \"drucker_prager\" or \"j2\" material (the elastic models, \"fluid\" and \
+                 \"modified_cam_clay\", whose strength comes from its state, have no c, φ or \
+                 σ_y to divide)",
             );
         }
         c.issues
@@ -277,244 +291,63 @@ pub(crate) fn material_issues(path: &str, m: &MaterialSpec) -> Vec<Issue> {
     c.issues
 }
 
-/// Checks the keys of one material: the density, which keys its model takes, and their ranges.
+/// Checks the keys of one material: the density, which keys its model takes and their ranges
+/// (declared in [`material_keys`]), and the rules between keys.
 fn check_material(c: &mut Checker, path: &str, m: &MaterialSpec) {
-    let path = path.to_owned();
     c.positive(&format!("{path}.density"), m.density);
-    let fluid = m.model == ModelKind::Fluid;
-    let model = m.model.name();
-    if fluid {
-        check_fluid(c, &path, m);
-    } else {
-        for (key, value) in [
-            ("sound_speed", m.sound_speed),
-            ("bulk_modulus", m.bulk_modulus),
-            ("gamma", m.gamma),
-            ("viscosity", m.viscosity),
-        ] {
-            if value.is_some() {
-                c.issue(
-                    format!("{path}.{key}"),
-                    "only used by model \"fluid\"; remove it or change the model",
-                );
-            }
+    let sound = material_keys::check_keys(c, path, m);
+    let ok = |key: &str| sound.contains(&key);
+    // ψ ≤ φ.
+    if let Some(psi) = m.dilation_angle.filter(|_| ok("dilation_angle")) {
+        let phi = m.friction_angle.filter(|_| ok("friction_angle"));
+        let bound = phi.unwrap_or(90.0);
+        if !(0.0..=bound).contains(&psi) || (phi.is_none() && psi >= 90.0) {
+            let shown = phi.map_or_else(String::new, |phi| format!(" = [0, {phi}]"));
+            c.issue(
+                format!("{path}.dilation_angle"),
+                format!("must be in [0, friction_angle]{shown} degrees, got {psi}"),
+            );
         }
-        match m.youngs_modulus {
-            Some(e) => {
-                c.positive(&format!("{path}.youngs_modulus"), e);
-            }
-            None => c.issue(
-                format!("{path}.youngs_modulus"),
-                format!("required for model \"{model}\" (Young's modulus, Pa)"),
-            ),
-        }
-        match m.poisson_ratio {
-            Some(nu) => {
-                if c.finite(&format!("{path}.poisson_ratio"), nu) && !(nu > -1.0 && nu < 0.5) {
+    }
+    // 0 ≤ σ_t ≤ c cot φ.
+    if let Some(t) = m.tension_cutoff.filter(|_| ok("tension_cutoff")) {
+        let tpath = format!("{path}.tension_cutoff");
+        let phi = m.friction_angle.filter(|_| ok("friction_angle"));
+        let cohesion = if m.cohesion.is_none() || ok("cohesion") {
+            Some(m.cohesion.unwrap_or(0.0))
+        } else {
+            None
+        };
+        match (phi, cohesion) {
+            (Some(phi), Some(coh)) => {
+                // The apex c cot φ, with room for round-off when it is written out.
+                let apex = coh / phi.to_radians().tan();
+                if !(t >= 0.0 && t <= apex * (1.0 + 1e-12)) {
+                    // Six significant digits: cot 45° is not exactly 1 in floats.
+                    let apex = format!("{apex:.5e}").parse().unwrap_or(apex);
                     c.issue(
-                        format!("{path}.poisson_ratio"),
-                        format!("must be in (-1, 0.5), got {nu}"),
+                        tpath,
+                        format!(
+                            "must be in [0, c cot φ] = [0, {apex}] Pa (the apex of the cone, \
+                             which is the default), got {t}"
+                        ),
                     );
                 }
             }
-            None => c.issue(
-                format!("{path}.poisson_ratio"),
-                format!("required for model \"{model}\" (Poisson's ratio)"),
-            ),
+            _ if t < 0.0 => c.issue(tpath, format!("must be zero or positive, got {t}")),
+            _ => {}
         }
     }
-    let frictional = matches!(m.model, ModelKind::DruckerPrager | ModelKind::MohrCoulomb);
-    if frictional {
-        check_drucker_prager(c, &path, m);
-    } else {
-        for (key, value) in [
-            ("friction_angle", m.friction_angle),
-            ("dilation_angle", m.dilation_angle),
-            ("cohesion", m.cohesion),
-        ] {
-            if value.is_some() {
-                c.issue(
-                    format!("{path}.{key}"),
-                    "only used by models \"drucker_prager\" and \"mohr_coulomb\"; remove \
-                             it or change the model",
-                );
-            }
-        }
-    }
-    if m.model != ModelKind::DruckerPrager {
-        for (key, set) in [
-            ("tension_cutoff", m.tension_cutoff.is_some()),
-            ("cone", m.cone.is_some()),
-            ("elasticity", m.elasticity.is_some()),
-        ] {
-            if set {
-                c.issue(
-                    format!("{path}.{key}"),
-                    format!(
-                        "only used by model \"drucker_prager\" (not by \"{model}\"); \
-                                 remove it or change the model"
-                    ),
-                );
-            }
-        }
-    }
-    let plastic = m.model == ModelKind::J2;
-    match m.yield_stress {
-        Some(sy) if plastic => {
-            c.positive(&format!("{path}.yield_stress"), sy);
-        }
-        None if plastic => c.issue(
-            format!("{path}.yield_stress"),
-            "required for model \"j2\" (the uniaxial yield stress, Pa)",
-        ),
-        Some(_) => c.issue(
-            format!("{path}.yield_stress"),
-            "only used by model \"j2\"; remove it or change the model",
-        ),
-        None => {}
-    }
-    if let Some(hardening) = m.hardening {
-        let hpath = format!("{path}.hardening");
-        if !plastic {
-            c.issue(
-                hpath,
-                "only used by model \"j2\"; remove it or change the model",
-            );
-        } else if c.finite(&hpath, hardening) && hardening < 0.0 {
-            c.issue(hpath, format!("must be zero or positive, got {hardening}"));
-        }
-    }
-}
-
-/// The keys of a `drucker_prager` or `mohr_coulomb` material (besides `E` and `ν`): the
-/// friction angle `0 < φ < 90` degrees (required), the dilation angle `0 ≤ ψ ≤ φ`, the
-/// cohesion `c ≥ 0` and (Drucker–Prager) the tension cutoff `0 ≤ σ_t ≤ c cot φ` (the apex
-/// of the cone).
-fn check_drucker_prager(c: &mut Checker, path: &str, m: &MaterialSpec) {
-    let fpath = format!("{path}.friction_angle");
-    let phi = match m.friction_angle {
-        None => {
-            c.issue(
-                fpath,
-                format!(
-                    "required for model \"{}\" (the friction angle φ in degrees, 0 < φ < 90)",
-                    m.model.name()
-                ),
-            );
-            None
-        }
-        Some(phi) => {
-            if !c.finite(&fpath, phi) {
-                None
-            } else if !(phi > 0.0 && phi < 90.0) {
-                c.issue(fpath, format!("must be in (0, 90) degrees, got {phi}"));
-                None
-            } else {
-                Some(phi)
-            }
-        }
-    };
-    if let Some(psi) = m.dilation_angle {
-        let dpath = format!("{path}.dilation_angle");
-        if c.finite(&dpath, psi) {
-            match phi {
-                Some(phi) if !(0.0..=phi).contains(&psi) => c.issue(
-                    dpath,
-                    format!("must be in [0, friction_angle] = [0, {phi}] degrees, got {psi}"),
-                ),
-                None if !(0.0..90.0).contains(&psi) => c.issue(
-                    dpath,
-                    format!("must be in [0, friction_angle] degrees, got {psi}"),
-                ),
-                _ => {}
-            }
-        }
-    }
-    let cohesion = match m.cohesion {
-        None => Some(0.0),
-        Some(coh) => {
-            let cpath = format!("{path}.cohesion");
-            if !c.finite(&cpath, coh) {
-                None
-            } else if coh < 0.0 {
-                c.issue(cpath, format!("must be zero or positive, got {coh}"));
-                None
-            } else {
-                Some(coh)
-            }
-        }
-    };
-    if let Some(t) = m.tension_cutoff {
-        let tpath = format!("{path}.tension_cutoff");
-        if c.finite(&tpath, t) {
-            match (phi, cohesion) {
-                (Some(phi), Some(coh)) => {
-                    // The apex c cot φ, with room for round-off when it is written out.
-                    let apex = coh / phi.to_radians().tan();
-                    if !(t >= 0.0 && t <= apex * (1.0 + 1e-12)) {
-                        // Six significant digits: cot 45° is not exactly 1 in floats.
-                        let apex = format!("{apex:.5e}").parse().unwrap_or(apex);
-                        c.issue(
-                            tpath,
-                            format!(
-                                "must be in [0, c cot φ] = [0, {apex}] Pa (the apex of the \
-                                     cone, which is the default), got {t}"
-                            ),
-                        );
-                    }
-                }
-                _ if t < 0.0 => {
-                    c.issue(tpath, format!("must be zero or positive, got {t}"));
-                }
-                _ => {}
-            }
-        }
-    }
-}
-
-/// The keys of a `fluid` material: exactly one of `sound_speed` and `bulk_modulus`,
-/// `gamma ≥ 1` and `viscosity ≥ 0` if given, and no elastic constants.
-fn check_fluid(c: &mut Checker, path: &str, m: &MaterialSpec) {
-    for (key, value) in [
-        ("youngs_modulus", m.youngs_modulus),
-        ("poisson_ratio", m.poisson_ratio),
-    ] {
-        if value.is_some() {
-            c.issue(
-                format!("{path}.{key}"),
-                "not used by model \"fluid\" (give sound_speed or bulk_modulus); remove \
-                     it or change the model",
-            );
-        }
-    }
-    match (m.sound_speed, m.bulk_modulus) {
-        (None, None) => c.issue(
-            format!("{path}.sound_speed"),
-            "required for model \"fluid\" (the reference sound speed, m/s), unless \
-                 bulk_modulus (Pa) is given instead",
-        ),
-        (Some(_), Some(_)) => c.issue(
-            format!("{path}.bulk_modulus"),
-            "give either sound_speed or bulk_modulus for model \"fluid\", not both",
-        ),
-        (Some(speed), None) => {
-            c.positive(&format!("{path}.sound_speed"), speed);
-        }
-        (None, Some(k)) => {
-            c.positive(&format!("{path}.bulk_modulus"), k);
-        }
-    }
-    if let Some(gamma) = m.gamma {
-        let gpath = format!("{path}.gamma");
-        if c.finite(&gpath, gamma) && gamma < 1.0 {
-            c.issue(gpath, format!("must be at least 1, got {gamma}"));
-        }
-    }
-    if let Some(eta) = m.viscosity {
-        let vpath = format!("{path}.viscosity");
-        if c.finite(&vpath, eta) && eta < 0.0 {
-            c.issue(vpath, format!("must be zero or positive, got {eta}"));
-        }
+    // κ < λ.
+    if let (Some(lambda), Some(kappa)) = (m.lambda, m.kappa)
+        && ok("lambda")
+        && ok("kappa")
+        && kappa >= lambda
+    {
+        c.issue(
+            format!("{path}.kappa"),
+            format!("must be smaller than lambda = {lambda}, got {kappa}"),
+        );
     }
 }
 
@@ -586,6 +419,14 @@ impl Scene {
         }
         if let Some(stress) = &body.initial_stress {
             self.check_initial_stress(c, &format!("{path}.initial_stress"), body, stress, dim);
+        } else if (self.materials.iter())
+            .any(|m| m.name == body.material && m.model == ModelKind::ModifiedCamClay)
+        {
+            c.issue(
+                format!("{path}.initial_stress"),
+                "required for a body of model \"modified_cam_clay\": it has no stiffness at \
+                 zero stress (give type = \"geostatic\" with the body under gravity)",
+            );
         }
         if check_shape(c, &format!("{path}.shape"), &body.shape, dim) {
             self.check_inside_domain(c, path, &body.shape);
@@ -852,6 +693,16 @@ impl Scene {
 
     fn check_explicit(&self, c: &mut Checker) {
         let s = &self.solver;
+        for (i, m) in self.materials.iter().enumerate() {
+            if m.model == ModelKind::ModifiedCamClay {
+                c.issue(
+                    format!("materials[{i}].model"),
+                    "\"modified_cam_clay\" runs in implicit scenes (solver.type = \
+                     \"implicit\"): its stiffness grows with the pressure, and the explicit \
+                     solver's time-step bound takes one elastic wave speed per material",
+                );
+            }
+        }
         let shape = self.grid.shape_function;
         if s.transfer == Some(Transfer::Mls) && shape.apic_inverse_inertia().is_none() {
             c.issue(

@@ -33,6 +33,7 @@ fn particles<const D: usize>(n: usize) -> Particles<f64, D> {
         p.state[i] = MaterialState {
             plastic_strain: next(),
             tensor: Matrix3::from_fn(|_, _| next()),
+            hardening: next(),
         };
     }
     p.v[0][0] = f64::from_bits(0x7ff8_0000_dead_beef);

@@ -425,6 +425,46 @@ fn several_issues_are_reported_one_per_line() {
     assert_eq!(err.to_string().lines().count(), 3);
 }
 
+/// Serde stops at the first key a struct does not know; the loaders go on, so a file with
+/// four misspelt keys in four sections (one inside a tagged shape table) lists all four, each
+/// with its path, in TOML (with its line) and in JSON.
+#[test]
+fn every_unknown_key_is_reported_with_its_path() {
+    let text = std::fs::read_to_string(fixture("good/box_2d.toml"))
+        .unwrap()
+        .replace("cell_size = 0.02", "cell_size = 0.02\ncellsize = 0.02")
+        .replace("poisson_ratio = 0.3", "poisson_ratio = 0.3\npoisson = 0.3")
+        .replace("hi = [0.3, 0.3] }", "hi = [0.3, 0.3], radius = 1.0 }")
+        .replace("end_time = 0.5", "end_time = 0.5\nsheme = \"usl\"");
+    let err = Scene::from_toml_str(&text).unwrap_err();
+    let msg = err.to_string();
+    let wanted = [
+        "grid.cellsize: unknown field `cellsize`",
+        "materials[0].poisson: unknown field `poisson`",
+        "bodies[0].shape: unknown field `radius`",
+        "solver.sheme: unknown field `sheme`",
+    ];
+    for want in wanted {
+        assert!(msg.contains(want), "{want} missing from:\n{msg}");
+    }
+    assert_eq!(err.issues().len(), 4, "{msg}");
+    assert!(msg.contains("(line 6, column 1)"), "{msg}");
+    // The same scene in JSON.
+    let scene: toml::Table =
+        toml::from_str(&std::fs::read_to_string(fixture("good/box_2d.toml")).unwrap()).unwrap();
+    let mut json = serde_json::to_value(&scene).unwrap();
+    json["grid"]["cellsize"] = 0.02.into();
+    json["materials"][0]["poisson"] = 0.3.into();
+    json["bodies"][0]["shape"]["radius"] = 1.0.into();
+    json["solver"]["sheme"] = "usl".into();
+    let err = Scene::from_json_str(&json.to_string()).unwrap_err();
+    let msg = err.to_string();
+    for want in wanted {
+        assert!(msg.contains(want), "{want} missing from:\n{msg}");
+    }
+    assert_eq!(err.issues().len(), 4, "{msg}");
+}
+
 #[test]
 fn unknown_extension_and_missing_file_are_errors() {
     let err = Scene::from_path("scene.yaml").unwrap_err();
@@ -1158,6 +1198,19 @@ fn fos_rules_name_the_field() {
         "model = \"mohr_coulomb\"\nfriction_angle = 30.0\ncohesion = 5.0e3",
         1,
     );
+    let clay = text
+        .replacen(
+            "model = \"hencky\"\ndensity = 2000.0\nyoungs_modulus = 1.0e7\n",
+            "model = \"modified_cam_clay\"\ndensity = 2000.0\nlambda = 0.2\nkappa = 0.04\n\
+             critical_state_slope = 1.0\nvoid_ratio = 1.0\nocr = 1.5\n",
+            1,
+        )
+        .replacen(
+            "particles_per_cell = 2",
+            "particles_per_cell = 2\ninitial_stress = { type = \"geostatic\", k0 = 0.6 }",
+            1,
+        );
+    assert!(clay.contains("modified_cam_clay") && clay.contains("geostatic"));
     let with = |scene: &str, fos: &str| format!("{scene}\n[fos]\n{fos}\n");
     let scene = Scene::from_toml_str(&with(&soil, "tolerance = 0.02\nmax_trials = 12"))
         .unwrap_or_else(|e| panic!("{e}"));
@@ -1196,6 +1249,13 @@ fn fos_rules_name_the_field() {
             with(&text, ""),
             "materials: no material has a strength to reduce",
         ),
+        // Modified Cam-Clay's strength comes from its state: it is not reduced.
+        (
+            with(&clay, ""),
+            "materials: no material has a strength to reduce: expected a \"mohr_coulomb\", \
+             \"drucker_prager\" or \"j2\" material (the elastic models, \"fluid\" and \
+             \"modified_cam_clay\"",
+        ),
         (
             with(
                 &soil.replacen("load_steps = 20", "load_steps = 20\nnewmark_dt = 0.01", 1),
@@ -1209,7 +1269,19 @@ fn fos_rules_name_the_field() {
             Err(err) => assert!(err.to_string().contains(want), "{want}:\n{err}"),
         }
     }
-    // Without a section the same needs are checked by `Scene::check_fos`.
+    // Without a section the same needs are checked by `Scene::check_fos`; the clay scene is
+    // sound but for them.
+    let clay = Scene::from_toml_str(&clay).unwrap_or_else(|e| panic!("{e}"));
+    let err = clay.check_fos().unwrap_err().to_string();
+    assert!(
+        err.contains("materials: no material has a strength to reduce"),
+        "{err}"
+    );
+    // An initial stress puts gravity in full into the first load step.
+    assert!(
+        err.contains("bodies[0].initial_stress: the factor of safety is searched over gravity"),
+        "{err}"
+    );
     let mut unloaded = plain.clone();
     unloaded.point_loads.clear();
     unloaded.loads.gravity = Some(vec![0.0, 0.0]);

@@ -1,8 +1,11 @@
 //! The inversion file: its schema, reading it with field-path errors, and turning it into an
 //! inverse problem on the scene it names (`docs/inversion-format.md`).
 
+use super::Limits;
+use super::limits;
 use super::model::Model;
 use super::observed;
+use super::units::quantity;
 use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
@@ -11,7 +14,7 @@ use loam_inverse::{
     Checkpoints, Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
     Transform, Variable, VelocityField,
 };
-use loam_scene::{Built, Issue, Location, Scene, SceneError, SceneFormat, SolverPlan};
+use loam_scene::{Built, Issue, Scene, SceneError, SceneFormat, SolverPlan};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -342,23 +345,22 @@ pub fn read(path: &Path) -> Result<InversionFile, Invalid> {
             path.display()
         ))
     })?;
-    let location = |e: &toml::de::Error| e.span().map(|s| Location::from_offset(&text, s.start));
-    let de = toml::Deserializer::parse(&text).map_err(|e| SceneError::Syntax {
-        file: Some(path.to_path_buf()),
-        format: SceneFormat::Toml,
-        location: location(&e),
-        message: e.message().trim_end().to_owned(),
-    })?;
-    let file: InversionFile = serde_path_to_error::deserialize(de).map_err(|e| {
-        let field = e.path().to_string();
-        let field = if field == "." { String::new() } else { field };
-        let message = match location(e.inner()) {
-            Some(at) if !field.is_empty() => format!("{} ({at})", e.inner().message()),
-            _ => e.inner().message().to_owned(),
-        };
-        invalid(path, vec![Issue::new(field, message)])
-    })?;
-    Ok(file)
+    Ok(loam_scene::parse_file(path, &text, SceneFormat::Toml)?)
+}
+
+/// The issue, as `(field, message)`, of a `[synthetic]` section `s` whose first observed
+/// step `first` is after the last, `steps`: it observes nothing. The field is `first` when
+/// the file gives it, else `every` (of which `first` is the default).
+pub fn nothing_observed(s: &SyntheticSpec, first: usize, steps: usize) -> (String, String) {
+    let field = match s.first {
+        Some(_) => "synthetic.first",
+        None => "synthetic.every",
+    };
+    let msg = format!(
+        "the first observed step, {first}, is after the last step of the run, {steps}: \
+         nothing would be observed (the loss would be 0 whatever the parameters)"
+    );
+    (field.into(), msg)
 }
 
 /// Why an observation file is refused beside `[synthetic]`.
@@ -407,17 +409,19 @@ pub fn scene_of(path: &Path, file: &InversionFile) -> Result<(PathBuf, Scene), I
 /// observations (read from their CSV files, or made by the truth run of `[synthetic]`).
 /// Every problem found is reported at once with its field path. `memory` is the adjoint's
 /// memory budget in bytes (`--memory`), which chooses the segment length unless the file
-/// gives one.
+/// gives one. A run longer than the step limit, or an inversion whose estimated memory is
+/// above the memory limit (`limits`), is refused before a step is run.
 pub fn build<const D: usize>(
     path: &Path,
     file: InversionFile,
     scene_path: PathBuf,
     scene: Scene,
     memory: Option<u64>,
+    limits: Limits,
 ) -> Result<Inversion<D>, Invalid> {
     let built: Built<D> = scene.build()?;
     if let SolverPlan::Implicit(_) = built.plan {
-        return super::implicit::build(path, file, scene_path, scene, built, memory);
+        return super::implicit::build(path, file, scene_path, scene, built, memory, limits);
     }
     let mut issues = Vec::new();
     let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
@@ -703,14 +707,22 @@ pub fn build<const D: usize>(
             ]) {
                 issue(field, SYNTHETIC_CLASH.into());
             }
+            let watched = s.particles > 0 || !s.ids.is_empty() || !boxes.is_empty();
             match s.every {
                 Some(0) => issue("synthetic.every".into(), "expected at least 1 step".into()),
-                None if s.particles > 0 || !boxes.is_empty() => issue(
+                None if watched => issue(
                     "synthetic.every".into(),
                     "expected the steps between observations of the tracked particles and \
                      monitors"
                         .into(),
                 ),
+                Some(every) if watched && steps > 0 => {
+                    let first = s.first.unwrap_or(every);
+                    if limits::observed_steps(first, every, steps) == 0 {
+                        let (field, msg) = nothing_observed(s, first, steps);
+                        issue(field, msg);
+                    }
+                }
                 _ => {}
             }
             if s.particles > built.particles.len() {
@@ -763,6 +775,29 @@ pub fn build<const D: usize>(
             }
         }
     }
+    let checkpoints = match (file.segment, memory) {
+        (Some(k), _) => Checkpoints::Segment(k),
+        (None, Some(bytes)) => Checkpoints::Memory(bytes),
+        (None, None) => Checkpoints::Least,
+    };
+    // The length of the runs and the memory, before a step is run or an observation kept.
+    if let Some(c) = config.as_ref().filter(|_| steps > 0) {
+        let rows = file.synthetic.as_ref().map_or(0, |s| {
+            let every = s.every.unwrap_or(steps + 1);
+            let first = s.first.unwrap_or(every);
+            let per_step = tracked_ids(built.particles.len(), s).len() + boxes.len();
+            limits::observed_steps(first, every, steps) * per_step + stations.len()
+        });
+        let bytes = limits::explicit(c, &built.particles, steps, checkpoints, rows as f64);
+        if let Some(msg) = limits.exceeded(steps, bytes) {
+            let field = if file.end_time.is_some() {
+                "end_time"
+            } else {
+                "steps"
+            };
+            issue(field.into(), msg);
+        }
+    }
     if !issues.is_empty() {
         return Err(invalid(path, issues));
     }
@@ -773,11 +808,7 @@ pub fn build<const D: usize>(
         steps,
         controls,
         objective: Observations::default(),
-        checkpoints: match (file.segment, memory) {
-            (Some(k), _) => Checkpoints::Segment(k),
-            (None, Some(bytes)) => Checkpoints::Memory(bytes),
-            (None, None) => Checkpoints::Least,
-        },
+        checkpoints,
     };
     let mut initial: Vec<f64> = file.parameters.iter().map(|p| p.initial).collect();
     let values = problem.values().map_err(|e| Invalid(e.to_string()))?;
@@ -821,6 +852,8 @@ pub fn build<const D: usize>(
                 dt,
                 steps,
                 particles: problem.initial.len(),
+                domain: (scene.grid.lo.clone(), scene.grid.hi.clone()),
+                cell: scene.grid.cell_size,
             };
             let mut out = sensors;
             let mut errors = Vec::new();
@@ -837,7 +870,7 @@ pub fn build<const D: usize>(
                 }
             }
             if let Some(f) = &o.deposit {
-                match observed::read_deposit(&dir.join(f), &at, &station_names) {
+                match observed::read_deposit(&dir.join(f), &at, &station_names, up) {
                     Ok(t) => out.deposit.targets = t,
                     Err(msg) => errors.push(Issue::new("observations.deposit", msg)),
                 }
@@ -935,7 +968,8 @@ impl<const D: usize> Inversion<D> {
 }
 
 /// The optimiser's view of parameter `p` (transform, scale, bounds), its `initial` and
-/// `truth` checked against them; each problem is reported by its field name.
+/// `truth` checked against them and against the [physical range](quantity) of the
+/// parameter; each problem is reported by its field name.
 pub fn variable(p: &ParameterSpec, issue: &mut dyn FnMut(&str, String)) -> Variable {
     let scale = p.scale.unwrap_or(1.0);
     if !(scale.is_finite() && scale > 0.0) {
@@ -970,6 +1004,13 @@ pub fn variable(p: &ParameterSpec, issue: &mut dyn FnMut(&str, String)) -> Varia
             && !(lo..=hi).contains(&v)
         {
             issue(field, format!("{v} is outside the bounds [{lo}, {hi}]"));
+        } else if let Some((lo, hi, what)) = quantity(&p.name).range
+            && !(lo..=hi).contains(&v)
+        {
+            issue(
+                field,
+                format!("{v} is outside [{lo}, {hi}], the physical range of {what}"),
+            );
         }
     }
     Variable {

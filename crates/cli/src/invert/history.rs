@@ -2,10 +2,11 @@
 //! checkpoint and the recovered scene.
 
 use super::file::InversionFile;
+use super::units::quantity;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
 use loam_scene::{MaterialSpec, Scene};
-use loam_verification::{Series, write_plot};
+use loam_verification::{Panel, Series, write_panels};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -116,75 +117,82 @@ impl History {
         write_atomic(&dir.join("history.json"), &json)
     }
 
-    /// Plots `log₁₀ L`, the parameters (with their truth, dashed as markers) and the velocity
-    /// fields' relative errors against the iteration: `history_loss.png`,
-    /// `history_parameters.png` (with parameters), `history_field_error.png` (with fields
-    /// and their truth) in `dir`.
+    /// Plots `log₁₀ L`, the parameters (with their truth as markers) and the velocity fields'
+    /// relative errors against the iteration (whole-number ticks): `history_loss.png`,
+    /// `history_parameters.png` (with parameters: one panel each, with its unit and its own
+    /// range, so a Young's modulus and a Poisson's ratio are both readable),
+    /// `history_field_error.png` (with fields and their truth) in `dir`.
     pub fn plot(&self, dir: &Path) -> Result<(), String> {
-        let loss = Series {
-            name: "log10 loss".into(),
-            points: (self.entries.iter())
-                .filter(|e| e.loss > 0.0)
-                .map(|e| (e.iteration as f64, e.loss.log10()))
-                .collect(),
+        let iterations = |value: &dyn Fn(&Entry) -> f64| -> Vec<(f64, f64)> {
+            (self.entries.iter())
+                .map(|e| (e.iteration as f64, value(e)))
+                .collect()
+        };
+        let line = |name: String, points| Series {
+            name,
+            points,
             markers: false,
         };
         let err = |e: loam_verification::VerifyError| e.to_string();
-        write_plot(
-            &dir.join("history_loss.png"),
-            "Loss",
-            "iteration",
-            "log10 L",
-            &[loss],
-        )
-        .map_err(err)?;
+        let loss = Panel {
+            y_label: "log10 L".into(),
+            series: vec![line(
+                "log10 loss".into(),
+                iterations(&|e| {
+                    if e.loss > 0.0 {
+                        e.loss.log10()
+                    } else {
+                        f64::NAN
+                    }
+                }),
+            )],
+        };
+        write_panels(&dir.join("history_loss.png"), "Loss", "iteration", &[loss]).map_err(err)?;
         let fields = self.entries.first().map_or(0, |e| e.field_errors.len());
         if fields > 0 {
-            let errors: Vec<Series> = (0..fields)
-                .map(|k| Series {
-                    name: format!("velocity_field[{k}]"),
-                    points: (self.entries.iter())
-                        .map(|e| (e.iteration as f64, e.field_errors[k]))
-                        .collect(),
-                    markers: false,
-                })
-                .collect();
-            write_plot(
+            let errors = Panel {
+                y_label: "relative L2 error (–)".into(),
+                series: (0..fields)
+                    .map(|k| {
+                        line(
+                            format!("velocity_field[{k}]"),
+                            iterations(&|e| e.field_errors[k]),
+                        )
+                    })
+                    .collect(),
+            };
+            write_panels(
                 &dir.join("history_field_error.png"),
                 "Velocity field: relative L2 error",
                 "iteration",
-                "relative error",
-                &errors,
+                &[errors],
             )
             .map_err(err)?;
         }
         if self.names.is_empty() {
             return Ok(());
         }
-        let last = self.entries.last().map_or(0.0, |e| e.iteration as f64);
-        let mut series = Vec::new();
-        for (k, name) in self.names.iter().enumerate() {
-            series.push(Series {
-                name: name.clone(),
-                points: (self.entries.iter())
-                    .map(|e| (e.iteration as f64, e.parameters[k]))
-                    .collect(),
-                markers: false,
-            });
-            if let Some(t) = &self.truth {
-                series.push(Series {
-                    name: format!("{name} truth"),
-                    points: vec![(0.0, t[k]), (last, t[k])],
-                    markers: true,
-                });
-            }
-        }
-        write_plot(
+        let panels: Vec<Panel> = (self.names.iter().enumerate())
+            .map(|(k, name)| {
+                let mut series = vec![line(name.clone(), iterations(&|e| e.parameters[k]))];
+                if let Some(t) = &self.truth {
+                    series.push(Series {
+                        name: format!("truth {}", t[k]),
+                        points: iterations(&|_| t[k]),
+                        markers: true,
+                    });
+                }
+                Panel {
+                    y_label: format!("{name} ({})", quantity(name).unit),
+                    series,
+                }
+            })
+            .collect();
+        write_panels(
             &dir.join("history_parameters.png"),
             "Parameters",
             "iteration",
-            "value",
-            &series,
+            &panels,
         )
         .map_err(err)
     }
@@ -298,5 +306,56 @@ fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
         F::Cohesion => m.cohesion = Some(v),
         F::YieldStress => m.yield_stress = Some(v),
         F::Hardening => m.hardening = Some(v),
+        F::Lambda => m.lambda = Some(v),
+        F::Kappa => m.kappa = Some(v),
+        F::CriticalStateSlope => m.critical_state_slope = Some(v),
+        F::VoidRatio => m.void_ratio = Some(v),
+        F::ShearModulus => m.shear_modulus = Some(v),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Width and height of a PNG, from its header chunk.
+    fn png_size(path: &Path) -> (u32, u32) {
+        let bytes = std::fs::read(path).unwrap();
+        let word = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+        (word(16), word(20))
+    }
+
+    /// E (10⁶ Pa) and ν (0.3) over 12 iterations: one panel each (so the parameters plot is
+    /// two panels high), the loss alone in its own.
+    #[test]
+    fn parameters_of_different_magnitude_get_a_panel_each() {
+        let dir = tempfile::tempdir().unwrap();
+        let entries = (0..12)
+            .map(|k| Entry {
+                iteration: k,
+                loss: 10f64.powi(-(k as i32)),
+                gradient_norm: 1.0,
+                parameters: vec![1.3e6 - 2.5e4 * k as f64, 0.35 - 0.008 * k as f64],
+                gradient: vec![0.0, 0.0],
+                field_errors: Vec::new(),
+                evaluations: 1,
+                seconds: 0.1,
+            })
+            .collect();
+        let history = History {
+            names: vec!["materials[0].young".into(), "materials[0].poisson".into()],
+            truth: Some(vec![1.0e6, 0.25]),
+            entries,
+        };
+        history.plot(dir.path()).unwrap();
+        assert_eq!(
+            png_size(&dir.path().join("history_parameters.png")),
+            (900, 60 + 2 * 240)
+        );
+        assert_eq!(
+            png_size(&dir.path().join("history_loss.png")),
+            (900, 60 + 240)
+        );
+        assert!(!dir.path().join("history_field_error.png").exists());
     }
 }

@@ -3,11 +3,13 @@
 //! displacements and constraint reactions after chosen load steps
 //! (`docs/inversion-format.md`).
 
+use super::Limits;
 use super::file::{
     Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, SYNTHETIC_CLASH, check_ids,
-    check_optimiser, for_path, invalid, observed_with_synthetic, require_truth, tracked_ids,
-    variable,
+    check_optimiser, for_path, invalid, nothing_observed, observed_with_synthetic, require_truth,
+    tracked_ids, variable,
 };
+use super::limits;
 use super::model::Model;
 use super::observed;
 use loam_core::tensor::Vector;
@@ -33,6 +35,7 @@ pub fn build<const D: usize>(
     scene: Scene,
     built: Built<D>,
     memory: Option<u64>,
+    limits: Limits,
 ) -> Result<Inversion<D>, Invalid> {
     let mut issues = Vec::new();
     let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
@@ -187,6 +190,13 @@ pub fn build<const D: usize>(
                     "expected a load step ≥ 1 (step 0 is the initial state)".into(),
                 );
             }
+            let every = s.every.unwrap_or(1).max(1);
+            let first = s.first.unwrap_or(every);
+            let steps = config.load_steps;
+            if steps > 0 && limits::observed_steps(first, every, steps) == 0 {
+                let (field, msg) = nothing_observed(s, first, steps);
+                issue(field, msg);
+            }
             if s.particles > n {
                 issue(
                     "synthetic.particles".into(),
@@ -221,6 +231,21 @@ pub fn build<const D: usize>(
                 );
             }
         }
+    }
+    // The length of the run and the memory of its record, before a step is run.
+    let rows = file.synthetic.as_ref().map_or(0, |s| {
+        let every = s.every.unwrap_or(1).max(1);
+        let first = s.first.unwrap_or(every);
+        let per_step = tracked_ids(n, s).len() * D + o.reactions.len();
+        limits::observed_steps(first, every, config.load_steps) * per_step
+    });
+    let bytes = limits::implicit::<D>(config.load_steps, n, rows as f64);
+    if let Some(msg) = limits.exceeded(config.load_steps, bytes) {
+        let field = match file.steps {
+            Some(_) => "steps",
+            None => "scene",
+        };
+        issue(field.into(), msg);
     }
     if !issues.is_empty() {
         return Err(invalid(path, issues));
@@ -266,20 +291,21 @@ pub fn build<const D: usize>(
                     items.push((step, quantity, sigmas.1));
                 }
             }
-            if items.is_empty() {
-                return Err(invalid(
-                    path,
-                    vec![Issue::new(
-                        "synthetic.first",
-                        format!("no load step observed: expected first ≤ {steps}"),
-                    )],
-                ));
-            }
             (items.into_iter())
                 .map(|(step, quantity, sigma)| Observation::of_run(step, quantity, sigma, &run))
                 .collect()
         }
-        None => read_observations::<D>(path, &file, steps, n, sigmas, &reactions)?,
+        None => {
+            // A `time` column reads as the load factor `step / load_steps`.
+            let grid = observed::Grid {
+                dt: 1.0 / steps as f64,
+                steps,
+                particles: n,
+                domain: (scene.grid.lo.clone(), scene.grid.hi.clone()),
+                cell: scene.grid.cell_size,
+            };
+            read_observations::<D>(path, &file, &grid, sigmas, &reactions)?
+        }
     };
     let initial = file.parameters.iter().map(|p| p.initial).collect();
     let names = file.parameters.iter().map(|p| p.name.clone()).collect();
@@ -344,19 +370,13 @@ fn solver_param<const D: usize>(
 fn read_observations<const D: usize>(
     path: &Path,
     file: &InversionFile,
-    steps: usize,
-    particles: usize,
+    grid: &observed::Grid,
     sigmas: (f64, f64),
     reactions: &[(usize, usize)],
 ) -> Result<Vec<Observation>, Invalid> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let o = &file.observations;
-    // A `time` column reads as the load factor `step / load_steps`.
-    let grid = observed::Grid {
-        dt: 1.0 / steps as f64,
-        steps,
-        particles,
-    };
+    let steps = grid.steps;
     let initial_state = |field: &str| {
         Issue::new(
             format!("observations.{field}"),
@@ -366,7 +386,7 @@ fn read_observations<const D: usize>(
     let mut items = Vec::new();
     let mut errors = Vec::new();
     if let Some(f) = &o.displacement {
-        match observed::read_displacement::<D>(&dir.join(f), &grid) {
+        match observed::read_displacement::<D>(&dir.join(f), grid) {
             Ok(t) if t.contains_key(&0) => errors.push(initial_state("displacement")),
             Ok(t) => {
                 for (step, rows) in t {
@@ -390,7 +410,7 @@ fn read_observations<const D: usize>(
     }
     if let Some(f) = &o.reaction {
         let names: Vec<String> = o.reactions.iter().map(|r| r.name.clone()).collect();
-        match observed::read_reaction(&dir.join(f), &grid, &names) {
+        match observed::read_reaction(&dir.join(f), grid, &names) {
             Ok(t) if t.contains_key(&0) => errors.push(initial_state("reaction")),
             Ok(t) => {
                 for (step, rows) in t {

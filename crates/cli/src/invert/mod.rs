@@ -13,15 +13,19 @@
 mod file;
 mod history;
 mod implicit;
+mod limits;
 mod model;
 mod observed;
+mod units;
 
 use crate::Outcome;
-use crate::run::interrupt;
+use crate::run::{interrupt, writable_folder};
 use file::{Invalid, Inversion, OptimizerSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
+pub use limits::Limits;
 use loam_core::tensor::Vector;
-use loam_inverse::optimise::norm;
+use loam_inverse::check::Jump;
+use loam_inverse::optimise::{free_gradient_norm, norm};
 use loam_inverse::{
     Adam, AdjointError, Control, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt, Optimiser,
 };
@@ -31,10 +35,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Reads the inversion file and sets it up for the scene's dimension (with the adjoint's
-/// memory budget `memory` in bytes, `--memory`), then runs `then`.
+/// memory budget `memory` in bytes, `--memory`, within `limits`), then runs `then`.
 fn with_inversion(
     path: &Path,
     memory: Option<u64>,
+    limits: Limits,
     then2: impl FnOnce(Inversion<2>) -> Outcome,
     then3: impl FnOnce(Inversion<3>) -> Outcome,
 ) -> Outcome {
@@ -42,8 +47,8 @@ fn with_inversion(
         let f = file::read(path)?;
         let (scene_path, scene) = file::scene_of(path, &f)?;
         Ok(match scene.dim() {
-            2 => then2(file::build(path, f, scene_path, scene, memory)?),
-            _ => then3(file::build(path, f, scene_path, scene, memory)?),
+            2 => then2(file::build(path, f, scene_path, scene, memory, limits)?),
+            _ => then3(file::build(path, f, scene_path, scene, memory, limits)?),
         })
     };
     setup().unwrap_or_else(|Invalid(msg)| {
@@ -62,8 +67,8 @@ pub fn is_inversion(path: &Path) -> bool {
 }
 
 /// Validates an inversion file, its scene and observations (`loam check` on an inversion
-/// file).
-pub fn check(path: &Path) -> Outcome {
+/// file), within `limits`.
+pub fn check(path: &Path, limits: Limits) -> Outcome {
     fn report<const D: usize>(inv: Inversion<D>) -> Outcome {
         let observed = match &inv.problem {
             Model::Explicit(p) => format!(
@@ -92,14 +97,15 @@ pub fn check(path: &Path) -> Outcome {
         );
         Outcome::Ok
     }
-    with_inversion(path, None, report::<2>, report::<3>)
+    with_inversion(path, None, limits, report::<2>, report::<3>)
 }
 
 /// `loam gradient FILE [--check] [--memory SIZE]`.
-pub fn gradient(path: &Path, check: bool, memory: Option<u64>) -> Outcome {
+pub fn gradient(path: &Path, check: bool, memory: Option<u64>, limits: Limits) -> Outcome {
     with_inversion(
         path,
         memory,
+        limits,
         |i| gradient_dim(i, check),
         |i| gradient_dim(i, check),
     )
@@ -123,6 +129,9 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         Ok(g) => g,
         Err(e) => return failed(&inv.path, e),
     };
+    if let Err(outcome) = first_loss(&inv.path, loss) {
+        return outcome;
+    }
     let wall = start.elapsed().as_secs_f64();
     println!(
         "{}: L = {loss:.10e} over {}; gradient in {wall:.2} s",
@@ -200,6 +209,8 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
     // Unknowns where the adjoint and the dual agree but a converged central difference does
     // not: the derivative misses a dependence of the forward run on the parameter.
     let mut missed = Vec::new();
+    // What was found of jumps of the loss, one line per unknown, printed after the table.
+    let mut jumps = Vec::new();
     for (name, k) in &rows {
         let k = *k;
         let row = match inv.problem.check_one(theta, loss, grad[k], k) {
@@ -208,17 +219,19 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         };
         let rel = |a: f64| (a - grad[k]).abs() / grad[k].abs().max(1e-300);
         worst = worst.max(rel(row.dual));
-        let fd = row.difference;
         let conv = match row.converged {
             Some((step, _)) => format!("{step:.0e}"),
             None => "no".into(),
         };
+        let (fd, fd_rel) = match row.difference {
+            Some(fd) => (format!("{fd:.10e}"), format!("{:.1e}", rel(fd))),
+            None => ("(jump)".into(), "-".into()),
+        };
         print!(
-            "  {name:width$}  {:>18.10e}  {:>18.10e}  {:>9.1e}  {fd:>18.10e}  {:>9.1e}  {conv:>5} ",
+            "  {name:width$}  {:>18.10e}  {:>18.10e}  {:>9.1e}  {fd:>18}  {fd_rel:>9}  {conv:>5} ",
             grad[k],
             row.dual,
-            rel(row.dual),
-            rel(fd)
+            rel(row.dual)
         );
         for x in row.remainders {
             print!(" {x:>10.3e}");
@@ -230,10 +243,16 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         println!();
         if row.misses_the_difference() {
             missed.push(format!(
-                "{name} (dual {:.6e}, central difference {fd:.6e})",
+                "{name} (dual {:.6e}, central difference {fd})",
                 row.dual
             ));
         }
+        for j in &row.jumps {
+            jumps.push(jump_note(name, j, &row));
+        }
+    }
+    for note in &jumps {
+        println!("{note}");
     }
     // The adjoint and the dual run are the same derivative of the same discrete map:
     // anything above round-off (1e-8 leaves room for losses summed over many steps) is a bug.
@@ -251,6 +270,28 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         return Outcome::Failed;
     }
     Outcome::Ok
+}
+
+/// What `loam gradient --check` says of a jump `j` of the loss along the unknown `name`: where
+/// it is, that the differences across it are left out and where the Taylor test starts.
+fn jump_note(name: &str, j: &Jump, row: &model::CheckRow) -> String {
+    let differences = match row.difference {
+        Some(_) => "the central differences whose stencil reaches it are left out",
+        None => "every central difference tried reaches it, so none is shown",
+    };
+    let taylor = if j.straddled_by(0.0, row.taylor_step) {
+        "every Taylor step reaches it too".to_owned()
+    } else {
+        format!(
+            "the Taylor test starts at h = {:.1e}, short of the jumps",
+            row.taylor_step
+        )
+    };
+    format!(
+        "  jump along {name}: L changes by {:.3e} between θ {:+.6e} and θ {:+.6e} (the adjoint \
+         and the dual give the slope of the smooth piece at θ); {differences}; {taylor}",
+        j.size, j.lo, j.hi
+    )
 }
 
 /// The unknowns `loam gradient` prints, with their index in `θ`: every named parameter, and
@@ -279,7 +320,13 @@ fn field_blocks<const D: usize>(inv: &Inversion<D>) -> Vec<(usize, usize)> {
 }
 
 /// `loam invert FILE [--out DIR] [--resume] [--memory SIZE]`.
-pub fn invert(path: &Path, out: Option<&Path>, resume: bool, memory: Option<u64>) -> Outcome {
+pub fn invert(
+    path: &Path,
+    out: Option<&Path>,
+    resume: bool,
+    memory: Option<u64>,
+    limits: Limits,
+) -> Outcome {
     let dir = out.map_or_else(
         || {
             let stem = path
@@ -292,6 +339,7 @@ pub fn invert(path: &Path, out: Option<&Path>, resume: bool, memory: Option<u64>
     with_inversion(
         path,
         memory,
+        limits,
         |i| invert_dim(i, &dir, resume),
         |i| invert_dim(i, &dir, resume),
     )
@@ -391,9 +439,13 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
         );
         (cp.optimiser, cp.current, cp.history)
     } else {
-        if let Err(e) = std::fs::create_dir_all(dir) {
-            eprintln!("error: cannot create {}: {e}", dir.display());
-            return Outcome::Failed;
+        // An output folder that cannot be written is invalid input, as for `loam run`.
+        if let Err(e) = writable_folder(dir) {
+            eprintln!(
+                "error: --out: cannot write to the output folder {}: {e}",
+                dir.display()
+            );
+            return Outcome::BadInput;
         }
         if inv.file.synthetic.is_some()
             && let Err(e) = write_synthetic(&inv, dir)
@@ -412,6 +464,9 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             Ok(e) => e,
             Err(e) => return failed(&inv.path, e),
         };
+        if let Err(outcome) = first_loss(&inv.path, first.loss) {
+            return outcome;
+        }
         let history = History {
             names: inv.names.clone(),
             truth: inv.truth.clone(),
@@ -433,6 +488,8 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
     }
     let stop = &inv.file.stop;
     let mut fresh = !resume;
+    // Set when the optimiser stops without a decrease away from a minimum.
+    let mut stalled = false;
     let reason = loop {
         let last = history.entries.last().expect("the first entry").clone();
         let checkpoint = Checkpoint {
@@ -497,12 +554,69 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
                 current = next;
             }
             Ok(None) => {
-                break "no step found a decrease: a minimum to the loss's precision".into();
+                let free = free_gradient_norm(&current, &project);
+                let verdict = no_decrease(&history.entries[0], current.loss, free);
+                stalled = verdict.is_err();
+                break verdict.unwrap_or_else(|e| e);
             }
             Err(e) => return failed(&inv.path, e),
         }
     };
-    finish(&inv, dir, &history, &current, &reason, started)
+    match finish(&inv, dir, &history, &current, &reason, started) {
+        Outcome::Ok if stalled => {
+            eprintln!(
+                "error: {}: the optimiser stopped away from a minimum (the results are \
+                 written, but are not a fit): {reason}",
+                inv.path.display()
+            );
+            Outcome::Failed
+        }
+        outcome => outcome,
+    }
+}
+
+/// How far below the first the gradient over the free variables must have fallen for a
+/// point where no step decreases the loss to be a minimum: a line search stalls on round-off
+/// only where the predicted decrease `|g|²/H` is at the loss's last digits, which for a
+/// quadratic loss is about `10⁻⁸ |g₀| √(L/L₀)`; a gradient still above `10⁻⁶ |g₀|` is a
+/// loss the optimiser cannot follow (a jump the gradient does not see, a wrong gradient).
+const MINIMUM_GRADIENT: f64 = 1e-6;
+
+/// How far below the first a loss is a fit to round-off wherever the optimiser stops.
+const MINIMUM_LOSS: f64 = 1e-12;
+
+/// Why the optimiser stopped when no step found a decrease at a point of loss `loss` and
+/// free gradient norm `free` ([`free_gradient_norm`]): `Ok` at a minimum to the loss's
+/// precision (the free gradient has fallen to [`MINIMUM_GRADIENT`] of the first one, or the
+/// loss to [`MINIMUM_LOSS`] of the first), `Err` elsewhere, saying so.
+fn no_decrease(first: &Entry, loss: f64, free: f64) -> Result<String, String> {
+    if free <= MINIMUM_GRADIENT * first.gradient_norm || loss <= MINIMUM_LOSS * first.loss {
+        return Ok(format!(
+            "no step found a decrease: a minimum to the loss's precision (|g| {:.3e} → {free:.3e})",
+            first.gradient_norm
+        ));
+    }
+    Err(format!(
+        "no step found a decrease at L = {loss:.6e} (first {:.6e}) with |g| = {free:.3e} \
+         (first {:.3e}): not a minimum. The loss may jump where the gradient does not see it \
+         (a particle crossing a sharp monitor box, a contact switch), or the gradient may be \
+         wrong: `loam gradient --check` at these values shows which",
+        first.loss, first.gradient_norm
+    ))
+}
+
+/// A loss that is not finite at the first guess: invalid input (exit 2), naming the file.
+fn first_loss(path: &Path, loss: f64) -> Result<(), Outcome> {
+    if loss.is_finite() {
+        return Ok(());
+    }
+    eprintln!(
+        "error: {}: the loss at the first guess is {loss}: the observations cannot be \
+         compared with the run (values in another unit, or far from anything the scene \
+         produces), or the run at the first guesses fails; check both",
+        path.display()
+    );
+    Err(Outcome::BadInput)
 }
 
 /// The history entry of an evaluated point: the named parameters' values and derivatives,
@@ -800,4 +914,39 @@ fn write_velocities<const D: usize>(
         text.push('\n');
     }
     write_atomic(file, &text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first entry of a history with loss `loss` and gradient norm `gradient`.
+    fn first(loss: f64, gradient: f64) -> Entry {
+        Entry {
+            iteration: 0,
+            loss,
+            gradient_norm: gradient,
+            parameters: vec![0.5],
+            gradient: vec![gradient],
+            field_errors: Vec::new(),
+            evaluations: 1,
+            seconds: 0.1,
+        }
+    }
+
+    /// A stall halfway down, with the gradient a tenth of the first (a loss that jumps where
+    /// its gradient does not see it) is not a minimum; a loss fitted to round-off, a gradient
+    /// down by 10⁷ and a minimum on a bound (no free gradient) are.
+    #[test]
+    fn a_stall_far_from_a_small_loss_or_gradient_is_not_a_minimum() {
+        let f = first(21.6, 19.5);
+        let err = no_decrease(&f, 0.497, 1.95).unwrap_err();
+        assert!(
+            err.contains("not a minimum") && err.contains("--check"),
+            "{err}"
+        );
+        assert!(no_decrease(&f, 4.6e-24, 1e-3).is_ok());
+        assert!(no_decrease(&f, 0.2, 1.95e-6).is_ok());
+        assert!(no_decrease(&f, 0.2, 0.0).is_ok());
+    }
 }

@@ -2,6 +2,7 @@
 //! path's [`Problem`] or the implicit path's [`ImplicitProblem`]. The optimiser, the history
 //! and the checks see only a loss and its gradient as functions of `θ`.
 
+use loam_inverse::check::{Convergence, Difference, Jump};
 use loam_inverse::implicit::{ImplicitParam, ImplicitProblem, check as implicit_check};
 use loam_inverse::{
     AdjointError, Control, GaussNewtonModel, GradientCost, Observations, Problem, check,
@@ -102,19 +103,29 @@ impl<const D: usize> Model<D> {
                 "  checks: dual = forward-mode Dual64 run; central difference: Richardson-extrapolated, at δ = 1e-4, 1e-5, 1e-6 max(|θ|, 1e-3)\n  \
                  until two neighbouring steps agree to 1e-6 (conv.: the smaller δ; perturbed runs that switch a branch are not used);\n  \
                  Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ| for h = 1e-2 max(|θ|, 1e-3) and h/2, h/4, h/8\n  \
-                 (r falls 4× per halving where L is smooth; a stick/slip or yield switch within h shows as a smaller ratio)"
+                 (r falls 4× per halving where L is smooth; a stick/slip or yield switch within h shows as a smaller ratio);\n  \
+                 where the differences do not converge or r falls less than 3×, L is searched for a jump: differences across it are\n  \
+                 left out, \"(jump)\" where none is clear of it, and the Taylor test starts at the first h of 1e-2 … 1e-6 short of it"
             }
             Self::Implicit { .. } => {
                 "  checks: dual = forward-mode Dual64 tangent of every sub-step; central difference\n  \
                  (Richardson, at δ = 1e-4 and 1e-5 |θ|, converged when they agree to 1e-6) and Taylor remainder r(h) = |L(θ + h) − L(θ) − h dL/dθ|\n  \
                  for h = 1e-2 |θ| and h/2, h/4, h/8, every run on the sub-steps of the run at θ\n  \
-                 (r falls 4× per halving where L is smooth; a yield switch within h shows as a smaller ratio)"
+                 (r falls 4× per halving where L is smooth; a yield switch within h shows as a smaller ratio);\n  \
+                 where the differences do not converge or r falls less than 3×, L is searched for a jump: differences across it are\n  \
+                 left out, \"(jump)\" where none is clear of it, and the Taylor test starts at the first h of 1e-2 … 1e-6 |θ| short of it"
             }
         }
     }
 
     /// The dual derivative, the central differences and the Taylor remainders of unknown `k`
     /// at `theta`, where the loss is `loss` and the adjoint gives `adjoint`.
+    ///
+    /// Where the differences do not converge or the Taylor remainders do not fall 3× per
+    /// halving, the loss along `k` is searched for jumps ([`check::find_jumps`]): the
+    /// differences whose stencil straddles one are left out and the Taylor test starts from
+    /// the largest step of [`check::JUMP_LADDER`] short of them, so that neither reports a
+    /// jump as a derivative.
     ///
     /// # Errors
     /// A run that fails.
@@ -125,72 +136,94 @@ impl<const D: usize> Model<D> {
         adjoint: f64,
         k: usize,
     ) -> Result<CheckRow, AdjointError> {
-        let mut direction = vec![0.0; theta.len()];
-        direction[k] = 1.0;
-        match self {
-            Self::Explicit(problem) => {
-                let dual = problem.dual_derivative(theta, k)?;
-                let c = check::converged_difference(problem, theta, k)?;
-                let size = theta[k].abs().max(1e-3);
-                let r = check::taylor_remainders(
-                    problem,
-                    theta,
-                    loss,
-                    adjoint,
-                    &direction,
-                    1e-2 * size,
-                    4,
-                )?;
-                // Shown where nothing converged: the estimate at the largest step that kept
-                // the branches, or else a plain central difference at δ = 10⁻⁴ max(|θ|, 10⁻³).
-                let shown = match c
-                    .value
-                    .or_else(|| c.estimates.iter().flatten().next().copied())
-                {
-                    Some(d) => d.value,
-                    None => {
-                        let at = |d: f64| {
-                            let mut t = theta.to_vec();
-                            t[k] += d;
-                            problem.loss(&t)
-                        };
-                        let delta = 1e-4 * size;
-                        (at(delta)? - at(-delta)?) / (2.0 * delta)
-                    }
-                };
-                Ok(CheckRow {
-                    dual,
-                    difference: shown,
-                    converged: c.value.map(|d| (d.relative_step, c.spread)),
-                    remainders: [r[0], r[1], r[2], r[3]],
-                })
-            }
+        let moved = |d: f64| {
+            let mut t = theta.to_vec();
+            t[k] += d;
+            t
+        };
+        // The run's loss along `k`, the scale of the steps, the differences and the dual.
+        let (mut along, size, differences, dual) = match self {
+            Self::Explicit(problem) => (
+                Box::new(move |d| problem.loss(&moved(d))) as Along<'_>,
+                theta[k].abs().max(1e-3),
+                check::converged_difference(problem, theta, k)?,
+                problem.dual_derivative(theta, k)?,
+            ),
             Self::Implicit { problem, .. } => {
                 let schedule = problem.schedule(theta)?;
-                let dual = problem.dual_derivative(theta, k)?;
-                let fd = implicit_check::central_difference(problem, theta, &schedule, k, 1e-4)?;
-                let fine = implicit_check::central_difference(problem, theta, &schedule, k, 1e-5)?;
-                let spread = (fd - fine).abs() / fd.abs().max(fine.abs());
-                let r = implicit_check::taylor_remainders(
-                    problem,
-                    theta,
-                    &schedule,
-                    loss,
-                    adjoint,
-                    &direction,
-                    1e-2 * theta[k].abs(),
-                    4,
-                )?;
-                Ok(CheckRow {
-                    dual,
-                    difference: fine,
-                    converged: (spread <= check::CONVERGENCE_TOLERANCE).then_some((1e-5, spread)),
-                    remainders: [r[0], r[1], r[2], r[3]],
-                })
+                let at = |step| -> Result<_, AdjointError> {
+                    Ok(Some(Difference {
+                        value: implicit_check::central_difference(
+                            problem, theta, &schedule, k, step,
+                        )?,
+                        relative_step: step,
+                    }))
+                };
+                let differences = Convergence::of(vec![at(1e-4)?, at(1e-5)?]);
+                (
+                    Box::new(move |d| problem.loss(&moved(d), Some(&schedule))) as Along<'_>,
+                    theta[k].abs(),
+                    differences,
+                    problem.dual_derivative(theta, k)?,
+                )
             }
-        }
+        };
+        let taylor = |h0: f64, along: &mut Along<'_>| -> Result<[f64; 4], AdjointError> {
+            let mut r = [0.0; 4];
+            for (i, r) in r.iter_mut().enumerate() {
+                let h = h0 / f64::from(1u32 << i);
+                *r = (along(h)? - loss - h * adjoint).abs();
+            }
+            Ok(r)
+        };
+        let mut h0 = 1e-2 * size;
+        let mut remainders = taylor(h0, &mut along)?;
+        let falls = remainders.windows(2).all(|w| w[0] >= 3.0 * w[1]);
+        let jumps = if differences.value.is_none() || !falls {
+            check::find_jumps(loss, adjoint, size, &mut along)?
+        } else {
+            Vec::new()
+        };
+        let differences = if jumps.is_empty() {
+            differences
+        } else {
+            if let Some(h) = check::taylor_step_clear_of(&jumps, size, &check::JUMP_LADDER)
+                && h != h0
+            {
+                h0 = h;
+                remainders = taylor(h0, &mut along)?;
+            }
+            differences.clear_of(&jumps, size)
+        };
+        // Shown: the converged difference; else the estimate at the largest step that kept
+        // the branches (and cleared the jumps); else, where no jump was found, a plain central
+        // difference at δ = 10⁻⁴ size; else none.
+        let shown = match (
+            differences.value,
+            differences.estimates.iter().flatten().next(),
+        ) {
+            (Some(d), _) | (None, Some(&d)) => Some(d.value),
+            (None, None) if jumps.is_empty() => {
+                let delta = 1e-4 * size;
+                Some((along(delta)? - along(-delta)?) / (2.0 * delta))
+            }
+            (None, None) => None,
+        };
+        Ok(CheckRow {
+            dual,
+            difference: shown,
+            converged: differences
+                .value
+                .map(|d| (d.relative_step, differences.spread)),
+            remainders,
+            taylor_step: h0,
+            jumps,
+        })
     }
 }
+
+/// The loss along one unknown, `d ↦ L(θ + d eₖ)`, by the run of either path.
+type Along<'a> = Box<dyn FnMut(f64) -> Result<f64, AdjointError> + 'a>;
 
 /// How far (relative) the dual derivative may be from a converged central difference before
 /// `loam gradient --check` fails: ten times [`check::CONVERGENCE_TOLERANCE`], the agreement
@@ -200,12 +233,13 @@ impl<const D: usize> Model<D> {
 pub const DIFFERENCE_TOLERANCE: f64 = 1e-5;
 
 /// What `loam gradient --check` measured for one unknown ([`Model::check_one`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct CheckRow {
     /// The forward-mode dual derivative.
     pub dual: f64,
-    /// The central difference shown: the converged one where there is one.
-    pub difference: f64,
+    /// The central difference shown: the converged one where there is one; `None` when the
+    /// loss jumps within every step tried.
+    pub difference: Option<f64>,
     /// Where central differences at neighbouring steps agreed to
     /// [`check::CONVERGENCE_TOLERANCE`]: the smaller relative step and their relative spread.
     /// `None` when they did not (the loss has a kink within the steps, or round-off
@@ -213,6 +247,11 @@ pub struct CheckRow {
     pub converged: Option<(f64, f64)>,
     /// The Taylor remainders `r(h)`, `r(h/2)`, `r(h/4)`, `r(h/8)`.
     pub remainders: [f64; 4],
+    /// The Taylor test's first step `h`.
+    pub taylor_step: f64,
+    /// The jumps of the loss found near `θ` (the nearest on each side), which the differences
+    /// and the Taylor test avoid.
+    pub jumps: Vec<Jump>,
 }
 
 impl CheckRow {
@@ -220,9 +259,13 @@ impl CheckRow {
     /// [`DIFFERENCE_TOLERANCE`] (relative) from them: then a gradient that agrees with the
     /// dual misses a dependence of the run on the parameter, and `--check` fails.
     pub fn misses_the_difference(&self) -> bool {
-        let scale = self.dual.abs().max(self.difference.abs());
-        self.converged.is_some()
-            && (self.dual - self.difference).abs() > DIFFERENCE_TOLERANCE * scale
+        match (self.converged, self.difference) {
+            (Some(_), Some(difference)) => {
+                let scale = self.dual.abs().max(difference.abs());
+                (self.dual - difference).abs() > DIFFERENCE_TOLERANCE * scale
+            }
+            _ => false,
+        }
     }
 }
 
@@ -233,9 +276,11 @@ mod tests {
     fn row(dual: f64, difference: f64, converged: bool) -> CheckRow {
         CheckRow {
             dual,
-            difference,
+            difference: Some(difference),
             converged: converged.then_some((1e-5, 1e-9)),
             remainders: [0.0; 4],
+            taylor_step: 1e-2,
+            jumps: Vec::new(),
         }
     }
 

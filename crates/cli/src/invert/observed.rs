@@ -11,7 +11,8 @@
 //! Implicit runs: particle displacements `step,id,ux,uy` (`uz`) and reactions
 //! `step,reaction,force`, `reaction` a name of `[[observations.reactions]]`, `step` a load
 //! step (a `time` column is the load factor `step / load_steps`).
-//! Blank lines and lines starting with `#` are skipped.
+//! Blank lines and lines starting with `#` are skipped, and so is a byte-order mark (as a
+//! spreadsheet saving "CSV UTF-8" writes) before the header.
 
 use loam_core::tensor::Vector;
 use std::collections::BTreeMap;
@@ -26,21 +27,91 @@ pub struct Grid {
     pub steps: usize,
     /// Particles in the scene.
     pub particles: usize,
+    /// The scene's domain `[lo, hi]` (m), `grid.lo` and `grid.hi`.
+    pub domain: (Vec<f64>, Vec<f64>),
+    /// The grid's cell size (m).
+    pub cell: f64,
+}
+
+impl Grid {
+    /// The position `x` (m), or why it cannot be one: particles stay on the grid, so a
+    /// position more than a cell outside the domain is not one of theirs (positions in
+    /// millimetres, say).
+    fn position<const D: usize>(&self, x: &Vector<f64, D>) -> Result<(), String> {
+        let (lo, hi) = &self.domain;
+        let inside = (0..D).all(|a| x[a] >= lo[a] - self.cell && x[a] <= hi[a] + self.cell);
+        if inside {
+            return Ok(());
+        }
+        Err(format!(
+            "position {} m is outside the grid, [{}] to [{}] m by more than a cell: positions \
+             are in metres",
+            coordinates(x.as_slice()),
+            coordinates(lo),
+            coordinates(hi)
+        ))
+    }
+
+    /// The displacement `u` (m), or why it cannot be one: larger than the domain along an
+    /// axis (by more than a cell), it would take a particle off the grid.
+    fn displacement<const D: usize>(&self, u: &Vector<f64, D>) -> Result<(), String> {
+        let (lo, hi) = &self.domain;
+        if (0..D).all(|a| u[a].abs() <= hi[a] - lo[a] + self.cell) {
+            return Ok(());
+        }
+        Err(format!(
+            "displacement {} m is larger than the grid, [{}] to [{}] m: displacements are in \
+             metres",
+            coordinates(u.as_slice()),
+            coordinates(lo),
+            coordinates(hi)
+        ))
+    }
+
+    /// The depth `h` (m) along the vertical axis `up`, or why it cannot be one: negative, or
+    /// higher than the domain (by more than a cell).
+    fn depth(&self, h: f64, up: usize) -> Result<(), String> {
+        let height = self.domain.1[up] - self.domain.0[up];
+        if (0.0..=height + self.cell).contains(&h) {
+            return Ok(());
+        }
+        Err(format!(
+            "depth {h} m is not between 0 and the height of the grid, {height} m: depths are \
+             in metres"
+        ))
+    }
+}
+
+/// `a, b, c` for coordinates.
+fn coordinates(x: &[f64]) -> String {
+    x.iter()
+        .map(|v| format!("{v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A value check of a row, which passes everything: velocities and reactions have no bound
+/// that the scene sets.
+fn any<const D: usize>(_: &Vector<f64, D>) -> Result<(), String> {
+    Ok(())
 }
 
 /// Per step, `(index, observed vector)`.
 pub type Targets<const D: usize> = BTreeMap<usize, Vec<(usize, Vector<f64, D>)>>;
 
-/// Reads `file` as rows of `(step, key, D values)`, `key` mapped to an index by `key_of`;
-/// `columns` names the key and the value columns.
+/// Reads `file` as rows of `(step, key, D values)`, `key` mapped to an index by `key_of`
+/// and the values checked by `value_ok`; `columns` names the key and the value columns.
+/// Each problem names the line: a row given twice for one step and key, a file with no rows,
+/// or with rows at step 0 (the initial state, which no parameter moves) only.
 fn read<const D: usize>(
     file: &Path,
     grid: &Grid,
     columns: (&str, [&str; 3]),
     key_of: &dyn Fn(&str) -> Result<usize, String>,
+    value_ok: &dyn Fn(&Vector<f64, D>) -> Result<(), String>,
 ) -> Result<Targets<D>, String> {
-    let text = std::fs::read_to_string(file)
-        .map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let text =
+        loam_scene::read_csv(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
     let mut lines = (text.lines().enumerate())
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
@@ -73,7 +144,11 @@ fn read<const D: usize>(
         ));
     }
     let mut out = Targets::<D>::new();
+    // The line of each (step, index) and the first row's line.
+    let mut seen: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+    let mut first_row = None;
     for (line, row) in lines {
+        first_row.get_or_insert(line);
         let cells: Vec<&str> = row.split(',').map(str::trim).collect();
         if cells.len() != D + 2 {
             return Err(fail(
@@ -116,42 +191,83 @@ fn read<const D: usize>(
                 .filter(|x: &f64| x.is_finite())
                 .ok_or_else(|| fail(line, format!("`{}` is not a finite number", cells[2 + a])))?;
         }
+        value_ok(&v).map_err(|m| fail(line, m))?;
+        if let Some(earlier) = seen.insert((step, index), line) {
+            return Err(fail(
+                line,
+                format!(
+                    "step {step}, {key} `{}` is given again (first on line {earlier}): one row \
+                     per {key} and step",
+                    cells[1]
+                ),
+            ));
+        }
         out.entry(step).or_default().push((index, v));
+    }
+    let Some(first_row) = first_row else {
+        return Err(fail(
+            line,
+            "a header and no rows: nothing to observe (the loss would be 0 whatever the \
+             parameters)"
+                .into(),
+        ));
+    };
+    if out.keys().all(|&s| s == 0) {
+        return Err(fail(
+            first_row,
+            "every row is at step 0, the initial state, which no parameter moves: expected \
+             rows after step 0 (a time column in the wrong unit?)"
+                .into(),
+        ));
     }
     Ok(out)
 }
 
-/// Reads a tracked-positions file.
+impl Grid {
+    /// The index of the particle id `s`, or why it is not one.
+    fn particle(&self, s: &str) -> Result<usize, String> {
+        let n = self.particles;
+        match s.parse::<usize>() {
+            Ok(id) if id < n => Ok(id),
+            _ => Err(format!(
+                "`{s}` is not a particle id (0 to {})",
+                n.saturating_sub(1)
+            )),
+        }
+    }
+}
+
+/// The index of a name among `names` (the key column of a file), or why it is not one of
+/// them (`what`: `monitor`, `station`, `reaction`).
+fn named<'a>(what: &'a str, names: &'a [String]) -> impl Fn(&str) -> Result<usize, String> + 'a {
+    move |s| {
+        names
+            .iter()
+            .position(|m| m == s)
+            .ok_or_else(|| format!("unknown {what} `{s}`; defined: {}", names.join(", ")))
+    }
+}
+
+/// Reads a tracked-positions file (positions on the grid).
 pub fn read_tracked<const D: usize>(file: &Path, grid: &Grid) -> Result<Targets<D>, String> {
-    let n = grid.particles;
     read(
         file,
         grid,
         ("id", ["x", "y", "z"]),
-        &|s| match s.parse::<usize>() {
-            Ok(id) if id < n => Ok(id),
-            _ => Err(format!(
-                "`{s}` is not a particle id (0 to {})",
-                n.saturating_sub(1)
-            )),
-        },
+        &|s| grid.particle(s),
+        &|x| grid.position(x),
     )
 }
 
-/// Reads a particle-displacements file of an implicit run (`step` a load step).
+/// Reads a particle-displacements file of an implicit run (`step` a load step; each
+/// displacement within the grid's size).
 pub fn read_displacement<const D: usize>(file: &Path, grid: &Grid) -> Result<Targets<D>, String> {
-    let n = grid.particles;
     read(
         file,
         grid,
         ("id", ["ux", "uy", "uz"]),
-        &|s| match s.parse::<usize>() {
-            Ok(id) if id < n => Ok(id),
-            _ => Err(format!(
-                "`{s}` is not a particle id (0 to {})",
-                n.saturating_sub(1)
-            )),
-        },
+        &|s| grid.particle(s),
+        &|u| grid.displacement(u),
     )
 }
 
@@ -161,12 +277,13 @@ pub fn read_reaction(
     grid: &Grid,
     reactions: &[String],
 ) -> Result<BTreeMap<usize, Vec<(usize, f64)>>, String> {
-    let rows = read::<1>(file, grid, ("reaction", ["force", "", ""]), &|s| {
-        reactions
-            .iter()
-            .position(|m| m == s)
-            .ok_or_else(|| format!("unknown reaction `{s}`; defined: {}", reactions.join(", ")))
-    })?;
+    let rows = read::<1>(
+        file,
+        grid,
+        ("reaction", ["force", "", ""]),
+        &named("reaction", reactions),
+        &any,
+    )?;
     Ok(depths(&rows))
 }
 
@@ -176,26 +293,30 @@ pub fn read_velocity<const D: usize>(
     grid: &Grid,
     monitors: &[String],
 ) -> Result<Targets<D>, String> {
-    read(file, grid, ("monitor", ["vx", "vy", "vz"]), &|s| {
-        monitors
-            .iter()
-            .position(|m| m == s)
-            .ok_or_else(|| format!("unknown monitor `{s}`; defined: {}", monitors.join(", ")))
-    })
+    read(
+        file,
+        grid,
+        ("monitor", ["vx", "vy", "vz"]),
+        &named("monitor", monitors),
+        &any,
+    )
 }
 
-/// Reads a deposit-depth file: per step, `(station, depth)`.
+/// Reads a deposit-depth file: per step, `(station, depth)`, each depth between 0 and the
+/// grid's height along the vertical axis `up`.
 pub fn read_deposit(
     file: &Path,
     grid: &Grid,
     stations: &[String],
+    up: usize,
 ) -> Result<BTreeMap<usize, Vec<(usize, f64)>>, String> {
-    let rows = read::<1>(file, grid, ("station", ["depth", "", ""]), &|s| {
-        stations
-            .iter()
-            .position(|m| m == s)
-            .ok_or_else(|| format!("unknown station `{s}`; defined: {}", stations.join(", ")))
-    })?;
+    let rows = read::<1>(
+        file,
+        grid,
+        ("station", ["depth", "", ""]),
+        &named("station", stations),
+        &|h| grid.depth(h[0], up),
+    )?;
     Ok(depths(&rows))
 }
 
@@ -230,6 +351,72 @@ pub fn write<const D: usize>(
 mod tests {
     use super::*;
 
+    /// 20 steps of 1 ms, 8 particles, on the grid [-4, 4]² m of 0.1 m cells.
+    fn grid() -> Grid {
+        Grid {
+            dt: 1e-3,
+            steps: 20,
+            particles: 8,
+            domain: (vec![-4.0, -4.0], vec![4.0, 4.0]),
+            cell: 0.1,
+        }
+    }
+
+    /// The error of reading `text` as a tracked-positions file.
+    fn refused(text: &str) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("tracked.csv");
+        std::fs::write(&file, text).unwrap();
+        read_tracked::<2>(&file, &grid()).unwrap_err()
+    }
+
+    #[test]
+    fn implausible_observations_are_refused_with_their_line() {
+        // Millimetres: 250 mm read as 250 m, far off the 8 m × 8 m grid.
+        let err = refused("step,id,x,y\n10,3,0.1,0.2\n10,4,250.0,30.0\n");
+        assert!(
+            err.contains("line 3") && err.contains("outside the grid") && err.contains("metres"),
+            "{err}"
+        );
+        // A position of 1e300 m.
+        assert!(refused("step,id,x,y\n10,3,1e300,0.2\n").contains("line 2"));
+        // Within a cell of the domain is a position.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("tracked.csv");
+        std::fs::write(&file, "step,id,x,y\n10,3,-4.05,4.05\n").unwrap();
+        assert!(read_tracked::<2>(&file, &grid()).is_ok());
+        // One particle twice at one step, with different values (or the same).
+        let err = refused("step,id,x,y\n10,3,0.1,0.2\n20,3,0.1,0.2\n10,3,0.1,0.3\n");
+        assert!(
+            err.contains("line 4") && err.contains("first on line 2") && err.contains("`3`"),
+            "{err}"
+        );
+        // A header and nothing else: nothing observed.
+        let err = refused("# tracked\nstep,id,x,y\n\n");
+        assert!(err.contains("line 2") && err.contains("no rows"), "{err}");
+        // The initial state only.
+        let err = refused("time,id,x,y\n0.0,3,0.1,0.2\n0,4,0.1,0.2\n");
+        assert!(err.contains("line 2") && err.contains("step 0"), "{err}");
+    }
+
+    #[test]
+    fn a_spreadsheets_byte_order_mark_is_read_past() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("tracked.csv");
+        std::fs::write(&file, "\u{feff}step,id,x,y\r\n10,3,0.1,0.2\r\n").unwrap();
+        let t = read_tracked::<2>(&file, &grid()).unwrap();
+        assert_eq!(t[&10], vec![(3, Vector::from([0.1, 0.2]))]);
+    }
+
+    #[test]
+    fn depths_and_displacements_are_bounded_by_the_grid() {
+        let g = grid();
+        assert!(g.depth(0.5, 1).is_ok() && g.depth(8.05, 1).is_ok());
+        assert!(g.depth(-0.01, 1).is_err() && g.depth(31.0, 1).is_err());
+        assert!(g.displacement(&Vector::from([-8.0, 1.0])).is_ok());
+        assert!(g.displacement(&Vector::from([0.0, -12.0])).is_err());
+    }
+
     #[test]
     fn written_observations_read_back_exactly() {
         let dir = tempfile::tempdir().unwrap();
@@ -244,11 +431,7 @@ mod tests {
         );
         t.insert(20, vec![(3, Vector::from([0.2, 0.3]))]);
         write(&file, &t, "id", ["x", "y", "z"], None).unwrap();
-        let grid = Grid {
-            dt: 1e-3,
-            steps: 20,
-            particles: 8,
-        };
+        let grid = grid();
         assert_eq!(read_tracked::<2>(&file, &grid).unwrap(), t);
         // Times on steps are accepted; an unknown id is reported with its line.
         std::fs::write(

@@ -180,6 +180,27 @@ impl Resume {
         Ok(particles)
     }
 
+    /// A note for a scene file that has been edited since the run started: the file at the
+    /// path the run was started with now differs from the copy kept with the checkpoint,
+    /// and the run continues with the copy (the state belongs to it), so the edit takes
+    /// effect only in a fresh run. `None` when the file is unchanged, or gone.
+    pub fn edited_source(&self) -> Option<String> {
+        let now = std::fs::read_to_string(&self.header.source).ok()?;
+        (now != self.text).then(|| {
+            format!(
+                "{} has changed since the run started; the run continues with the scene \
+                 recorded with its checkpoint, {} (run the edited scene afresh, without \
+                 --resume, to use it)",
+                self.header.source.display(),
+                scene_copy(
+                    self.state.parent().unwrap_or(Path::new("")),
+                    &self.header.source
+                )
+                .display()
+            )
+        })
+    }
+
     /// The note the run summary keeps of where the run resumed.
     pub fn note(&self) -> CheckpointNote {
         CheckpointNote {

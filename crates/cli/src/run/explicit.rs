@@ -137,10 +137,6 @@ pub fn run<const D: usize>(
     options: &Options,
     start: Start,
 ) -> Outcome {
-    let frames: Vec<FrameAt> = match plan.fixed_steps() {
-        Some(_) => built.frame_steps().into_iter().map(FrameAt::Step).collect(),
-        None => built.frame_times().into_iter().map(FrameAt::Time).collect(),
-    };
     let restart = match &start.resume {
         None => None,
         Some(r) => match r.particles::<D>(built.particles.len()) {
@@ -163,7 +159,8 @@ pub fn run<const D: usize>(
             return Outcome::BadInput;
         }
     };
-    let warnings = match preflight::explicit(&built, &plan, &solver, &built.particles) {
+    let checked = preflight::explicit(&built, &plan, &solver, &built.particles, options.max_steps);
+    let warnings = match checked {
         Ok(w) => w,
         Err(msg) => {
             eprintln!("error: {}: {msg}", target.scene.display());
@@ -173,6 +170,11 @@ pub fn run<const D: usize>(
     for w in &warnings {
         eprintln!("warning: {}: {w}", target.scene.display());
     }
+    // After the checks, which bound the steps and so the frames.
+    let frames: Vec<FrameAt> = match plan.fixed_steps() {
+        Some(_) => built.frame_steps().into_iter().map(FrameAt::Step).collect(),
+        None => built.frame_times().into_iter().map(FrameAt::Time).collect(),
+    };
     let device = options.device.unwrap_or(plan.device);
     if device == Device::Cpu && options.p2g.is_some() {
         eprintln!(

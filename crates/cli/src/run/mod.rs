@@ -19,7 +19,7 @@ pub mod interrupt;
 mod progress;
 
 use crate::Outcome;
-use crate::preflight::{self, MemoryLimit};
+use crate::preflight::{self, MemoryLimit, StepLimit};
 use checkpoint::Resume;
 use loam_core::Particles;
 use loam_core::energy::energy;
@@ -40,6 +40,8 @@ pub struct Options<'a> {
     pub progress_every: f64,
     /// The memory the run may use.
     pub memory_limit: Option<MemoryLimit>,
+    /// The most steps the run may take.
+    pub max_steps: StepLimit,
     /// Explicit runs: save the state every this many steps (`--checkpoint-every`).
     pub checkpoint_every: Option<usize>,
     /// Explicit runs: where the steps run (`--device`), instead of the scene's
@@ -66,7 +68,8 @@ pub fn run(path: &Path, options: &Options) -> Outcome {
 }
 
 /// Continues the explicit run in `dir` from its checkpoint (`loam run --resume DIR`), with
-/// the scene recorded there; `options.out` is replaced by `dir`. With
+/// the scene recorded there (with a note when the scene file the run started from has been
+/// edited since); `options.out` is replaced by `dir`. With
 /// `options.checkpoint_every` it keeps saving its state.
 pub fn resume(dir: &Path, options: &Options) -> Outcome {
     let (resume, scene) = match Resume::open(dir) {
@@ -76,6 +79,9 @@ pub fn resume(dir: &Path, options: &Options) -> Outcome {
             return Outcome::BadInput;
         }
     };
+    if let Some(note) = resume.edited_source() {
+        eprintln!("note: {note}");
+    }
     let path = resume.header.source.clone();
     let start = Start {
         checkpoints: options.checkpoint_every.map(|n| (resume.text.clone(), n)),
@@ -117,7 +123,9 @@ fn start_run(scene: &Scene, path: &Path, options: &Options, start: Start) -> Out
         );
         return Outcome::BadInput;
     }
-    if let Err(msg) = preflight::size(scene, options.memory_limit) {
+    let checked = preflight::size(scene, options.memory_limit)
+        .and_then(|_| preflight::implicit_steps(scene, options.max_steps));
+    if let Err(msg) = checked {
         eprintln!("error: {}: {msg}", path.display());
         return Outcome::BadInput;
     }
@@ -159,10 +167,34 @@ pub struct Target<'a> {
     dir: PathBuf,
 }
 
+/// Creates the folder `dir` and writes and removes a file in it, so that a folder that
+/// cannot be created or written (a path through a file, a folder without write permission, a
+/// read-only file system) is found before any work is done.
+pub fn writable_folder(dir: &Path) -> std::io::Result<()> {
+    let probe = dir.join(".loam-write-probe");
+    std::fs::create_dir_all(dir)
+        .and_then(|()| std::fs::write(&probe, b""))
+        .and_then(|()| std::fs::remove_file(&probe))
+}
+
 impl Target<'_> {
+    /// [`writable_folder`] on the output folder: one that cannot be written is invalid input,
+    /// refused before the run's first step with the folder's path.
+    fn writable(&self) -> Result<(), Outcome> {
+        writable_folder(&self.dir).map_err(|e| {
+            eprintln!(
+                "error: output.dir: cannot write to the output folder {}: {e}; choose \
+                     another with --out DIR or the scene's output.dir",
+                self.dir.display()
+            );
+            Outcome::BadInput
+        })
+    }
+
     /// Opens the output folder (removing an earlier run's files: frames, collection, summary
     /// and checkpoint) and starts the summary.
     fn recorder<const D: usize>(&self, built: &Built<D>) -> Result<Recorder<D>, Outcome> {
+        self.writable()?;
         checkpoint::clear(&self.dir)
             .and_then(|()| {
                 let writer = FrameWriter::create(&self.dir, &built.output.fields)
@@ -182,6 +214,7 @@ impl Target<'_> {
         built: &Built<D>,
         from: &Resume,
     ) -> Result<Recorder<D>, Outcome> {
+        self.writable()?;
         Recorder::resume(self.scene, &self.dir, built, from).map_err(|e| {
             eprintln!("error: {e}");
             Outcome::Failed

@@ -363,6 +363,7 @@ impl<T: Scalar> DruckerPrager<T> {
             let state = MaterialState {
                 plastic_strain: state.plastic_strain,
                 tensor: id + self.compliance(sigma_trial) * T::cst(2.0),
+                hardening: state.hardening,
             };
             return (*sigma_trial, state, Region::Elastic);
         }
@@ -390,6 +391,7 @@ impl<T: Scalar> DruckerPrager<T> {
         let state = MaterialState {
             plastic_strain: state.plastic_strain + deps_p.norm() * T::cst(2.0 / 3.0).sqrt(),
             tensor: id + eps_e * T::cst(2.0),
+            hardening: state.hardening,
         };
         (sigma, state, region)
     }

@@ -49,6 +49,7 @@ fn state_of(m: &DruckerPrager<f64>, sigma: &Matrix3<f64>) -> MaterialState<f64> 
     MaterialState {
         plastic_strain: 0.0,
         tensor: Matrix3::identity() + m.compliance(sigma) * 2.0,
+        hardening: 0.0,
     }
 }
 
@@ -648,6 +649,7 @@ fn friction_angle_derivative_matches_central_differences() {
                     plastic_strain: Dual64::from_re(0.0),
                     tensor: (Matrix3::identity() + base.compliance(&start) * 2.0)
                         .map(Dual64::from_re),
+                    hardening: Dual64::from_re(0.0),
                 };
                 let mut regions = Vec::new();
                 for dl in &path {
@@ -813,6 +815,7 @@ fn runs_in_single_precision() {
     let mut st32 = MaterialState {
         plastic_strain: 0.0f32,
         tensor: st64.tensor.map(|x| x as f32),
+        hardening: 0.0f32,
     };
     for dl in &path {
         (s64, st64, _) = m.stress_update(&s64, dl, &st64);

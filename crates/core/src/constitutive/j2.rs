@@ -98,6 +98,7 @@ impl<T: Scalar> J2<T> {
             let elastic = MaterialState {
                 plastic_strain: state.plastic_strain,
                 tensor: b_trial,
+                hardening: state.hardening,
             };
             return (tau_trial, elastic, Region::Elastic);
         }
@@ -109,6 +110,7 @@ impl<T: Scalar> J2<T> {
         let plastic = MaterialState {
             plastic_strain: state.plastic_strain + dgamma * T::cst(2.0 / 3.0).sqrt(),
             tensor: symmetric_fn(&(eps * T::cst(2.0)), &Exp),
+            hardening: state.hardening,
         };
         (tau, plastic, Region::Shear)
     }

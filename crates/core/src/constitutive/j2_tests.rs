@@ -28,10 +28,7 @@ fn dual_model(m: &J2<f64>) -> J2<Dual64> {
 }
 
 fn dual_state(s: &MaterialState<f64>) -> MaterialState<Dual64> {
-    MaterialState {
-        plastic_strain: Dual64::from_re(s.plastic_strain),
-        tensor: s.tensor.map(Dual64::from_re),
-    }
+    s.lift()
 }
 
 fn deviator(t: &Matrix3<f64>) -> Matrix3<f64> {

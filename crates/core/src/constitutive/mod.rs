@@ -5,6 +5,7 @@
 //! code. Parameters are generic over `T` so a derivative with respect to a material parameter
 //! is the same code run with a dual parameter.
 
+mod cam_clay;
 mod drucker_prager;
 mod fluid;
 mod hencky;
@@ -14,6 +15,7 @@ mod mohr_coulomb;
 mod neo_hookean;
 mod strength;
 
+pub use cam_clay::{ModifiedCamClay, Preconsolidation, REFERENCE_PRESSURE, Shear};
 pub use drucker_prager::{Cone, DruckerPrager, Elasticity};
 pub use fluid::Fluid;
 pub use hencky::Hencky;
@@ -97,22 +99,69 @@ pub fn hencky_trial<T: Scalar>(delta_f: &Matrix3<T>, b_n: &Matrix3<T>) -> (Matri
 }
 
 /// History variables a particle carries for its constitutive model (unused by elastic
-/// models; plasticity stores its equivalent plastic strain and a tensor state here).
+/// models). This is the one declaration of the history's shape: checkpoints, the adjoints'
+/// packing and the dual lanes of the implicit adjoint all go through
+/// [`MaterialState::components`] and [`MaterialState::from_components`].
+///
+/// | model | `plastic_strain` | `tensor` | `hardening` |
+/// |---|---|---|---|
+/// | [`J2`], [`MohrCoulomb`], Hencky [`DruckerPrager`] | `ε̄ᵖ` | `bₑ` | unused (0) |
+/// | Jaumann [`DruckerPrager`] | `ε̄ᵖ` | `I + 2 εₑ` | unused (0) |
+/// | [`ModifiedCamClay`] | `ε̄ᵖ` | `bₑ` | `p_c` (Pa, compression positive) |
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaterialState<T> {
-    /// Equivalent (accumulated) plastic strain.
+    /// Equivalent (accumulated) plastic strain `ε̄ᵖ = Σ √(2/3) ‖Δεᵖ‖`.
     pub plastic_strain: T,
     /// A tensor-valued internal variable (e.g. the elastic left Cauchy–Green tensor).
     pub tensor: Matrix3<T>,
+    /// A scalar hardening variable: the preconsolidation pressure `p_c` of
+    /// [`ModifiedCamClay`]; zero for the other models.
+    pub hardening: T,
+}
+
+/// Number of scalars in a [`MaterialState`]: `ε̄ᵖ`, the 9 entries of the tensor, the hardening
+/// variable.
+pub const HISTORY_LEN: usize = 11;
+
+impl<T: nalgebra::Scalar + Copy> MaterialState<T> {
+    /// The components in their fixed order: `ε̄ᵖ`, the tensor row by row, the hardening
+    /// variable ([`HISTORY_LEN`] in all).
+    pub fn components(&self) -> [T; HISTORY_LEN] {
+        std::array::from_fn(|k| match k {
+            0 => self.plastic_strain,
+            10 => self.hardening,
+            k => self.tensor[((k - 1) / 3, (k - 1) % 3)],
+        })
+    }
+
+    /// The state from its components in the order of [`MaterialState::components`].
+    pub fn from_components(c: impl Fn(usize) -> T) -> Self {
+        Self {
+            plastic_strain: c(0),
+            tensor: Matrix3::from_fn(|r, col| c(1 + 3 * r + col)),
+            hardening: c(10),
+        }
+    }
+
+    /// The state with `f` applied to every component.
+    pub fn map<U: nalgebra::Scalar + Copy>(&self, f: impl Fn(T) -> U) -> MaterialState<U> {
+        let c = self.components();
+        MaterialState::from_components(|k| f(c[k]))
+    }
 }
 
 impl MaterialState<f64> {
     /// The same state as constants of another scalar type.
     pub fn lift<T: Scalar>(&self) -> MaterialState<T> {
-        MaterialState {
-            plastic_strain: T::cst(self.plastic_strain),
-            tensor: self.tensor.map(T::cst),
-        }
+        self.map(T::cst)
+    }
+}
+
+impl<T: Scalar> MaterialState<T> {
+    /// Every component zero: the zero adjoint of a state (not a valid state itself, whose
+    /// tensor is the identity at rest: see [`Default`]).
+    pub fn zeros() -> Self {
+        Self::from_components(|_| T::zero())
     }
 }
 
@@ -121,6 +170,7 @@ impl<T: Scalar> Default for MaterialState<T> {
         Self {
             plastic_strain: T::zero(),
             tensor: Matrix3::identity(),
+            hardening: T::zero(),
         }
     }
 }
@@ -237,6 +287,9 @@ pub enum ModelKind {
     DruckerPrager,
     /// [`MohrCoulomb`] (Mohr–Coulomb plasticity in Hencky strain), written `mohr_coulomb`.
     MohrCoulomb,
+    /// [`ModifiedCamClay`] (critical-state plasticity in Hencky strain), written
+    /// `modified_cam_clay`.
+    ModifiedCamClay,
 }
 
 impl ModelKind {
@@ -251,6 +304,7 @@ impl ModelKind {
             Self::Fluid => "fluid",
             Self::DruckerPrager => "drucker_prager",
             Self::MohrCoulomb => "mohr_coulomb",
+            Self::ModifiedCamClay => "modified_cam_clay",
         }
     }
 }
@@ -284,6 +338,8 @@ pub enum Model<T> {
     DruckerPrager(DruckerPrager<T>),
     /// Mohr–Coulomb plasticity in Hencky strain space.
     MohrCoulomb(MohrCoulomb<T>),
+    /// Modified Cam-Clay in Hencky strain space.
+    ModifiedCamClay(ModifiedCamClay<T>),
 }
 
 impl<T> Model<T> {
@@ -297,6 +353,7 @@ impl<T> Model<T> {
             Self::Fluid(_) => ModelKind::Fluid,
             Self::DruckerPrager(_) => ModelKind::DruckerPrager,
             Self::MohrCoulomb(_) => ModelKind::MohrCoulomb,
+            Self::ModifiedCamClay(_) => ModelKind::ModifiedCamClay,
         }
     }
 }
@@ -313,7 +370,8 @@ impl<T: Scalar> Material<T> {
     /// # Panics
     ///
     /// On [`ModelKind::Fluid`]: a fluid has no Young's modulus or Poisson's ratio (and no
-    /// shear stiffness), so there is no elastic fluid to build; use [`Material::fluid`].
+    /// shear stiffness), so there is no elastic fluid to build; use [`Material::fluid`]. On
+    /// [`ModelKind::ModifiedCamClay`], whose stiffness is set by `κ` and the pressure.
     pub fn elastic(kind: ModelKind, young: T, poisson: T, density: T) -> Self {
         let lame = Lame::from_young_poisson(young, poisson);
         let model = match kind {
@@ -343,6 +401,10 @@ impl<T: Scalar> Material<T> {
             ModelKind::Fluid => panic!(
                 "Material::elastic: model `fluid` takes a bulk modulus, not E and ν; \
                  use Material::fluid"
+            ),
+            ModelKind::ModifiedCamClay => panic!(
+                "Material::elastic: model `modified_cam_clay` has a pressure-dependent \
+                 stiffness set by κ, not E"
             ),
         };
         Self { density, model }
@@ -419,6 +481,7 @@ impl<T: Scalar> Material<T> {
             Model::Fluid(m) => m,
             Model::DruckerPrager(m) => m,
             Model::MohrCoulomb(m) => m,
+            Model::ModifiedCamClay(m) => m,
         }
     }
 
@@ -438,6 +501,7 @@ impl<T: Scalar> Material<T> {
             Model::Fluid(m) => m.energy_density(f),
             Model::DruckerPrager(m) => m.stored_energy(f, state),
             Model::MohrCoulomb(m) => m.stored_energy(state),
+            Model::ModifiedCamClay(m) => m.stored_energy(state),
         }
     }
 
@@ -468,6 +532,10 @@ impl<T: Scalar> Material<T> {
                 let (tau, state, _) = m.return_map(delta_f, state);
                 (tau, state)
             }
+            Model::ModifiedCamClay(m) => {
+                let (tau, state, _) = m.return_map(delta_f, state);
+                (tau, state)
+            }
         }
     }
 
@@ -493,6 +561,7 @@ impl<T: Scalar> Material<T> {
             Model::Fluid(m) => (m.update(kin, state), Region::Elastic),
             Model::DruckerPrager(m) => m.update_region(kin, state),
             Model::MohrCoulomb(m) => m.update_region(kin, state),
+            Model::ModifiedCamClay(m) => m.update_region(kin, state),
         }
     }
 }
@@ -500,9 +569,10 @@ impl<T: Scalar> Material<T> {
 impl Material<f64> {
     /// The history state in which a model with elastic history carries the Kirchhoff stress
     /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
-    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one. `None` for the models
-    /// whose stress is a function of `F` alone (the elastic models, the fluid): they carry a
-    /// stress only through their deformation. Whether `τ₀` lies inside the yield surface is
+    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one, and
+    /// [`ModifiedCamClay::initial_state`] (its `p_c₀` too). `None` for the models whose stress
+    /// is a function of `F` alone (the elastic models, the fluid): they carry a stress only
+    /// through their deformation; and for [`ModifiedCamClay`] at `p′₀ ≤ 0`. Whether `τ₀` lies inside the yield surface is
     /// the caller's to check (a step with `ΔF = I` from the state returns it).
     pub fn prestressed_state(&self, tau0: &Matrix3<f64>) -> Option<MaterialState<f64>> {
         let hencky = |lame: &Lame<f64>| MaterialState {
@@ -511,13 +581,16 @@ impl Material<f64> {
                 &(lame.strain(tau0) * 2.0),
                 &crate::spectral::Exp,
             ),
+            hardening: 0.0,
         };
         match &self.model {
             Model::J2(m) => Some(hencky(&m.lame)),
             Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
+            Model::ModifiedCamClay(m) => m.initial_state(tau0),
             Model::DruckerPrager(m) => Some(MaterialState {
                 plastic_strain: 0.0,
                 tensor: m.state_tensor(&m.compliance(tau0)),
+                hardening: 0.0,
             }),
             Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
                 None
@@ -546,6 +619,7 @@ impl Material<f64> {
             Model::Fluid(m) => Model::Fluid(m.lift()),
             Model::DruckerPrager(m) => Model::DruckerPrager(m.lift()),
             Model::MohrCoulomb(m) => Model::MohrCoulomb(m.lift()),
+            Model::ModifiedCamClay(m) => Model::ModifiedCamClay(m.lift()),
         };
         Material {
             density: T::cst(self.density),
@@ -554,6 +628,8 @@ impl Material<f64> {
     }
 }
 
+#[cfg(test)]
+mod cam_clay_tests;
 #[cfg(test)]
 mod drucker_prager_tests;
 #[cfg(test)]

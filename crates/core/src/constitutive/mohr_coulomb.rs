@@ -210,6 +210,7 @@ impl<T: Scalar> MohrCoulomb<T> {
             let elastic = MaterialState {
                 plastic_strain: state.plastic_strain,
                 tensor: b_trial,
+                hardening: state.hardening,
             };
             return (tau, elastic, region);
         }
@@ -218,6 +219,7 @@ impl<T: Scalar> MohrCoulomb<T> {
             plastic_strain: state.plastic_strain
                 + (eps_trial - eps_e).norm() * T::cst(2.0 / 3.0).sqrt(),
             tensor: symmetric_fn(&(eps_e * T::cst(2.0)), &Exp),
+            hardening: state.hardening,
         };
         (tau, plastic, region)
     }

@@ -39,6 +39,7 @@ fn compressed(lame: &Lame<f64>, p: f64) -> MaterialState<f64> {
     MaterialState {
         plastic_strain: 0.0,
         tensor: Matrix3::identity() * (-2.0 * p / (3.0 * k)).exp(),
+        hardening: 0.0,
     }
 }
 
@@ -61,7 +62,7 @@ fn triaxial_df(lame: &Lame<f64>, p0: f64, q: f64) -> Matrix3<f64> {
     ])
 }
 
-fn principal(tau: &Matrix3<f64>) -> [f64; 3] {
+pub(super) fn principal(tau: &Matrix3<f64>) -> [f64; 3] {
     let (l, _) = crate::spectral::symmetric_eigen(tau);
     let mut l = l;
     l.sort_by(|a, b| b.total_cmp(a));
@@ -69,7 +70,7 @@ fn principal(tau: &Matrix3<f64>) -> [f64; 3] {
 }
 
 /// Deterministic pseudo-random numbers in [0, 1).
-fn rng(seed: &mut u64) -> f64 {
+pub(super) fn rng(seed: &mut u64) -> f64 {
     *seed = seed
         .wrapping_mul(6364136223846793005)
         .wrapping_add(1442695040888963407);
@@ -82,7 +83,7 @@ fn rng(seed: &mut u64) -> f64 {
 /// ~1e-12 relative and round-off ~`ε_mach |τ| / h` ~1e-9 |τ|: the tolerance is 1e-6 of the
 /// derivative plus 1e-8 |τ| (a tenfold margin on the round-off, which alone sets the floor
 /// where the derivative is zero, at the apex).
-fn check_tangent(
+pub(super) fn check_tangent(
     update: impl Fn(&Matrix3<Dual64>) -> Matrix3<Dual64>,
     real: impl Fn(&Matrix3<f64>) -> Matrix3<f64>,
     df: &Matrix3<f64>,

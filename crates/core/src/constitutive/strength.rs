@@ -11,6 +11,12 @@
 //! - [`J2`]: the undrained strength `c_u = σ_y / √3` and the hardening modulus are divided by
 //!   `F` (`σ_y + H ε̄ᵖ` becomes `(σ_y + H ε̄ᵖ) / F`).
 //! - The elastic models and the fluid have no strength to reduce.
+//! - [`ModifiedCamClay`](super::ModifiedCamClay) has no strength in this sense either: its
+//!   shear strength is not a material constant `c + σ′_n tan φ` but follows from the state
+//!   (`q_f = M p′` at critical state, reached at a `p′` set by the preconsolidation pressure
+//!   and the drainage), so there is no `c` or `φ` to divide. Reductions of `M` alone have
+//!   been used, but no rule is established that gives the factor of safety of the classical
+//!   definition, so the reduction is not defined for it.
 //!
 //! The elastic constants are unchanged: the factor of safety is a property of the strength
 //! alone, and the elastic state only sets how the loads are carried before failure.
@@ -25,8 +31,11 @@ fn reduced_angle<T: Scalar>(angle: T, factor: T) -> T {
 
 impl<T: Scalar> Material<T> {
     /// The material with its shear strength divided by `factor` (`F > 0`; see the module docs
-    /// for each model's rule), or `None` for a model without a strength (the elastic models
-    /// and the fluid). `F = 1` gives the material back.
+    /// for each model's rule): `τ_f = c + σ′_n tan φ` becomes `τ_f / F` for Mohr–Coulomb and
+    /// Drucker–Prager, `σ_y + H ε̄ᵖ` becomes `(σ_y + H ε̄ᵖ) / F` for J2. `None` for a model
+    /// without a strength to reduce: the elastic models, the fluid and Modified Cam-Clay
+    /// (whose strength comes from its state, not from a `c` and a `φ`). `F = 1` gives the
+    /// material back.
     pub fn strength_reduced(&self, factor: T) -> Option<Self> {
         let model = match &self.model {
             Model::MohrCoulomb(m) => Model::MohrCoulomb(MohrCoulomb {
@@ -46,9 +55,11 @@ impl<T: Scalar> Material<T> {
                 hardening: m.hardening / factor,
                 ..*m
             }),
-            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
-                return None;
-            }
+            Model::LinearElastic(_)
+            | Model::NeoHookean(_)
+            | Model::Hencky(_)
+            | Model::Fluid(_)
+            | Model::ModifiedCamClay(_) => return None,
         };
         Some(Self {
             density: self.density,
@@ -61,7 +72,9 @@ impl<T: Scalar> Material<T> {
 mod tests {
     use super::*;
     use crate::ModelKind;
-    use crate::constitutive::{Lame, MaterialState, Region};
+    use crate::constitutive::{
+        Lame, MaterialState, ModifiedCamClay, Preconsolidation, Region, Shear,
+    };
     use nalgebra::Matrix3;
 
     fn mohr_coulomb(phi_deg: f64, psi_deg: f64, cohesion: f64) -> Material<f64> {
@@ -99,6 +112,7 @@ mod tests {
             let state = MaterialState {
                 plastic_strain: 0.0,
                 tensor: Matrix3::identity() * (-2.0 * 100e3 / (3.0 * k)).exp(),
+                hardening: 0.0,
             };
             let mut regions = Vec::new();
             for df in [
@@ -196,6 +210,19 @@ mod tests {
             Material::fluid(2e6, 7.0, 0.0, 1000.0).strength_reduced(f),
             None
         );
+        // Modified Cam-Clay: its strength comes from its state, not from a c and a φ.
+        let clay = Material {
+            density: 1800.0,
+            model: Model::ModifiedCamClay(ModifiedCamClay {
+                lambda: 0.2,
+                kappa: 0.04,
+                critical_state_slope: 1.0,
+                void_ratio: 1.0,
+                shear: Shear::Poisson(0.3),
+                preconsolidation: Preconsolidation::Ratio(1.0),
+            }),
+        };
+        assert_eq!(clay.strength_reduced(f), None);
         // F = 1 gives the material back.
         let same = mohr_coulomb(25.0, 5.0, 3e3);
         let back = same.strength_reduced(1.0).expect("MC");

@@ -18,7 +18,7 @@
 //! [`particle_step`] with `Dual64` inputs; the reverse pass takes the same derivatives by the
 //! chain rule through the step's linearisation ([`super::pullback`]).
 
-use loam_core::constitutive::{MaterialState, Model};
+use loam_core::constitutive::{HISTORY_LEN, MaterialState, Model};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::{Grid, Material, Scalar, Shape, Stencil};
@@ -41,14 +41,14 @@ pub struct ParticleState<T, const D: usize> {
     pub mass: T,
 }
 
-/// Number of scalar components of a [`ParticleState`]: `D + D² + 10 + D + 1`.
+/// Number of scalar components of a [`ParticleState`]: `D + D² + HISTORY_LEN + D + 1`.
 pub const fn state_len(d: usize) -> usize {
-    2 * d + d * d + 11
+    2 * d + d * d + HISTORY_LEN + 1
 }
 
 /// Index of the velocity's first component in [`ParticleState::components`].
 pub const fn velocity_index(d: usize) -> usize {
-    d + d * d + 10
+    d + d * d + HISTORY_LEN
 }
 
 /// Index of the mass in [`ParticleState::components`] (the last one).
@@ -57,14 +57,13 @@ pub const fn mass_index(d: usize) -> usize {
 }
 
 impl<const D: usize> ParticleState<f64, D> {
-    /// All components ([`state_len`] in all): x, F row by row, plastic strain, `bₑ` row by
-    /// row, velocity, mass.
+    /// All components ([`state_len`] in all): x, F row by row, the history
+    /// ([`MaterialState::components`]), velocity, mass.
     pub fn components(&self) -> Vec<f64> {
         let mut out = Vec::with_capacity(state_len(D));
         out.extend(self.x.iter());
         out.extend(self.f.transpose().iter());
-        out.push(self.history.plastic_strain);
-        out.extend(self.history.tensor.transpose().iter());
+        out.extend(self.history.components());
         out.extend(self.v.iter());
         out.push(self.mass);
         out
@@ -78,12 +77,9 @@ impl<const D: usize> ParticleState<f64, D> {
         ParticleState {
             x: Vector::<Dual64, D>::from_fn(|a, _| d(a)),
             f: Tensor::<Dual64, D>::from_fn(|r, c| d(f0 + r * D + c)),
-            history: MaterialState {
-                plastic_strain: d(h0),
-                tensor: nalgebra::Matrix3::<Dual64>::from_fn(|r, c| d(h0 + 1 + r * 3 + c)),
-            },
-            v: Vector::<Dual64, D>::from_fn(|a, _| d(h0 + 10 + a)),
-            mass: d(h0 + 10 + D),
+            history: MaterialState::from_components(|k| d(h0 + k)),
+            v: Vector::<Dual64, D>::from_fn(|a, _| d(h0 + HISTORY_LEN + a)),
+            mass: d(h0 + HISTORY_LEN + D),
         }
     }
 }
@@ -94,8 +90,7 @@ impl<const D: usize> ParticleState<Dual64, D> {
         let mut out = Vec::with_capacity(state_len(D));
         out.extend(self.x.iter().map(|v| v.eps));
         out.extend(self.f.transpose().iter().map(|v| v.eps));
-        out.push(self.history.plastic_strain.eps);
-        out.extend(self.history.tensor.transpose().iter().map(|v| v.eps));
+        out.extend(self.history.components().iter().map(|v| v.eps));
         out.extend(self.v.iter().map(|v| v.eps));
         out.push(self.mass.eps);
         out

@@ -78,6 +78,11 @@ impl FromStr for ImplicitParam {
                 MaterialField::FrictionAngle,
                 MaterialField::DilationAngle,
                 MaterialField::Cohesion,
+                MaterialField::Lambda,
+                MaterialField::Kappa,
+                MaterialField::CriticalStateSlope,
+                MaterialField::VoidRatio,
+                MaterialField::ShearModulus,
                 MaterialField::Density,
             ]
             .into_iter()

@@ -7,8 +7,8 @@
 //! evaluation with a multi-lane dual, and kept as its Jacobian: `D + D²` lanes for the
 //! stencil; for the stress update the fewest arguments its model reads, composed with their
 //! own Jacobian by `(ΔF, Fₚ, hₚ)` into `J_C` (`D²` lanes, the entries of `F = ΔF Fₚ`, for
-//! the hyperelastic models; 7 for J2, its trial `bₑ` and `ε̄ᵖ`; `2D² + 10`, all inputs, for
-//! Drucker–Prager). For the scalar
+//! the hyperelastic models; 7 for J2, its trial `bₑ` and `ε̄ᵖ`; `2D² + 11`, all inputs
+//! (`ΔF`, `Fₚ` and the [`HISTORY_LEN`] history components), for the soil models). For the scalar
 //!
 //! ```text
 //! ψₚ = Σ_i (a_i·S∇N_i + c_i·q N_i) + x̄'·(xₚ + Σ_i N_i Δu_i) + F̄':(ΔF Fₚ) + h̄'·h' + m̄' mₚ
@@ -37,11 +37,11 @@ use super::kernel::{
     Loads, ParticleState, Setting, carries_history, mass_index, state_len, velocity_index,
 };
 use loam_core::Scalar;
-use loam_core::constitutive::{MaterialState, Model};
+use loam_core::constitutive::{HISTORY_LEN, MaterialState, Model};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse, to3};
 use loam_core::{Material, Stencil};
-use loam_implicit::kernel::{lift_state, stress_update};
+use loam_implicit::kernel::stress_update;
 use nalgebra::{Matrix3, SMatrix, SVector};
 use num_dual::{Derivative, Dual64, DualSVec64};
 
@@ -65,9 +65,14 @@ pub struct LaneMaterials {
     lanes4: Vec<Material<DualSVec64<4>>>,
     lanes7: Vec<Material<DualSVec64<7>>>,
     lanes9: Vec<Material<DualSVec64<9>>>,
-    lanes18: Vec<Material<DualSVec64<18>>>,
-    lanes28: Vec<Material<DualSVec64<28>>>,
+    lanes_all2: Vec<Material<DualSVec64<ALL_INPUTS_2D>>>,
+    lanes_all3: Vec<Material<DualSVec64<ALL_INPUTS_3D>>>,
 }
+
+/// Lanes of every input of a plane-strain stress update ([`constitutive_inputs`]).
+const ALL_INPUTS_2D: usize = constitutive_inputs(2, true);
+/// Lanes of every input of a 3D stress update ([`constitutive_inputs`]).
+const ALL_INPUTS_3D: usize = constitutive_inputs(3, true);
 
 impl LaneMaterials {
     /// Lifts a real material table.
@@ -76,8 +81,8 @@ impl LaneMaterials {
             lanes4: real.iter().map(|m| m.lift()).collect(),
             lanes7: real.iter().map(|m| m.lift()).collect(),
             lanes9: real.iter().map(|m| m.lift()).collect(),
-            lanes18: real.iter().map(|m| m.lift()).collect(),
-            lanes28: real.iter().map(|m| m.lift()).collect(),
+            lanes_all2: real.iter().map(|m| m.lift()).collect(),
+            lanes_all3: real.iter().map(|m| m.lift()).collect(),
             real: real.to_vec(),
         }
     }
@@ -99,9 +104,9 @@ const fn geometry_lanes(d: usize) -> usize {
 }
 
 /// Inputs of the stress update's Jacobian: `ΔF` and `Fₚ` row by row, then (with a history)
-/// the plastic strain and `bₑ` row by row.
+/// the history's components ([`MaterialState::components`]).
 const fn constitutive_inputs(d: usize, history: bool) -> usize {
-    2 * d * d + if history { 10 } else { 0 }
+    2 * d * d + if history { HISTORY_LEN } else { 0 }
 }
 
 /// A particle's converged sub-step with the Jacobians of its stencil and of its stress
@@ -164,13 +169,17 @@ impl<const D: usize> Linearisation<D> {
         let inputs = (&delta_f, state, setting.volume0, carries);
         let model = &materials.real[material].model;
         let (stress, jacobian) = match (model, D) {
-            (Model::J2(_), 2) => j2_stress_jacobian::<18, D>(&materials.lanes7[material], inputs)?,
-            (Model::J2(_), _) => j2_stress_jacobian::<28, D>(&materials.lanes7[material], inputs)?,
-            (Model::DruckerPrager(_) | Model::MohrCoulomb(_), 2) => {
-                stress_jacobian::<18, D>(&materials.lanes18[material], inputs)?
+            (Model::J2(_), 2) => {
+                j2_stress_jacobian::<ALL_INPUTS_2D, D>(&materials.lanes7[material], inputs)?
             }
-            (Model::DruckerPrager(_) | Model::MohrCoulomb(_), _) => {
-                stress_jacobian::<28, D>(&materials.lanes28[material], inputs)?
+            (Model::J2(_), _) => {
+                j2_stress_jacobian::<ALL_INPUTS_3D, D>(&materials.lanes7[material], inputs)?
+            }
+            (Model::DruckerPrager(_) | Model::MohrCoulomb(_) | Model::ModifiedCamClay(_), 2) => {
+                stress_jacobian::<ALL_INPUTS_2D, D>(&materials.lanes_all2[material], inputs)?
+            }
+            (Model::DruckerPrager(_) | Model::MohrCoulomb(_) | Model::ModifiedCamClay(_), _) => {
+                stress_jacobian::<ALL_INPUTS_3D, D>(&materials.lanes_all3[material], inputs)?
             }
             (_, 2) => hyperelastic_stress_jacobian::<8, 4, D>(&materials.lanes4[material], inputs)?,
             _ => hyperelastic_stress_jacobian::<18, 9, D>(&materials.lanes9[material], inputs)?,
@@ -217,7 +226,7 @@ impl<const D: usize> Linearisation<D> {
     }
 
     /// `(Ḡ, F̄_C + ΔFᵀF̄', h̄)` (module docs).
-    fn pull(&self, cot: &Cotangent<'_, D>) -> (Tensor<f64, D>, Tensor<f64, D>, [f64; 10]) {
+    fn pull(&self, cot: &Cotangent<'_, D>) -> (Tensor<f64, D>, Tensor<f64, D>, [f64; HISTORY_LEN]) {
         let dd = D * D;
         let h0 = D + dd;
         let cols = constitutive_inputs(D, self.carries);
@@ -225,7 +234,7 @@ impl<const D: usize> Linearisation<D> {
         let mut input_bar = vec![0.0; cols];
         let s_rows = s_bar.transpose();
         let rows = s_rows.iter().copied().chain(
-            cot.end[h0..h0 + 10]
+            cot.end[h0..h0 + HISTORY_LEN]
                 .iter()
                 .copied()
                 .filter(|_| self.carries),
@@ -244,7 +253,7 @@ impl<const D: usize> Linearisation<D> {
         let source = if self.carries {
             &input_bar[2 * dd..]
         } else {
-            &cot.end[h0..h0 + 10]
+            &cot.end[h0..h0 + HISTORY_LEN]
         };
         (g_bar, f_bar, std::array::from_fn(|k| source[k]))
     }
@@ -301,7 +310,7 @@ impl<const D: usize> Linearisation<D> {
                 out[D + r * D + c] += f_bar[(r, c)];
             }
         }
-        out[h0..h0 + 10].copy_from_slice(&h_bar);
+        out[h0..h0 + HISTORY_LEN].copy_from_slice(&h_bar);
         let (v_bar, m_dyn) = inertia.map_or((v_end, 0.0), |i| (i.velocity, i.mass));
         out[vi..vi + D].copy_from_slice(v_bar.as_slice());
         out[mi] = cot.end[mi] + self.load_share(cot).dot(&self.loads.gravity) + m_dyn;
@@ -318,16 +327,22 @@ impl<const D: usize> Linearisation<D> {
         let (s, _, h) = stress_update(
             material,
             &self.f_n.map(Dual64::from_re),
-            &lift_state(&self.history),
+            &self.history.lift(),
             Dual64::from_re(self.volume0),
             &self.delta_f.map(Dual64::from_re),
         )?;
         let h0 = D + D * D;
-        let h_end = &cot.end[h0..h0 + 10];
+        let h_end = &cot.end[h0..h0 + HISTORY_LEN];
         let through_stress = self.stress_bar(cot).dot(&s.map(|v| v.eps));
-        let b = h.tensor.transpose();
-        let history = std::iter::once(h.plastic_strain).chain(b.iter().copied());
-        Some(through_stress + history.zip(h_end).map(|(v, w)| v.eps * w).sum::<f64>())
+        let history = h.components();
+        Some(
+            through_stress
+                + history
+                    .iter()
+                    .zip(h_end)
+                    .map(|(v, w)| v.eps * w)
+                    .sum::<f64>(),
+        )
     }
 }
 
@@ -372,12 +387,10 @@ fn stress_jacobian<const L: usize, const D: usize>(
     let f = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(state.f[(r, c)], dd + r * D + c));
     let h = &state.history;
     let history = if carries {
-        MaterialState {
-            plastic_strain: seed(h.plastic_strain, 2 * dd),
-            tensor: Matrix3::from_fn(|r, c| seed(h.tensor[(r, c)], 2 * dd + 1 + r * 3 + c)),
-        }
+        let c = h.components();
+        MaterialState::from_components(|k| seed(c[k], 2 * dd + k))
     } else {
-        lift_state(h)
+        h.lift()
     };
     let (s, _, h2) = stress_update(material, &f, &history, DualSVec64::from_re(volume0), &g)?;
     Some(jacobian_rows(&s, carries.then_some(&h2)))
@@ -392,8 +405,7 @@ fn jacobian_rows<const L: usize, const D: usize>(
     let cols = constitutive_inputs(D, history.is_some());
     let mut outputs: Vec<DualSVec64<L>> = s.transpose().iter().copied().collect();
     if let Some(h) = history {
-        outputs.push(h.plastic_strain);
-        outputs.extend(h.tensor.transpose().iter().copied());
+        outputs.extend(h.components());
     }
     let mut jacobian = vec![0.0; outputs.len() * cols];
     for (row, v) in jacobian.chunks_exact_mut(cols).zip(&outputs) {
@@ -436,6 +448,7 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
         let inner = MaterialState {
             plastic_strain: z[6],
             tensor: Matrix3::from_fn(|r, c| z[component(r, c)]),
+            hardening: DualSVec64::from_re(h.hardening),
         };
         let (tau, history) = material.kirchhoff_update(&identity, &identity, &inner);
         (tau, Some(history))
@@ -454,7 +467,7 @@ fn hyperelastic_stress_jacobian<const L: usize, const M: usize, const D: usize>(
     let f_n = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(state.f[(r, c)], dd + r * D + c));
     let f = product(&g, &f_n);
     let arguments: [DualSVec64<L>; M] = std::array::from_fn(|k| f[(k / D, k % D)]);
-    let history = lift_state(&state.history);
+    let history = state.history.lift();
     composed_jacobian(&g, volume0, &arguments, |z| {
         let f3 = to3(
             &Tensor::<_, D>::from_fn(|r, c| z[r * D + c]),
@@ -492,10 +505,7 @@ fn composed_jacobian<const L: usize, const M: usize, const D: usize>(
         DualSVec64::<L>::new(v.re, Derivative::some(e))
     };
     let tau = tau.map(compose);
-    let history = history.map(|h| MaterialState {
-        plastic_strain: compose(h.plastic_strain),
-        tensor: h.tensor.map(compose),
-    });
+    let history = history.map(|h| h.map(compose));
     let s = product(&from3::<_, D>(&tau), &inverse(g)?.transpose()) * DualSVec64::from_re(volume0);
     Some(jacobian_rows(&s, history.as_ref()))
 }
@@ -535,11 +545,10 @@ mod tests {
             }
         }
         let e = &step.end;
-        let (f, b) = (e.f.transpose(), e.history.tensor.transpose());
+        let f = e.f.transpose();
         let values = (e.x.iter().copied())
             .chain(f.iter().copied())
-            .chain(std::iter::once(e.history.plastic_strain))
-            .chain(b.iter().copied())
+            .chain(e.history.components())
             .chain(e.v.iter().copied())
             .chain(std::iter::once(e.mass));
         for (v, w) in values.zip(cot.end) {
@@ -624,6 +633,7 @@ mod tests {
             history: MaterialState {
                 plastic_strain: 0.01,
                 tensor: Matrix3::new(1.01, 0.005, 0.0, 0.005, 0.99, 0.0, 0.0, 0.0, 1.0),
+                hardening: 0.0,
             },
             v: Vector::<f64, 2>::new(0.3, -1.2),
             mass: 7.8,

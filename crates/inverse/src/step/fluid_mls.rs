@@ -16,7 +16,7 @@
 //! repeated multiplication for a whole `γ`), so `ln J` is formed only for the parameters.
 
 use super::ParticleShare;
-use loam_core::constitutive::Fluid;
+use loam_core::constitutive::{Fluid, MaterialState};
 use loam_core::step::EndOfStep;
 use loam_core::tensor::{Tensor, Vector, cofactor, det, to3};
 use loam_core::transfer::Gathered;
@@ -105,8 +105,7 @@ pub(super) fn reverse<const D: usize>(
     share.v = Vector::zeros();
     share.f = delta_f.transpose() * f1_bar;
     share.stress = Matrix3::zeros();
-    share.plastic_strain = 0.0;
-    share.tensor = Matrix3::zeros();
+    share.history = MaterialState::zeros();
     share.mass = 0.0;
     FluidEnd {
         g_bar: Gathered {

@@ -3,7 +3,7 @@
 //! `loam_explicit::Solver::step` composes them, and packs its outputs.
 
 use crate::lanes::{Packed, Unpack};
-use loam_core::constitutive::{Elasticity, Material, MaterialState, Model};
+use loam_core::constitutive::{Elasticity, HISTORY_LEN, Material, Model};
 use loam_core::step::{EndOfStep, NodeLaw, NodeState, momentum_update, particle_end};
 use loam_core::tensor::{Tensor, Vector};
 use loam_core::transfer::Gathered;
@@ -43,14 +43,14 @@ impl<const D: usize> Motion<D> {
     }
 }
 
-/// The inputs of the particle end after the motion: `F` (D²), `σ` (9), plastic strain (1),
-/// history tensor (9), from offset `start`.
+/// The inputs of the particle end after the motion: `F` (D²), `σ` (9), the history
+/// ([`HISTORY_LEN`]), from offset `start`.
 pub(super) struct End;
 
 impl End {
     /// Length of the block in `D` dimensions.
     pub const fn len(d: usize) -> usize {
-        d * d + 19
+        d * d + 9 + HISTORY_LEN
     }
 
     /// The input lanes of the block from `start` whose adjoint can be non-zero for `model`:
@@ -61,14 +61,14 @@ impl End {
         let s = start + D * D;
         let (stress, history) = match model {
             Model::DruckerPrager(dp) => (dp.elasticity == Elasticity::Jaumann, true),
-            Model::J2(_) | Model::MohrCoulomb(_) => (false, true),
+            Model::J2(_) | Model::MohrCoulomb(_) | Model::ModifiedCamClay(_) => (false, true),
             _ => (false, false),
         };
         if stress {
             lanes.extend(s..s + 9);
         }
         if history {
-            lanes.extend(s + 9..s + 19);
+            lanes.extend(s + 9..s + 9 + HISTORY_LEN);
         }
         lanes
     }
@@ -100,10 +100,7 @@ fn finish<T: Scalar, const D: usize>(
 ) {
     let mut f = u.tensor::<D>();
     let mut stress = u.matrix3();
-    let mut state = MaterialState {
-        plastic_strain: u.scalar(),
-        tensor: u.matrix3(),
-    };
+    let mut state = u.history();
     particle_end(
         end,
         material,
@@ -122,8 +119,7 @@ fn finish<T: Scalar, const D: usize>(
     }
     out.tensor(&f);
     out.matrix3(&stress);
-    out.push(state.plastic_strain);
-    out.matrix3(&state.tensor);
+    out.history(&state);
 }
 
 /// USL: one particle's G2P and end of step: the new velocity and affine matrix by the

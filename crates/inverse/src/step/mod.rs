@@ -46,7 +46,7 @@ use crate::error::AdjointError;
 use crate::lanes::{MAX_LANES, Packed, Unpack, constants, dot_eps, vjp};
 use crate::params::{Acts, Param};
 use kernels::node_update;
-use loam_core::constitutive::Material;
+use loam_core::constitutive::{Material, MaterialState};
 use loam_core::stencil::{Frame, particle_half_width};
 use loam_core::step::{NodeLaw, NodeState, NodeSums, on_a_face};
 use loam_core::tensor::{Tensor, Vector, cofactor, det, from3};
@@ -116,8 +116,7 @@ struct ParticleShare<const D: usize> {
     v: Vector<f64, D>,
     f: Tensor<f64, D>,
     stress: Matrix3<f64>,
-    plastic_strain: f64,
-    tensor: Matrix3<f64>,
+    history: MaterialState<f64>,
     /// `m̄_p` from MUSL's second P2G.
     mass: f64,
 }
@@ -129,39 +128,35 @@ impl<const D: usize> ParticleShare<D> {
             v: Vector::zeros(),
             f: Tensor::zeros(),
             stress: Matrix3::zeros(),
-            plastic_strain: 0.0,
-            tensor: Matrix3::zeros(),
+            history: MaterialState::zeros(),
             mass: 0.0,
         }
     }
 
-    /// Reads `F̄, σ̄`, plastic strain and tensor adjoints (the [`kernels::End`] block).
+    /// Reads `F̄, σ̄` and the history's adjoints (the [`kernels::End`] block).
     fn read_end(&mut self, u: &mut Unpack<'_, f64>) {
         self.f = u.tensor::<D>();
         self.stress = u.matrix3();
-        self.plastic_strain = u.scalar();
-        self.tensor = u.matrix3();
+        self.history = u.history();
     }
 }
 
 /// A scatter to the nodes: `(node, v̄ share, v̄ⁿ share)` per stencil node of every particle.
 type Scatter<const D: usize> = Vec<(usize, Vector<f64, D>, Vector<f64, D>)>;
 
-/// Packs the particle's end-of-step state fields `F, σ`, plastic strain and tensor (the
-/// [`kernels::End`] block).
+/// Packs the particle's end-of-step state fields `F, σ` and history (the [`kernels::End`]
+/// block).
 fn pack_end<const D: usize>(p: &Particles<f64, D>, i: usize, out: &mut Packed<f64>) {
     out.tensor(&p.f[i]);
     out.matrix3(&p.stress[i]);
-    out.push(p.state[i].plastic_strain);
-    out.matrix3(&p.state[i].tensor);
+    out.history(&p.state[i]);
 }
 
-/// Packs the adjoints of `F, σ`, plastic strain and tensor.
+/// Packs the adjoints of `F, σ` and the history.
 fn pack_end_adjoint<const D: usize>(a: &ParticleAdjoint<D>, i: usize, out: &mut Packed<f64>) {
     out.tensor(&a.f[i]);
     out.matrix3(&a.stress[i]);
-    out.push(a.plastic_strain[i]);
-    out.matrix3(&a.tensor[i]);
+    out.history(&a.history[i]);
 }
 
 /// Sums the entries of a scatter, in their order, into `adj` (and their `vⁿ` shares into
@@ -591,18 +586,17 @@ impl<const D: usize> ReverseStep<D> {
             c,
             f,
             stress,
-            plastic_strain,
-            tensor,
+            history,
             mass,
             volume0,
         } = adjoint;
-        (x, v, c, f, stress, plastic_strain, tensor, mass, volume0)
+        (x, v, c, f, stress, history, mass, volume0)
             .into_par_iter()
             .zip(shares.par_iter())
             .enumerate()
             .with_min_len(CHUNK)
             .for_each(
-                |(i, ((x, v, c, f, stress, ps, tensor, mass, volume0), share))| {
+                |(i, ((x, v, c, f, stress, history, mass, volume0), share))| {
                     let site = self.site(p, i);
                     let (m, vp, cp, fp) = (p.mass[i], p.v[i], p.c[i], p.f[i]);
                     let j = det(&fp);
@@ -633,8 +627,7 @@ impl<const D: usize> ReverseStep<D> {
                     *stress = s_bar;
                     // V = V⁰ det F: ∂V/∂F = V⁰ det F F⁻ᵀ.
                     *f = share.f + cofactor(&fp) * (p.volume0[i] * vol_bar);
-                    *ps = share.plastic_strain;
-                    *tensor = share.tensor;
+                    *history = share.history;
                     let affine_part = if affine {
                         cp.component_mul(&s.s2).sum()
                     } else {

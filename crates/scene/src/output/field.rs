@@ -21,6 +21,9 @@ pub enum Field {
     Strain,
     /// Equivalent plastic strain (zero for elastic models).
     PlasticStrain,
+    /// The preconsolidation pressure `p′c` of Modified Cam-Clay (Pa, compression positive;
+    /// zero for the other models).
+    PreconsolidationPressure,
     /// Pressure `−tr σ / 3` (Pa).
     Pressure,
     /// Von Mises stress `√(3/2 s:s)`, `s` the deviatoric stress (Pa).
@@ -43,12 +46,13 @@ pub enum Field {
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 12] = [
+    pub const ALL: [Field; 13] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
         Field::Strain,
         Field::PlasticStrain,
+        Field::PreconsolidationPressure,
         Field::Pressure,
         Field::VonMises,
         Field::Volume,
@@ -66,6 +70,7 @@ impl Field {
             Field::Stress => "stress",
             Field::Strain => "strain",
             Field::PlasticStrain => "plastic_strain",
+            Field::PreconsolidationPressure => "preconsolidation_pressure",
             Field::Pressure => "pressure",
             Field::VonMises => "von_mises",
             Field::Volume => "volume",

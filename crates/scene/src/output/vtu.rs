@@ -144,6 +144,7 @@ fn point_data<const D: usize>(
         Field::Stress => tensor_array(name, p.stress.iter().copied()),
         Field::Strain => tensor_array(name, p.f.iter().map(hencky_strain)),
         Field::PlasticStrain => scalars(p.state.iter().map(|s| s.plastic_strain).collect()),
+        Field::PreconsolidationPressure => scalars(p.state.iter().map(|s| s.hardening).collect()),
         Field::Pressure => scalars(p.stress.iter().map(pressure).collect()),
         Field::VonMises => scalars(p.stress.iter().map(von_mises).collect()),
         Field::Volume => scalars(
