@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 26] = [
+pub const SCENES: [CaseScene; 27] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -65,6 +65,7 @@ pub const SCENES: [CaseScene; 26] = [
     case_scene!("inverse_mlp"),
     case_scene!("implicit_cantilever"),
     case_scene!("implicit_footing"),
+    case_scene!("implicit_clay_footing"),
     case_scene!("implicit_cantilever_newmark"),
 ];
 

@@ -253,7 +253,10 @@ fn sigint_ends_a_search_with_what_was_done_written() {
     let trials = s["trials"].as_array().expect("trials");
     assert!(matches!(trials.len(), 1 | 2), "{} trials", trials.len());
     assert_eq!(trials[0]["outcome"], "stable");
-    assert_eq!(trials[0]["load_steps"].as_array().expect("steps").len(), 400);
+    assert_eq!(
+        trials[0]["load_steps"].as_array().expect("steps").len(),
+        400
+    );
     if let Some(second) = trials.get(1) {
         assert_eq!(second["outcome"], "interrupted");
         let steps = second["load_steps"].as_array().expect("steps").len();
