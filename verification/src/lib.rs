@@ -34,6 +34,7 @@ pub mod obstacles;
 mod output;
 pub mod runout;
 pub mod scenes;
+pub mod slope_fos;
 pub mod tangent_fd;
 pub mod triaxial;
 pub mod triaxial_mcc;
@@ -303,6 +304,16 @@ pub fn cases() -> Vec<Case> {
             name: "footing-prandtl",
             description: "rigid strip footing on weightless Tresca (J2) soil: limit pressure vs (2 + π) c_u",
             runner: Runner::Cpu(footing::run),
+        },
+        Case {
+            name: "footing-cphi",
+            description: "rigid strip footing on weightless c–φ soil (Mohr–Coulomb, φ = ψ = 30°): limit pressure vs Prandtl's c N_c = 30.14 c at two cell sizes, the finer closer",
+            runner: Runner::Cpu(footing::run_cphi),
+        },
+        Case {
+            name: "slope-fos",
+            description: "factor of safety of Griffiths & Lane's 2:1 slope (φ′ = 20°, c′ = 10 kPa, ψ = 0) by strength reduction over gravity switch-on: F vs 1.40",
+            runner: Runner::Cpu(slope_fos::run),
         },
         Case {
             name: "k0-layer",

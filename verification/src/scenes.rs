@@ -39,13 +39,15 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 25] = [
+pub const SCENES: [CaseScene; 27] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
     case_scene!("cantilever"),
     case_scene!("column_compaction"),
     case_scene!("footing_prandtl"),
+    case_scene!("footing_cphi"),
+    case_scene!("slope_fos"),
     case_scene!("k0_layer"),
     case_scene!("disk_collision"),
     case_scene!("bui_collapse"),

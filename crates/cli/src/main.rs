@@ -1,13 +1,15 @@
-//! `loam`: run, check, verify and bench MPM scenes.
+//! `loam`: run, check, verify and bench MPM scenes, and search their factor of safety.
 //!
 //! Exit codes: 0 success; 1 a run or a verification failed (a run on the GPU also when no
 //! GPU adapter is found); 2 the input (scene file, arguments) is invalid, or the scene would
 //! not fit in memory or run stably, or uses a feature the GPU path lacks (with `--device gpu`);
-//! 130 a run was interrupted by a signal (its summary says `interrupted`). A closed stdout
-//! or stderr pipe ends the process by SIGPIPE, as for other Unix tools.
+//! 130 a run or a `loam fos` search was interrupted by a signal (its summary says
+//! `interrupted`). A closed stdout or stderr pipe ends the process by SIGPIPE, as for other
+//! Unix tools.
 
 mod bench;
 mod check;
+mod fos;
 mod invert;
 mod material;
 mod preflight;
@@ -35,7 +37,8 @@ struct Cli {
     memory_limit: Option<f64>,
     /// The most steps a run may take (default 1e8; 1e6 for each run of an inversion).
     /// `run` and `check` refuse a scene estimated at more (an end time or a stiffness in the
-    /// wrong unit), `gradient`, `invert` and `check` an inversion file.
+    /// wrong unit), `fos` a scene with more load steps per trial, `gradient`, `invert` and
+    /// `check` an inversion file.
     #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     max_steps: Option<u64>,
     #[command(subcommand)]
@@ -76,6 +79,24 @@ enum Command {
         /// bits on every run.
         #[arg(long, value_enum)]
         p2g: Option<run::gpu::P2g>,
+    },
+    /// Factor of safety by strength reduction: run the scene's quasi-static loading with
+    /// c and tan φ (and tan ψ) of every Mohr–Coulomb and Drucker–Prager material divided by a
+    /// trial factor F (σ_y of J2), bisect F on failure (a load step that does not converge),
+    /// and write fos.json and fos.png; settings from the scene's [fos] section.
+    Fos {
+        /// Scene file (.toml or .json), implicit and quasi-static.
+        scene: PathBuf,
+        /// Output folder (default: the scene's `output.dir`).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Stop when the bracket [stable, failed] of F is this narrow (default: the scene's
+        /// `fos.tolerance`, else 0.01).
+        #[arg(long, allow_negative_numbers = true)]
+        tolerance: Option<f64>,
+        /// No table of trials.
+        #[arg(long)]
+        quiet: bool,
     },
     /// Element test: drive one material point through the laboratory paths of FILE
     /// (drained/undrained triaxial, oedometer, isotropic, simple shear) and write
@@ -291,6 +312,31 @@ fn main() -> ExitCode {
             }
         }
         Command::Material { file, out, quiet } => material::material(&file, out.as_deref(), quiet),
+        Command::Fos { tolerance, .. }
+            if tolerance.is_some_and(|t| !(t.is_finite() && t > 0.0)) =>
+        {
+            eprintln!(
+                "error: --tolerance {}: expected a positive number (the width of the bracket \
+                 of factors at which the search stops)",
+                tolerance.unwrap_or_default()
+            );
+            Outcome::BadInput
+        }
+        Command::Fos {
+            scene,
+            out,
+            tolerance,
+            quiet,
+        } => fos::fos(
+            &scene,
+            &fos::Options {
+                out: out.as_deref(),
+                tolerance,
+                quiet,
+                memory_limit,
+                max_steps,
+            },
+        ),
         Command::Check { scene } if invert::is_inversion(&scene) => {
             invert::check(&scene, inversion)
         }

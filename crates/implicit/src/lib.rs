@@ -11,6 +11,8 @@
 //! - [`newton`]: Newton with line search; [`solver`]: load stepping with step cutting.
 //! - [`linear`]: sparse direct (faer LU / Cholesky) and preconditioned Krylov solvers.
 //! - [`element`]: element tests, one material point under mixed strain and stress control.
+//! - [`strength_reduction`]: the factor of safety of a loading by strength reduction, a
+//!   search over ordinary runs with the strength divided by a trial factor.
 
 pub mod dofs;
 pub mod element;
@@ -18,6 +20,7 @@ pub mod kernel;
 pub mod linear;
 pub mod newton;
 pub mod solver;
+pub mod strength_reduction;
 pub mod system;
 
 pub use dofs::NodeDof;

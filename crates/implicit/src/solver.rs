@@ -78,6 +78,8 @@ pub enum ImplicitError {
         to: f64,
         /// Cuts tried.
         cuts: usize,
+        /// Newton iterations of every attempt of the step, failed ones included.
+        iterations: usize,
         /// The last failure.
         reason: String,
     },
@@ -130,6 +132,11 @@ impl<const D: usize> StepReport<D> {
             .filter(|s| s.converged)
             .map(|s| s.iterations())
             .sum()
+    }
+
+    /// Newton iterations of every solve, failed attempts included.
+    pub fn attempted_iterations(&self) -> usize {
+        self.solves.iter().map(|s| s.iterations()).sum()
     }
 }
 
@@ -462,6 +469,7 @@ impl<const D: usize> ImplicitSolver<D> {
                             from,
                             to,
                             cuts: report.cuts,
+                            iterations: report.attempted_iterations(),
                             reason,
                         });
                     }
@@ -510,6 +518,7 @@ impl<const D: usize> ImplicitSolver<D> {
                     from,
                     to,
                     cuts: 0,
+                    iterations: report.attempted_iterations(),
                     reason,
                 });
             }

@@ -16,6 +16,7 @@ use loam_core::{
 };
 use loam_implicit::NewtonSettings;
 use loam_implicit::linear::LinearSolverKind;
+use loam_implicit::strength_reduction::SearchSettings;
 use nalgebra::SVector;
 use std::path::PathBuf;
 
@@ -400,6 +401,20 @@ impl Scene {
             contact: self.contact::<D>(),
             prestressed: self.bodies.iter().any(|b| b.initial_stress.is_some()),
         })
+    }
+
+    /// The settings of `loam fos`'s search: the `[fos]` section with the defaults of
+    /// [`SearchSettings::default`] for what it leaves out (all of them without a section).
+    pub fn fos_settings(&self) -> SearchSettings {
+        let d = SearchSettings::default();
+        let f = self.fos.unwrap_or_default();
+        SearchSettings {
+            start: f.start.unwrap_or(d.start),
+            tolerance: f.tolerance.unwrap_or(d.tolerance),
+            max_trials: f.max_trials.unwrap_or(d.max_trials),
+            growth_limit: f.growth_limit.or(d.growth_limit),
+            displacement_limit: f.displacement_limit.or(d.displacement_limit),
+        }
     }
 
     /// The elastic law of a `drucker_prager` material that does not name one: Hencky for the

@@ -7,8 +7,8 @@
 //! sections `[grid]`, `[[materials]]`, `[[bodies]]`, `[boundaries]`, `[loads]`, `[solver]`
 //! and `[output]`, and for quasi-static implicit runs (`[solver] type = "implicit"`)
 //! `[[constraints]]` and `[[point_loads]]`, for explicit runs `[[friction]]` (Coulomb
-//! friction segments on walls) and `[[obstacles]]` (rigid boxes and cylinders);
-//! `docs/scene-format.md` documents every field.
+//! friction segments on walls) and `[[obstacles]]` (rigid boxes and cylinders), and `[fos]`
+//! (the factor-of-safety search of `loam fos`); `docs/scene-format.md` documents every field.
 //! A small 2D example:
 //!
 //! ```toml
@@ -81,7 +81,7 @@ pub use estimate::Estimate;
 pub use load::parse_file;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Device, Face,
-    FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec,
-    NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, RotationSpec, Scene,
-    SolverKind, SolverSpec,
+    FosSpec, FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec,
+    MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, RotationSpec,
+    Scene, SolverKind, SolverSpec,
 };

@@ -49,6 +49,10 @@ pub struct Scene {
     /// What to write and where (default: every field, 20 frames, `out/<scene file stem>`).
     #[serde(default)]
     pub output: OutputSpec,
+    /// Settings of the factor-of-safety search of `loam fos` (default: none, which `loam fos`
+    /// reads as the defaults of [`FosSpec`]); `loam run` does not use it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fos: Option<FosSpec>,
     /// The file the scene was read from, if any (not part of the file; sets the default
     /// output folder and prefixes error messages).
     #[serde(skip)]
@@ -749,6 +753,33 @@ pub struct ObstacleSpec {
     /// Coulomb coefficient `μ ≥ 0` against the material (default 0, frictionless).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
+}
+
+/// `[fos]`: the factor-of-safety search of `loam fos` (strength reduction over implicit runs
+/// of the scene's gravity loading; see `loam_implicit::strength_reduction`). Every key is
+/// optional.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FosSpec {
+    /// The search stops when the bracket `[stable, failed]` of factors is at most this wide,
+    /// positive (default 0.01); `loam fos --tolerance` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Factor of the first trial, positive (default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<f64>,
+    /// The most trials, `≥ 1` (default 30).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_trials: Option<usize>,
+    /// A trial fails when a load step grows the largest particle displacement by more than
+    /// this multiple of its growth in the first load step, above 1 (default 10: the secant
+    /// stiffness of the step below a tenth of the elastic one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub growth_limit: Option<f64>,
+    /// A trial also fails when the largest particle displacement exceeds this (m) after a
+    /// converged load step, positive (default: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub displacement_limit: Option<f64>,
 }
 
 /// `[output]`: what to write and where.

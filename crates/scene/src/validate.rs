@@ -10,7 +10,7 @@
 use crate::error::{Issue, SceneError};
 use crate::geometry::twice_signed_area;
 use crate::schema::{
-    BodyShape, BodySpec, InitialStressSpec, MaterialSpec, RotationSpec, Scene, SolverKind,
+    BodyShape, BodySpec, FosSpec, InitialStressSpec, MaterialSpec, RotationSpec, Scene, SolverKind,
 };
 use loam_core::constitutive::Elasticity;
 use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
@@ -136,6 +136,74 @@ impl Scene {
         self.check_obstacles(&mut c, dim);
         self.check_solver(&mut c);
         self.check_output(&mut c);
+        if let Some(fos) = &self.fos {
+            check_fos_values(&mut c, fos);
+            c.issues.extend(self.fos_issues());
+        }
+        c.issues
+    }
+
+    /// Checks that `loam fos` can search this scene's factor of safety (whether or not it has
+    /// a `[fos]` section): a quasi-static implicit scene, loaded by gravity or point loads that
+    /// ramp over the load steps (no body with an initial stress), with a material whose
+    /// strength can be reduced. [`Scene::validate`] makes the same checks when the scene has
+    /// a `[fos]` section.
+    pub fn check_fos(&self) -> Result<(), SceneError> {
+        self.issues_to_result(self.fos_issues())
+    }
+
+    /// The problems [`Scene::check_fos`] reports.
+    fn fos_issues(&self) -> Vec<Issue> {
+        let mut c = Checker::default();
+        if self.solver.kind != SolverKind::Implicit {
+            c.issue(
+                "solver.type",
+                "the factor of safety is searched over quasi-static implicit runs; expected \
+                 \"implicit\"",
+            );
+        }
+        if self.solver.newmark_dt.is_some() {
+            c.issue(
+                "solver.newmark_dt",
+                "the factor of safety is searched over quasi-static runs; remove it",
+            );
+        }
+        let gravity = self
+            .loads
+            .gravity
+            .as_ref()
+            .is_some_and(|g| g.iter().any(|&x| x != 0.0));
+        if !gravity && self.point_loads.is_empty() {
+            c.issue(
+                "loads.gravity",
+                "nothing loads the scene: the search reduces the strength until the loading \
+                 fails, so it needs gravity or [[point_loads]]",
+            );
+        }
+        for (i, body) in self.bodies.iter().enumerate() {
+            if body.initial_stress.is_some() {
+                c.issue(
+                    format!("bodies[{i}].initial_stress"),
+                    "the factor of safety is searched over gravity switch-on, and with an \
+                     initial stress gravity acts in full from the first load step (the first \
+                     step is the elastic reference of the failure test); remove it",
+                );
+            }
+        }
+        if !self.materials.iter().any(|m| {
+            matches!(
+                m.model,
+                ModelKind::MohrCoulomb | ModelKind::DruckerPrager | ModelKind::J2
+            )
+        }) {
+            c.issue(
+                "materials",
+                "no material has a strength to reduce: expected a \"mohr_coulomb\", \
+                 \"drucker_prager\" or \"j2\" material (the elastic models, \"fluid\" and \
+                 \"modified_cam_clay\", whose strength comes from its state, have no c, φ or \
+                 σ_y to divide)",
+            );
+        }
         c.issues
     }
 
@@ -775,6 +843,31 @@ impl Scene {
                 );
             }
         }
+    }
+}
+
+/// The ranges of the `[fos]` keys.
+fn check_fos_values(c: &mut Checker, fos: &FosSpec) {
+    for (key, value) in [
+        ("tolerance", fos.tolerance),
+        ("start", fos.start),
+        ("displacement_limit", fos.displacement_limit),
+    ] {
+        if let Some(v) = value {
+            c.positive(&format!("fos.{key}"), v);
+        }
+    }
+    if fos.max_trials == Some(0) {
+        c.issue("fos.max_trials", "must be at least 1, got 0");
+    }
+    if let Some(g) = fos.growth_limit
+        && c.finite("fos.growth_limit", g)
+        && g <= 1.0
+    {
+        c.issue(
+            "fos.growth_limit",
+            format!("must be above 1 (a multiple of the first load step's growth), got {g}"),
+        );
     }
 }
 

@@ -145,6 +145,16 @@ fn footing_prandtl() {
 }
 
 #[test]
+fn footing_cphi() {
+    check("footing-cphi");
+}
+
+#[test]
+fn slope_fos() {
+    check("slope-fos");
+}
+
+#[test]
 fn k0_layer() {
     check("k0-layer");
 }

@@ -2,6 +2,7 @@
 
 mod cli;
 mod common;
+mod fos;
 mod gpu;
 mod initial_state;
 mod invert;

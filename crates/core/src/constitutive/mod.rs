@@ -13,6 +13,7 @@ mod j2;
 mod linear_elastic;
 mod mohr_coulomb;
 mod neo_hookean;
+mod strength;
 
 pub use cam_clay::{ModifiedCamClay, Preconsolidation, REFERENCE_PRESSURE, Shear};
 pub use drucker_prager::{Cone, DruckerPrager, Elasticity};

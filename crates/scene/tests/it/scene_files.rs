@@ -4,6 +4,7 @@
 use loam_core::constitutive::{Cone, DruckerPrager, Elasticity, Fluid, J2, Lame, Model};
 use loam_core::{NodeConstraint, PointLoad, Scheme, Shape, TimeStep, Transfer, Wall, WallKind};
 use loam_implicit::linear::{LinearSolverKind, Preconditioner};
+use loam_implicit::strength_reduction::SearchSettings;
 use loam_implicit::{NewtonSettings, TangentMethod};
 use loam_scene::{
     Device, ExplicitPlan, ImplicitPlan, NewtonSpec, Scene, SceneError, SolverKind, SolverPlan,
@@ -1184,6 +1185,115 @@ fn implicit_rules_name_the_field() {
             max_iter: 1000,
         }
     );
+}
+
+/// `[fos]`: the ranges of its keys and what `loam fos` needs (a quasi-static implicit scene
+/// loaded by gravity or point loads, with a strength to reduce), each error naming the field;
+/// the keys left out take the search's defaults.
+#[test]
+fn fos_rules_name_the_field() {
+    let text = std::fs::read_to_string(fixture("good/implicit_2d.toml")).unwrap();
+    let soil = text.replacen(
+        "model = \"hencky\"",
+        "model = \"mohr_coulomb\"\nfriction_angle = 30.0\ncohesion = 5.0e3",
+        1,
+    );
+    let clay = text
+        .replacen(
+            "model = \"hencky\"\ndensity = 2000.0\nyoungs_modulus = 1.0e7\n",
+            "model = \"modified_cam_clay\"\ndensity = 2000.0\nlambda = 0.2\nkappa = 0.04\n\
+             critical_state_slope = 1.0\nvoid_ratio = 1.0\nocr = 1.5\n",
+            1,
+        )
+        .replacen(
+            "particles_per_cell = 2",
+            "particles_per_cell = 2\ninitial_stress = { type = \"geostatic\", k0 = 0.6 }",
+            1,
+        );
+    assert!(clay.contains("modified_cam_clay") && clay.contains("geostatic"));
+    let with = |scene: &str, fos: &str| format!("{scene}\n[fos]\n{fos}\n");
+    let scene = Scene::from_toml_str(&with(&soil, "tolerance = 0.02\nmax_trials = 12"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let s = scene.fos_settings();
+    assert_eq!((s.tolerance, s.max_trials, s.start), (0.02, 12, 1.0));
+    assert_eq!((s.growth_limit, s.displacement_limit), (Some(10.0), None));
+    let plain = Scene::from_toml_str(&soil).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(plain.fos_settings(), SearchSettings::default());
+    plain.check_fos().unwrap_or_else(|e| panic!("{e}"));
+    for (bad, want) in [
+        (
+            with(&soil, "tolerance = 0.0"),
+            "fos.tolerance: must be positive, got 0",
+        ),
+        (
+            with(&soil, "start = -1.0"),
+            "fos.start: must be positive, got -1",
+        ),
+        (
+            with(&soil, "max_trials = 0"),
+            "fos.max_trials: must be at least 1, got 0",
+        ),
+        (
+            with(&soil, "displacement_limit = nan"),
+            "fos.displacement_limit: must be a finite number, got NaN",
+        ),
+        (
+            with(&soil, "growth_limit = 1.0"),
+            "fos.growth_limit: must be above 1",
+        ),
+        (
+            with(&soil, "tolerence = 0.1"),
+            "fos.tolerence: unknown field `tolerence`",
+        ),
+        (
+            with(&text, ""),
+            "materials: no material has a strength to reduce",
+        ),
+        // Modified Cam-Clay's strength comes from its state: it is not reduced.
+        (
+            with(&clay, ""),
+            "materials: no material has a strength to reduce: expected a \"mohr_coulomb\", \
+             \"drucker_prager\" or \"j2\" material (the elastic models, \"fluid\" and \
+             \"modified_cam_clay\"",
+        ),
+        (
+            with(
+                &soil.replacen("load_steps = 20", "load_steps = 20\nnewmark_dt = 0.01", 1),
+                "",
+            ),
+            "solver.newmark_dt: the factor of safety is searched over quasi-static runs",
+        ),
+    ] {
+        match Scene::from_toml_str(&bad) {
+            Ok(_) => panic!("{want}: loaded without error"),
+            Err(err) => assert!(err.to_string().contains(want), "{want}:\n{err}"),
+        }
+    }
+    // Without a section the same needs are checked by `Scene::check_fos`; the clay scene is
+    // sound but for them.
+    let clay = Scene::from_toml_str(&clay).unwrap_or_else(|e| panic!("{e}"));
+    let err = clay.check_fos().unwrap_err().to_string();
+    assert!(
+        err.contains("materials: no material has a strength to reduce"),
+        "{err}"
+    );
+    // An initial stress puts gravity in full into the first load step.
+    assert!(
+        err.contains("bodies[0].initial_stress: the factor of safety is searched over gravity"),
+        "{err}"
+    );
+    let mut unloaded = plain.clone();
+    unloaded.point_loads.clear();
+    unloaded.loads.gravity = Some(vec![0.0, 0.0]);
+    let err = unloaded.check_fos().unwrap_err().to_string();
+    assert!(
+        err.contains("loads.gravity: nothing loads the scene"),
+        "{err}"
+    );
+    let mut explicit = plain;
+    explicit.solver.kind = SolverKind::Explicit;
+    let err = explicit.check_fos().unwrap_err().to_string();
+    assert!(err.contains("solver.type: the factor of safety"), "{err}");
 }
 
 #[test]

@@ -1,0 +1,4 @@
+//! The integration tests of `implicit`, one binary (one link) for all of them.
+
+mod newmark;
+mod strength_reduction;
