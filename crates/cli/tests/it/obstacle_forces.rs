@@ -75,8 +75,8 @@ frames = 9
     let samples = summary["obstacle_forces"]
         .as_array()
         .expect("obstacle_forces");
-    // One sample per interval between the 9 frames.
-    assert_eq!(samples.len(), 8);
+    // One sample per interval between the 10 frames (`frames = 9` after the initial one).
+    assert_eq!(samples.len(), 9);
     let (mut impulse, mut end) = ([0.0; 2], 0.0f64);
     for s in samples {
         let span = s["time"].as_f64().unwrap() - s["since"].as_f64().unwrap();
