@@ -277,6 +277,31 @@ impl<T: Scalar> ModifiedCamClay<T> {
         (tau, plastic, region)
     }
 
+    /// The state of a point that carries the Kirchhoff stress `τ₀` with no plastic strain:
+    /// `bₑ = exp(2εₑ(τ₀))` and `p_c₀` from [`Preconsolidation`] (`R (p′₀ + q₀²/(M² p′₀))` for a
+    /// ratio `R`); `None` unless the mean effective stress `p′₀ = −tr τ₀/3` is positive (the
+    /// model has no stiffness at zero pressure). Whether `τ₀` lies inside the ellipse (a given
+    /// `p_c₀` may be too small) is the caller's to check. With dual parameters (`κ`, `e₀`,
+    /// `G` or `ν`, `M`) the state carries their derivatives: the `bₑ` that holds the same `τ₀`
+    /// under the perturbed law.
+    pub fn initial_state(&self, tau0: &Matrix3<T>) -> Option<MaterialState<T>> {
+        let p = -tau0.trace() / T::cst(3.0);
+        if p.re().is_nan() || p.re() <= 0.0 {
+            return None;
+        }
+        let dev = tau0 + Matrix3::identity() * p;
+        let q2 = dev.component_mul(&dev).sum() * T::cst(1.5);
+        let p_c = match self.preconsolidation {
+            Preconsolidation::Pressure(p_c) => p_c,
+            Preconsolidation::Ratio(r) => r * (p + q2 / (self.critical_state_slope.powi(2) * p)),
+        };
+        Some(MaterialState {
+            plastic_strain: T::zero(),
+            tensor: symmetric_fn(&(self.elastic_strain(tau0) * T::cst(2.0)), &Exp),
+            hardening: p_c,
+        })
+    }
+
     /// The elastic Hencky strain of a Kirchhoff stress `τ` with `p = −tr τ/3 > 0`:
     /// `εₑ = −ε_v/3 I + dev τ / (2G)`, `ε_v = κ̃ ln(p/p_r)`.
     pub fn elastic_strain(&self, tau: &Matrix3<T>) -> Matrix3<T> {
@@ -334,29 +359,6 @@ impl ModifiedCamClay<f64> {
                 Preconsolidation::Ratio(r) => Preconsolidation::Ratio(T::cst(r)),
             },
         }
-    }
-
-    /// The state of a point that carries the Kirchhoff stress `τ₀` with no plastic strain:
-    /// `bₑ = exp(2εₑ(τ₀))` and `p_c` from [`ModifiedCamClay::preconsolidation`]; `None` unless
-    /// the mean effective stress `p′₀ = −tr τ₀/3` is positive (the model has no stiffness at
-    /// zero pressure). Whether `τ₀` lies inside the ellipse (a given `p_c₀` may be too small)
-    /// is the caller's to check.
-    pub fn initial_state(&self, tau0: &Matrix3<f64>) -> Option<MaterialState<f64>> {
-        let p = -tau0.trace() / 3.0;
-        if p.is_nan() || p <= 0.0 {
-            return None;
-        }
-        let dev = tau0 + Matrix3::identity() * p;
-        let q2 = 1.5 * dev.component_mul(&dev).sum();
-        let p_c = match self.preconsolidation {
-            Preconsolidation::Pressure(p_c) => p_c,
-            Preconsolidation::Ratio(r) => r * (p + q2 / (self.critical_state_slope.powi(2) * p)),
-        };
-        Some(MaterialState {
-            plastic_strain: 0.0,
-            tensor: symmetric_fn(&(self.elastic_strain(tau0) * 2.0), &Exp),
-            hardening: p_c,
-        })
     }
 
     /// `∂R/∂(ε_v, z)` at a real point, by one evaluation with two dual lanes.

@@ -358,6 +358,39 @@ impl<T> Model<T> {
 }
 
 impl<T: Scalar> Material<T> {
+    /// The history state in which a model with elastic history carries the Kirchhoff stress
+    /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
+    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one, and
+    /// [`ModifiedCamClay::initial_state`] (its `p_c₀` too). `None` for the models whose stress
+    /// is a function of `F` alone (the elastic models, the fluid): they carry a stress only
+    /// through their deformation; and for [`ModifiedCamClay`] at `p′₀ ≤ 0`. Whether `τ₀` lies inside the yield surface is
+    /// the caller's to check (a step with `ΔF = I` from the state returns it). With dual
+    /// elastic parameters the state carries their derivatives (the state that holds the same
+    /// `τ₀` under the perturbed law).
+    pub fn prestressed_state(&self, tau0: &Matrix3<T>) -> Option<MaterialState<T>> {
+        let hencky = |lame: &Lame<T>| MaterialState {
+            plastic_strain: T::zero(),
+            tensor: crate::spectral::symmetric_fn(
+                &(lame.strain(tau0) * T::cst(2.0)),
+                &crate::spectral::Exp,
+            ),
+            hardening: T::zero(),
+        };
+        match &self.model {
+            Model::J2(m) => Some(hencky(&m.lame)),
+            Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
+            Model::ModifiedCamClay(m) => m.initial_state(tau0),
+            Model::DruckerPrager(m) => Some(MaterialState {
+                plastic_strain: T::zero(),
+                tensor: m.state_tensor(&m.compliance(tau0)),
+                hardening: T::zero(),
+            }),
+            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
+                None
+            }
+        }
+    }
+
     /// An isotropic elastic material of the given kind from `E`, `ν` and `ρ₀`.
     ///
     /// [`ModelKind::J2`] gives a J2 material with an infinite yield stress, which never yields
@@ -566,37 +599,6 @@ impl<T: Scalar> Material<T> {
 }
 
 impl Material<f64> {
-    /// The history state in which a model with elastic history carries the Kirchhoff stress
-    /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
-    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one, and
-    /// [`ModifiedCamClay::initial_state`] (its `p_c₀` too). `None` for the models whose stress
-    /// is a function of `F` alone (the elastic models, the fluid): they carry a stress only
-    /// through their deformation; and for [`ModifiedCamClay`] at `p′₀ ≤ 0`. Whether `τ₀` lies inside the yield surface is
-    /// the caller's to check (a step with `ΔF = I` from the state returns it).
-    pub fn prestressed_state(&self, tau0: &Matrix3<f64>) -> Option<MaterialState<f64>> {
-        let hencky = |lame: &Lame<f64>| MaterialState {
-            plastic_strain: 0.0,
-            tensor: crate::spectral::symmetric_fn(
-                &(lame.strain(tau0) * 2.0),
-                &crate::spectral::Exp,
-            ),
-            hardening: 0.0,
-        };
-        match &self.model {
-            Model::J2(m) => Some(hencky(&m.lame)),
-            Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
-            Model::ModifiedCamClay(m) => m.initial_state(tau0),
-            Model::DruckerPrager(m) => Some(MaterialState {
-                plastic_strain: 0.0,
-                tensor: m.state_tensor(&m.compliance(tau0)),
-                hardening: 0.0,
-            }),
-            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
-                None
-            }
-        }
-    }
-
     /// The same material with its parameters as constants of another scalar type (zero
     /// derivative parts), e.g. to evaluate dual-number tangents with respect to the motion.
     pub fn lift<T: Scalar>(&self) -> Material<T> {
