@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 24] = [
+pub const SCENES: [CaseScene; 25] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -63,6 +63,7 @@ pub const SCENES: [CaseScene; 24] = [
     case_scene!("inverse_mlp"),
     case_scene!("implicit_cantilever"),
     case_scene!("implicit_footing"),
+    case_scene!("implicit_clay_footing"),
     case_scene!("implicit_cantilever_newmark"),
 ];
 

@@ -8,7 +8,10 @@
 //! allocated, material moving), then the timed steps; the figure is particle-steps per
 //! second, `particles · steps / wall time`. The implicit cantilever runs its 50 load steps
 //! end to end and reports the wall time (solver set-up included, scene building not) and the
-//! Newton iterations.
+//! Newton iterations. The `tangent` bench times one material point's AD tangent per model
+//! ([`tangent`]).
+
+mod tangent;
 
 use crate::Outcome;
 use loam_benches::{explicit_scene, implicit_scene};
@@ -32,7 +35,7 @@ struct Bench {
 
 /// The benches, in the order `loam bench` runs them. The default step counts keep each one
 /// to a few seconds on two cores, except `dambreak`, which runs the whole 0.4 s scene.
-const BENCHES: [Bench; 17] = [
+const BENCHES: [Bench; 18] = [
     Bench {
         name: "dambreak",
         description: "friction dam-break, 6,000 particles, the whole 0.4 s (13,333 steps of 3e-5 s)",
@@ -79,6 +82,12 @@ const BENCHES: [Bench; 17] = [
         name: "gradient",
         description: "gradient of the friction dam-break by the adjoint / its forward run (f64 only)",
         steps: 1000,
+        gpu_steps: 0,
+    },
+    Bench {
+        name: "tangent",
+        description: "AD tangent of one 3D material point past yield, per model, vs Hencky's (f64 only)",
+        steps: 20_000,
         gpu_steps: 0,
     },
     Bench {
@@ -241,6 +250,14 @@ pub fn bench(
     let mut results = Vec::new();
     for b in selected {
         let n = steps.unwrap_or(b.steps);
+        if b.name == "tangent" {
+            if f32 {
+                eprintln!("error: the tangent bench runs in f64 only (drop --f32)");
+                return Outcome::BadInput;
+            }
+            results.extend(tangent_rows(n, w));
+            continue;
+        }
         let m = match (b.name, f32) {
             ("cantilever", _) => match cantilever() {
                 Ok(m) => m,
@@ -304,6 +321,41 @@ pub fn bench(
         return Outcome::Failed;
     }
     Outcome::Ok
+}
+
+/// Runs [`tangent::measure`] over `evaluations` points and prints one row per model, with
+/// its time per point and its ratio to Hencky's (the first row).
+fn tangent_rows(evaluations: usize, w: usize) -> Vec<Measured> {
+    let costs = tangent::measure(evaluations);
+    let hencky = costs[0].per_point_us();
+    costs
+        .iter()
+        .map(|c| {
+            let m = Measured {
+                name: c.name,
+                precision: "f64",
+                particles: 1,
+                steps: c.evaluations,
+                wall: c.wall,
+                iterations: None,
+                ratio: None,
+                device_bytes: None,
+            };
+            println!(
+                "{:<w$} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {:.2} µs per point, {:.2}× Hencky's{}",
+                m.name,
+                m.precision,
+                m.particles,
+                m.steps,
+                m.wall,
+                m.rate(),
+                c.per_point_us(),
+                c.per_point_us() / hencky,
+                if c.plastic { ", plastic step" } else { "" }
+            );
+            m
+        })
+        .collect()
 }
 
 /// Times `steps` explicit steps of the bench `name` in precision `T`.

@@ -156,7 +156,8 @@ enum Command {
         /// List the benches and exit.
         #[arg(long)]
         list: bool,
-        /// Timed steps of every explicit bench (default: per bench, a few seconds each).
+        /// Timed steps of every explicit bench, points of the tangent bench (default: per
+        /// bench, a few seconds each).
         #[arg(long)]
         steps: Option<usize>,
         /// Run the explicit benches in single precision.

@@ -4,8 +4,10 @@
 //! The point carries a deformation gradient `F` (3×3, from the start of the test) and the
 //! model's history. Each of the nine components of the path is controlled either
 //! kinematically (the value of `F_ij`) or statically (the Cauchy stress `σ_ij`, tension
-//! positive, Pa). A stage moves every target linearly from its value at the start of the stage
-//! to its end value over a number of increments. In each increment the `F_ij` of the
+//! positive, Pa). A stage moves every target from its value at the start of the stage to its
+//! end value over a number of increments: stresses and shear components of `F` linearly, the
+//! diagonal stretches geometrically (their logarithmic strains linearly, so that an isochoric
+//! stage stays isochoric within it). In each increment the `F_ij` of the
 //! statically controlled components are the unknowns of a small Newton solve,
 //!
 //! `r_k(F) = σ_k(F) − σ_k* = 0`, `σ(F) = τ(ΔF, Fⁿ, historyⁿ) / det F`, `ΔF = F Fⁿ⁻¹`,
@@ -229,6 +231,20 @@ fn response<T: Scalar>(
     Some((tau / j, state))
 }
 
+/// The value of a kinematically controlled `F_ij` a fraction `s` of the way through a stage
+/// from `from` to `to`: geometric, `from^(1−s) to^s`, for a diagonal stretch whose ends are
+/// both positive (the logarithmic strain `ln F_ii` moves linearly, so a path whose ends
+/// keep `F_xx F_yy F_zz = 1`, an undrained triaxial stage, is isochoric at every increment),
+/// linear otherwise (shear components, which may change sign); with dual ends the value
+/// carries their derivatives.
+fn stretch_between<T: Scalar>(from: T, to: T, s: f64, diagonal: bool) -> T {
+    if diagonal && from.re() > 0.0 && to.re() > 0.0 {
+        from * (to / from).powf(T::cst(s))
+    } else {
+        from + (to - from) * T::cst(s)
+    }
+}
+
 /// Newton iterations allowed per increment.
 const MAX_ITERATIONS: usize = 60;
 
@@ -355,7 +371,7 @@ fn run_stage<T: Scalar>(
             stage: index,
             increment,
         };
-        let s = T::cst(increment as f64 / increments as f64);
+        let s = increment as f64 / increments as f64;
         let prev = states.last().expect("start").clone();
         let f_n_inv = inverse::<T, 3>(&prev.f).ok_or(inverted.clone())?;
         let f_n_inv_re = f_n_inv.map(|x| x.re());
@@ -367,10 +383,10 @@ fn run_stage<T: Scalar>(
             for j in 0..3 {
                 let start = first.f[(i, j)];
                 match stage.targets[i][j] {
-                    Target::Stretch(x) => f[(i, j)] = start + s * (x - start),
+                    Target::Stretch(x) => f[(i, j)] = stretch_between(start, x, s, i == j),
                     Target::Stress(x) => {
                         let start = first.stress[(i, j)];
-                        goal.push(start + s * (x - start));
+                        goal.push(start + (x - start) * T::cst(s));
                     }
                 }
             }
@@ -776,5 +792,42 @@ mod tests {
         };
         let err = run(&material, start(&material, 100e3), &[stage]).unwrap_err();
         assert!(matches!(err, ElementError::NotConverged { .. }), "{err}");
+    }
+
+    /// An undrained (isochoric) triaxial stage of many increments keeps `det F = 1` at every
+    /// increment, not only at its end, and its axial stretch falls monotonically to the
+    /// target. The stretches are products of `exp` of linear log strains: round-off 1e-14.
+    #[test]
+    fn an_undrained_stage_is_isochoric_at_every_increment() {
+        use Target::Stretch;
+        let material = Material {
+            density: 2000.0,
+            model: Model::MohrCoulomb(MohrCoulomb {
+                lame: Lame::from_young_poisson(25e6, 0.3),
+                friction_angle: 30f64.to_radians(),
+                dilation_angle: 0.0,
+                cohesion: 20e3,
+            }),
+        };
+        let fz = 0.9f64;
+        let lateral = fz.powf(-0.5);
+        let stage = Stage {
+            targets: [
+                [Stretch(lateral), Stretch(0.0), Stretch(0.0)],
+                [Stretch(0.0), Stretch(lateral), Stretch(0.0)],
+                [Stretch(0.0), Stretch(0.0), Stretch(fz)],
+            ],
+            increments: 10,
+        };
+        let states = run(&material, start(&material, 100e3), &[stage]).unwrap();
+        assert_eq!(states.len(), 11);
+        for pair in states.windows(2) {
+            assert!(pair[1].f[(2, 2)] < pair[0].f[(2, 2)]);
+        }
+        for s in &states {
+            let j = s.f.determinant();
+            assert!((j - 1.0).abs() < 1e-14, "det F = {j}");
+        }
+        assert!((states[10].f[(2, 2)] - fz).abs() < 1e-15);
     }
 }

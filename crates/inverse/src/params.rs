@@ -12,7 +12,7 @@
 
 use crate::error::AdjointError;
 use loam_core::Material;
-use loam_core::constitutive::{Lame, Model, Shear};
+use loam_core::constitutive::{Lame, Model, Preconsolidation, Shear};
 use loam_explicit::Config;
 use num_dual::Dual64;
 use std::fmt;
@@ -55,6 +55,12 @@ pub enum MaterialField {
     VoidRatio,
     /// Modified Cam-Clay constant shear modulus `G`.
     ShearModulus,
+    /// Modified Cam-Clay overconsolidation ratio `R` (`p_c₀ = R p_y`): acts only through the
+    /// initial state of a prestressed body.
+    Ocr,
+    /// Modified Cam-Clay initial preconsolidation pressure `p_c₀` (Pa): acts only through the
+    /// initial state of a prestressed body.
+    PreconsolidationPressure,
 }
 
 impl MaterialField {
@@ -78,6 +84,8 @@ impl MaterialField {
             Self::CriticalStateSlope => "critical_state_slope",
             Self::VoidRatio => "void_ratio",
             Self::ShearModulus => "shear_modulus",
+            Self::Ocr => "ocr",
+            Self::PreconsolidationPressure => "preconsolidation_pressure",
         }
     }
 }
@@ -119,7 +127,7 @@ impl fmt::Display for Param {
 
 impl MaterialField {
     /// Every constant, in the order of the enum.
-    pub const ALL: [MaterialField; 17] = [
+    pub const ALL: [MaterialField; 19] = [
         Self::Young,
         Self::Poisson,
         Self::Density,
@@ -137,6 +145,8 @@ impl MaterialField {
         Self::CriticalStateSlope,
         Self::VoidRatio,
         Self::ShearModulus,
+        Self::Ocr,
+        Self::PreconsolidationPressure,
     ];
 }
 
@@ -374,6 +384,14 @@ pub(crate) fn seed_material(
         (F::Kappa, Model::ModifiedCamClay(x)) => one(&mut x.kappa),
         (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => one(&mut x.critical_state_slope),
         (F::VoidRatio, Model::ModifiedCamClay(x)) => one(&mut x.void_ratio),
+        (F::Ocr, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Ratio(r) => one(r),
+            Preconsolidation::Pressure(_) => return None,
+        },
+        (F::PreconsolidationPressure, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Pressure(p) => one(p),
+            Preconsolidation::Ratio(_) => return None,
+        },
         (F::Young | F::Poisson, model) => {
             let mut stored = m.model.clone();
             let (seeded, value) = seed_lame(lame_of(&mut stored)?, field == F::Young);
@@ -433,6 +451,14 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
         (F::Kappa, Model::ModifiedCamClay(x)) => x.kappa = value,
         (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => x.critical_state_slope = value,
         (F::VoidRatio, Model::ModifiedCamClay(x)) => x.void_ratio = value,
+        (F::Ocr, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Ratio(r) => *r = value,
+            Preconsolidation::Pressure(_) => return None,
+        },
+        (F::PreconsolidationPressure, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Pressure(p) => *p = value,
+            Preconsolidation::Ratio(_) => return None,
+        },
         (F::Young | F::Poisson, model) => {
             let lame = lame_of(model)?;
             let (e, nu) = young_poisson(lame);

@@ -316,6 +316,8 @@ pub fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
         F::CriticalStateSlope => m.critical_state_slope = Some(v),
         F::VoidRatio => m.void_ratio = Some(v),
         F::ShearModulus => m.shear_modulus = Some(v),
+        F::Ocr => m.ocr = Some(v),
+        F::PreconsolidationPressure => m.preconsolidation_pressure = Some(v),
     }
 }
 

@@ -278,12 +278,12 @@ impl<T: Scalar> ModifiedCamClay<T> {
     }
 
     /// The state of a point that carries the Kirchhoff stress `τ₀` with no plastic strain:
-    /// `bₑ = exp(2εₑ(τ₀))` and `p_c₀` from [`Preconsolidation`] (`R (p′₀ + q₀²/(M² p′₀))` for a
-    /// ratio `R`); `None` unless the mean effective stress `p′₀ = −tr τ₀/3` is positive (the
-    /// model has no stiffness at zero pressure). Whether `τ₀` lies inside the ellipse (a given
-    /// `p_c₀` may be too small) is the caller's to check. With dual parameters (`κ`, `e₀`,
-    /// `G` or `ν`, `M`) the state carries their derivatives: the `bₑ` that holds the same `τ₀`
-    /// under the perturbed law.
+    /// `bₑ = exp(2εₑ(τ₀))` and `p_c` from [`ModifiedCamClay::preconsolidation`]: given, or
+    /// `OCR (p′₀ + q₀²/(M² p′₀))`, OCR times the ellipse through `τ₀`; `None` unless the mean
+    /// effective stress `p′₀ = −tr τ₀/3` is positive (the model has no stiffness at zero
+    /// pressure). With dual constants (or a dual `τ₀`) the derivative parts are those of the
+    /// state, which the adjoints of prestressed runs need. Whether `τ₀` lies inside the ellipse
+    /// (a given `p_c₀` may be too small) is the caller's to check.
     pub fn initial_state(&self, tau0: &Matrix3<T>) -> Option<MaterialState<T>> {
         let p = -tau0.trace() / T::cst(3.0);
         if p.re().is_nan() || p.re() <= 0.0 {
@@ -293,7 +293,9 @@ impl<T: Scalar> ModifiedCamClay<T> {
         let q2 = dev.component_mul(&dev).sum() * T::cst(1.5);
         let p_c = match self.preconsolidation {
             Preconsolidation::Pressure(p_c) => p_c,
-            Preconsolidation::Ratio(r) => r * (p + q2 / (self.critical_state_slope.powi(2) * p)),
+            Preconsolidation::Ratio(r) => {
+                r * (p + q2 / (self.critical_state_slope * self.critical_state_slope * p))
+            }
         };
         Some(MaterialState {
             plastic_strain: T::zero(),

@@ -358,39 +358,6 @@ impl<T> Model<T> {
 }
 
 impl<T: Scalar> Material<T> {
-    /// The history state in which a model with elastic history carries the Kirchhoff stress
-    /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
-    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one, and
-    /// [`ModifiedCamClay::initial_state`] (its `p_c₀` too). `None` for the models whose stress
-    /// is a function of `F` alone (the elastic models, the fluid): they carry a stress only
-    /// through their deformation; and for [`ModifiedCamClay`] at `p′₀ ≤ 0`. Whether `τ₀` lies inside the yield surface is
-    /// the caller's to check (a step with `ΔF = I` from the state returns it). With dual
-    /// elastic parameters the state carries their derivatives (the state that holds the same
-    /// `τ₀` under the perturbed law).
-    pub fn prestressed_state(&self, tau0: &Matrix3<T>) -> Option<MaterialState<T>> {
-        let hencky = |lame: &Lame<T>| MaterialState {
-            plastic_strain: T::zero(),
-            tensor: crate::spectral::symmetric_fn(
-                &(lame.strain(tau0) * T::cst(2.0)),
-                &crate::spectral::Exp,
-            ),
-            hardening: T::zero(),
-        };
-        match &self.model {
-            Model::J2(m) => Some(hencky(&m.lame)),
-            Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
-            Model::ModifiedCamClay(m) => m.initial_state(tau0),
-            Model::DruckerPrager(m) => Some(MaterialState {
-                plastic_strain: T::zero(),
-                tensor: m.state_tensor(&m.compliance(tau0)),
-                hardening: T::zero(),
-            }),
-            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
-                None
-            }
-        }
-    }
-
     /// An isotropic elastic material of the given kind from `E`, `ν` and `ρ₀`.
     ///
     /// [`ModelKind::J2`] gives a J2 material with an infinite yield stress, which never yields
@@ -534,6 +501,38 @@ impl<T: Scalar> Material<T> {
             Model::DruckerPrager(m) => m.stored_energy(f, state),
             Model::MohrCoulomb(m) => m.stored_energy(state),
             Model::ModifiedCamClay(m) => m.stored_energy(state),
+        }
+    }
+
+    /// The history state in which a model with elastic history carries the Kirchhoff stress
+    /// `τ₀` with no plastic strain: `bₑ = exp(2 C⁻¹:τ₀)` for [`J2`], [`MohrCoulomb`] and the
+    /// Hencky [`DruckerPrager`], `I + 2 C⁻¹:τ₀` for the Jaumann one, and
+    /// [`ModifiedCamClay::initial_state`] (its `p_c₀` too). `None` for the models whose stress
+    /// is a function of `F` alone (the elastic models, the fluid): they carry a stress only
+    /// through their deformation; and for [`ModifiedCamClay`] at `p′₀ ≤ 0`. Whether `τ₀` lies inside the yield surface is
+    /// the caller's to check (a step with `ΔF = I` from the state returns it). With dual
+    /// constants the derivative parts are the state's derivatives (the initial stress held).
+    pub fn prestressed_state(&self, tau0: &Matrix3<T>) -> Option<MaterialState<T>> {
+        let hencky = |lame: &Lame<T>| MaterialState {
+            plastic_strain: T::zero(),
+            tensor: crate::spectral::symmetric_fn(
+                &(lame.strain(tau0) * T::cst(2.0)),
+                &crate::spectral::Exp,
+            ),
+            hardening: T::zero(),
+        };
+        match &self.model {
+            Model::J2(m) => Some(hencky(&m.lame)),
+            Model::MohrCoulomb(m) => Some(hencky(&m.lame)),
+            Model::ModifiedCamClay(m) => m.initial_state(tau0),
+            Model::DruckerPrager(m) => Some(MaterialState {
+                plastic_strain: T::zero(),
+                tensor: m.state_tensor(&m.compliance(tau0)),
+                hardening: T::zero(),
+            }),
+            Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
+                None
+            }
         }
     }
 

@@ -26,7 +26,7 @@
 //! ([`super::inertia`]).
 
 use super::inertia::{InertiaWeights, gather};
-use super::kernel::{mass_index, state_len, velocity_index};
+use super::kernel::{state_len, velocity_index};
 use super::observe::ImplicitObservations;
 use super::params::ImplicitParam;
 use super::pullback::{Cotangent, LaneMaterials, Linearisation};
@@ -276,7 +276,7 @@ fn reverse_from<const D: usize>(
                             }
                             None => continue,
                         },
-                        ImplicitParam::Gravity(a) => lin.load_share(&cot)[a] * initial.mass[p],
+                        ImplicitParam::Gravity(a) => lin.gravity_share(&cot)[a] * initial.mass[p],
                         ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
                             lin.load_share(&cot)[a]
                         }
@@ -306,14 +306,11 @@ fn reverse_from<const D: usize>(
             grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
         }
     }
-    // The density acts through the masses m_p = ρ₀ V⁰_p.
-    let mass = mass_index(D);
-    for (j, q) in params.iter().enumerate() {
-        if let ImplicitParam::Material(k, MaterialField::Density) = *q {
-            grad[j] = (0..n)
-                .filter(|&p| initial.material[p] as usize == k)
-                .map(|p| initial.volume0[p] * sbar[p][mass])
-                .sum();
+    // The parameters the initial state depends on (the density through the masses, a
+    // prestressed body's constants through its history): s̄₀ · ds₀/dθ.
+    for (g, q) in grad.iter_mut().zip(params) {
+        for (p, t) in q.initial_tangent(config, initial) {
+            *g += t.iter().zip(&sbar[p]).map(|(a, b)| a * b).sum::<f64>();
         }
     }
     Ok(grad)

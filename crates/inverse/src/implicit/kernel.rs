@@ -111,6 +111,9 @@ pub struct Setting<'a, const D: usize> {
     /// Load factor `λ` at the end of the (sub-)step (1 in a Newmark step: its loads act in
     /// full).
     pub load_factor: f64,
+    /// The factor on gravity: `λ`, or 1 where gravity acts in full (a Newmark step, a
+    /// prestressed scene: [`loam_implicit::ImplicitConfig::gravity_in_full`]).
+    pub gravity_factor: f64,
 }
 
 /// One stencil node's share of a particle's step.
@@ -170,7 +173,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         &g,
     )?;
     let lambda = T::cst(setting.load_factor);
-    let q = loads.gravity * (state.mass * lambda) + loads.point * lambda;
+    let q = loads.gravity * (state.mass * T::cst(setting.gravity_factor)) + loads.point * lambda;
     let mut x = state.x;
     let mut nodes = Vec::with_capacity(stencil.len());
     stencil.for_each(|n| {
@@ -196,14 +199,20 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     })
 }
 
-/// Whether a model reads and updates its history (J2, Drucker–Prager, Mohr–Coulomb). The
-/// others return it unchanged and their stress does not depend on it, so its adjoint passes
-/// through a step as it is (`h̄ = h̄'`) without an evaluation.
+/// Whether a model reads and updates its history (J2, Drucker–Prager, Mohr–Coulomb, Modified
+/// Cam-Clay). The others return it unchanged and their stress does not depend on it, so its
+/// adjoint passes through a step as it is (`h̄ = h̄'`) without an evaluation. The match names
+/// every model, so that a new one must be placed here.
 pub fn carries_history<T>(material: &Material<T>) -> bool {
-    matches!(
-        material.model,
-        Model::J2(_) | Model::DruckerPrager(_) | Model::MohrCoulomb(_)
-    )
+    match material.model {
+        Model::J2(_)
+        | Model::DruckerPrager(_)
+        | Model::MohrCoulomb(_)
+        | Model::ModifiedCamClay(_) => true,
+        Model::LinearElastic(_) | Model::NeoHookean(_) | Model::Hencky(_) | Model::Fluid(_) => {
+            false
+        }
+    }
 }
 
 /// The loads as `Dual64` constants.

@@ -70,18 +70,8 @@ impl<const D: usize> ImplicitProblem<D> {
     /// Checks the parameters and observations against the scene.
     ///
     /// # Errors
-    /// A parameter or an observation that does not fit (named by its field), or a scene with
-    /// a prestressed body ([`AdjointError::Unsupported`]).
+    /// A parameter or an observation that does not fit (named by its field).
     pub fn validate(&self) -> Result<(), AdjointError> {
-        if self.config.gravity_in_full && self.config.dynamics.is_none() {
-            return Err(AdjointError::Unsupported {
-                what: "bodies[k].initial_stress in a quasi-static implicit scene".into(),
-                why: "the implicit adjoint scales gravity and point loads with one load factor, \
-                      and a prestressed body takes gravity in full from the first step; run \
-                      the inversion from a stress-free body (gravity ramped)"
-                    .into(),
-            });
-        }
         for p in &self.params {
             p.value(&self.config)?;
         }

@@ -1,9 +1,12 @@
 //! The parameters of an implicit run a gradient is taken with respect to.
 
+use super::kernel::{mass_index, state_len};
 use crate::error::AdjointError;
 use crate::params::{MaterialField, seed_material, set_material};
+use loam_core::constitutive::HISTORY_LEN;
 use loam_core::{Material, Particles};
 use loam_implicit::ImplicitConfig;
+use nalgebra::Matrix3;
 use num_dual::Dual64;
 use std::fmt;
 use std::str::FromStr;
@@ -11,8 +14,10 @@ use std::str::FromStr;
 /// One scalar parameter of an implicit run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ImplicitParam {
-    /// A constant of material `k` (`ImplicitConfig::materials[k]`): `young`, `poisson`,
-    /// `yield_stress`, `hardening` or `density` (the masses `m_p = ρ₀ V⁰_p` of its particles).
+    /// A constant of material `k` (`ImplicitConfig::materials[k]`, a
+    /// [`MaterialField`]); `density` acts through the masses `m_p = ρ₀ V⁰_p` of its particles,
+    /// and in a prestressed scene the constants also move the histories that carry the bodies'
+    /// initial stress ([`ImplicitParam::initial_tangent`]).
     Material(usize, MaterialField),
     /// Component `a` of gravity.
     Gravity(usize),
@@ -83,6 +88,8 @@ impl FromStr for ImplicitParam {
                 MaterialField::CriticalStateSlope,
                 MaterialField::VoidRatio,
                 MaterialField::ShearModulus,
+                MaterialField::Ocr,
+                MaterialField::PreconsolidationPressure,
                 MaterialField::Density,
             ]
             .into_iter()
@@ -176,8 +183,18 @@ impl ImplicitParam {
         self.value(config)?;
         match *self {
             Self::Material(k, field) => {
+                // A prestressed body's initial stress is data: the history that carries it
+                // follows the material (the elastic strain of E, ν, κ, …; MCC's p_c₀).
+                let held = config
+                    .gravity_in_full
+                    .then(|| initial_stresses(config, particles, k));
                 set_material(&mut config.materials[k], field, value)
                     .ok_or_else(|| self.error("the material's model has no such constant"))?;
+                for (p, tau0) in held.into_iter().flatten() {
+                    if let Some(h) = config.materials[k].prestressed_state(&tau0) {
+                        particles.state[p] = h;
+                    }
+                }
                 if field == MaterialField::Density {
                     for p in 0..particles.len() {
                         if particles.material[p] as usize == k {
@@ -193,6 +210,51 @@ impl ImplicitParam {
         Ok(())
     }
 
+    /// `ds_p/dθ` of the initial particle states ([`super::kernel::ParticleState::components`]
+    /// order) that depend on this parameter, as `(particle, tangent)`: a density moves the
+    /// masses `m_p = ρ₀ V⁰_p`; in a prestressed scene ([`ImplicitConfig::gravity_in_full`]) a
+    /// constant of a model with elastic history moves the history that carries the particle's
+    /// initial Kirchhoff stress `τ₀` (held: it is data), `h₀ = h(τ₀; θ)`
+    /// ([`Material::prestressed_state`] with the constant seeded). Empty for every other
+    /// parameter.
+    pub fn initial_tangent<const D: usize>(
+        &self,
+        config: &ImplicitConfig<D>,
+        initial: &Particles<f64, D>,
+    ) -> Vec<(usize, Vec<f64>)> {
+        let Self::Material(k, field) = *self else {
+            return Vec::new();
+        };
+        let mine = (0..initial.len()).filter(|&p| initial.material[p] as usize == k);
+        if field == MaterialField::Density {
+            return mine
+                .map(|p| {
+                    let mut t = vec![0.0; state_len(D)];
+                    t[mass_index(D)] = initial.volume0[p];
+                    (p, t)
+                })
+                .collect();
+        }
+        let Some(seeded) = (config.gravity_in_full)
+            .then(|| self.seeded_material(k, &config.materials[k]))
+            .flatten()
+        else {
+            return Vec::new();
+        };
+        initial_stresses(config, initial, k)
+            .into_iter()
+            .filter_map(|(p, tau0)| {
+                let h = seeded.prestressed_state(&tau0.map(Dual64::from_re))?;
+                let mut t = vec![0.0; state_len(D)];
+                let h0 = D + D * D;
+                for (o, c) in t[h0..h0 + HISTORY_LEN].iter_mut().zip(h.components()) {
+                    *o = c.eps;
+                }
+                Some((p, t))
+            })
+            .collect()
+    }
+
     /// Material `k` lifted to `Dual64` with this parameter seeded when it is one of its
     /// constants (other than the density, which acts through the masses); `None` otherwise.
     pub fn seeded_material(&self, k: usize, material: &Material<f64>) -> Option<Material<Dual64>> {
@@ -203,6 +265,25 @@ impl ImplicitParam {
             _ => None,
         }
     }
+}
+
+/// The Kirchhoff stress `τ₀` each particle of material `k` carries at rest in `particles`:
+/// the material's update with `ΔF = I` from its history (the particles of a prestressed body
+/// start at `F = I`).
+fn initial_stresses<const D: usize>(
+    config: &ImplicitConfig<D>,
+    particles: &Particles<f64, D>,
+    k: usize,
+) -> Vec<(usize, Matrix3<f64>)> {
+    let material = &config.materials[k];
+    let identity = Matrix3::identity();
+    (0..particles.len())
+        .filter(|&p| particles.material[p] as usize == k)
+        .map(|p| {
+            let (tau, _) = material.kirchhoff_update(&identity, &identity, &particles.state[p]);
+            (p, tau)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -130,6 +130,7 @@ pub struct Linearisation<const D: usize> {
     mass: f64,
     velocity: Vector<f64, D>,
     load_factor: f64,
+    gravity_factor: f64,
     loads: Loads<f64, D>,
 }
 
@@ -197,6 +198,7 @@ impl<const D: usize> Linearisation<D> {
             mass: state.mass,
             velocity: state.v,
             load_factor: setting.load_factor,
+            gravity_factor: setting.gravity_factor,
             loads: *loads,
         })
     }
@@ -267,13 +269,22 @@ impl<const D: usize> Linearisation<D> {
             .collect()
     }
 
-    /// `λ Σ_i N_i c_i`, the derivative of `ψₚ` by the point load on the particle (per unit
-    /// mass: by gravity).
+    /// `λ Σ_i N_i c_i`, the derivative of `ψₚ` by the point load on the particle.
     pub fn load_share(&self, cot: &Cotangent<'_, D>) -> Vector<f64, D> {
-        let sum: Vector<f64, D> = (self.nodes.iter())
+        self.external_share(cot) * self.load_factor
+    }
+
+    /// `λ_g Σ_i N_i c_i`, the derivative of `ψₚ` by gravity per unit mass of the particle
+    /// (`λ_g` the factor on gravity: [`Setting::gravity_factor`]).
+    pub fn gravity_share(&self, cot: &Cotangent<'_, D>) -> Vector<f64, D> {
+        self.external_share(cot) * self.gravity_factor
+    }
+
+    /// `Σ_i N_i c_i`.
+    fn external_share(&self, cot: &Cotangent<'_, D>) -> Vector<f64, D> {
+        (self.nodes.iter())
             .map(|n| cot.external[n.flat] * n.weight)
-            .sum();
-        sum * self.load_factor
+            .sum()
     }
 
     /// `∂ψₚ/∂sₚ` in the order of [`ParticleState::components`].
@@ -282,7 +293,8 @@ impl<const D: usize> Linearisation<D> {
         let geo = geometry_lanes(D);
         let h0 = D + D * D;
         let x_end = Vector::<f64, D>::from_fn(|a, _| cot.end[a]);
-        let q = (self.loads.gravity * self.mass + self.loads.point) * self.load_factor;
+        let q = self.loads.gravity * (self.mass * self.gravity_factor)
+            + self.loads.point * self.load_factor;
         let (vi, mi) = (velocity_index(D), mass_index(D));
         let v_end = Vector::<f64, D>::from_fn(|a, _| cot.end[vi + a]);
         let inertia =
@@ -313,7 +325,7 @@ impl<const D: usize> Linearisation<D> {
         out[h0..h0 + HISTORY_LEN].copy_from_slice(&h_bar);
         let (v_bar, m_dyn) = inertia.map_or((v_end, 0.0), |i| (i.velocity, i.mass));
         out[vi..vi + D].copy_from_slice(v_bar.as_slice());
-        out[mi] = cot.end[mi] + self.load_share(cot).dot(&self.loads.gravity) + m_dyn;
+        out[mi] = cot.end[mi] + self.gravity_share(cot).dot(&self.loads.gravity) + m_dyn;
         out
     }
 
@@ -444,7 +456,7 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
             .expect("every entry has a component")
     };
     let identity = Matrix3::<DualSVec64<7>>::identity();
-    composed_jacobian(&g, volume0, &arguments, |z| {
+    let (s, mut jacobian) = composed_jacobian(&g, volume0, &arguments, |z| {
         let inner = MaterialState {
             plastic_strain: z[6],
             tensor: Matrix3::from_fn(|r, c| z[component(r, c)]),
@@ -452,7 +464,12 @@ fn j2_stress_jacobian<const L: usize, const D: usize>(
         };
         let (tau, history) = material.kirchhoff_update(&identity, &identity, &inner);
         (tau, Some(history))
-    })
+    })?;
+    // J2 passes the history's hardening scalar (the last of `MaterialState::components`)
+    // through unread: `∂h'_k/∂h_k = 1` for that component, outside the 7 lanes.
+    let k = HISTORY_LEN - 1;
+    jacobian[(dd + k) * L + 2 * dd + k] = 1.0;
+    Some((s, jacobian))
 }
 
 /// [`stress_jacobian`] for a hyperelastic model, whose `τ` reads the total `F = ΔF Fⁿ` only:
@@ -626,6 +643,8 @@ mod tests {
             half_width0: Vector::<f64, 2>::new(0.0625, 0.0625),
             volume0: 0.0039,
             load_factor: 0.6,
+            // Gravity in full (a prestressed scene) while the point load ramps.
+            gravity_factor: 1.0,
         };
         let state = ParticleState {
             x: Vector::<f64, 2>::new(1.03, 0.97),

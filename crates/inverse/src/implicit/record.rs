@@ -215,6 +215,11 @@ impl<'a, const D: usize> Replay<'a, D> {
             } else {
                 self.sub.to
             },
+            gravity_factor: if self.config.dynamics.is_some() || self.config.gravity_in_full {
+                1.0
+            } else {
+                self.sub.to
+            },
         }
     }
 

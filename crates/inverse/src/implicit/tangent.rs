@@ -16,13 +16,12 @@
 //! (`Ḃ = Ṁ + ε diag Ṁ`).
 
 use super::inertia::rates;
-use super::kernel::{ParticleStep, mass_index, particle_step, state_len, velocity_index};
+use super::kernel::{ParticleStep, particle_step, state_len, velocity_index};
 use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
 use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
 use crate::error::AdjointError;
-use crate::params::MaterialField;
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::linear::{LinearSolver, LinearSolverKind};
@@ -66,12 +65,11 @@ pub fn model_tangents<const D: usize>(
     let materials: Vec<Material<Dual64>> = (config.materials.iter().enumerate())
         .map(|(k, m)| param.seeded_material(k, m).unwrap_or_else(|| m.lift()))
         .collect();
-    // ṡ at the start: the masses m_p = ρ₀ V⁰_p move with a density.
+    // ṡ at the start: the masses m_p = ρ₀ V⁰_p move with a density, a prestressed body's
+    // history with its constants.
     let mut sdot = vec![vec![0.0; state_len(D)]; n];
-    if let ImplicitParam::Material(k, MaterialField::Density) = param {
-        for p in (0..n).filter(|&p| initial.material[p] as usize == k) {
-            sdot[p][mass_index(D)] = initial.volume0[p];
-        }
+    for (p, t) in param.initial_tangent(config, initial) {
+        sdot[p] = t;
     }
     let mut linear = LinearSolver::new(config.newton.linear);
     let mut mass_solver = LinearSolver::new(LinearSolverKind::Cholesky);

@@ -17,12 +17,11 @@ use loam_inverse::{
 };
 use std::collections::BTreeSet;
 
-mod common;
-use common::FLUID_2D;
+use crate::common::FLUID_2D;
 
 /// The fluid scene's solver inputs.
 fn scene() -> (Config<f64, 2>, Particles<f64, 2>) {
-    common::scene(FLUID_2D)
+    crate::common::scene(FLUID_2D)
 }
 
 const STEPS: usize = 50;

@@ -1,9 +1,7 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files of
 //! element tests (`[[tests]]`: material constants fitted to laboratory curves).
 
-mod common;
-
-use common::{assert_refused, loam, repo, text};
+use crate::common::{assert_refused, loam, repo, text};
 use std::path::Path;
 
 /// A drained triaxial test of the example's clay (Modified Cam-Clay λ = 0.2, κ = 0.04,
@@ -165,9 +163,10 @@ fn the_example_recovers_lambda_kappa_and_m_and_its_data_read_back() {
 
 /// The measured-data example (the truth curves with noise of 0.5 kPa on q and p′ and 1e-4 on
 /// ε_v, rounded as a laboratory writes them, the last point at the test's final strain):
-/// λ, κ and M within 1 % of the values the data were made with. The Gauss–Newton table puts
-/// one standard deviation of the noise's effect at 0.2 % (κ) or below, so 1 % is five of
-/// them.
+/// λ, κ and M within 1 % of the values the data were made with (the goal). The
+/// Gauss–Newton table puts one standard deviation of the noise's effect at 0.42 % for κ and
+/// below 0.09 % for λ and M, so 1 % is 2.4 of them for κ (these data give 0.27 %) and more
+/// than ten for the others; the data are fixed, so the outcome is too.
 #[test]
 fn the_measured_example_recovers_lambda_kappa_and_m_within_its_noise() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,8 +1,6 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files.
 
-mod common;
-
-use common::{assert_refused, loam, repo, text};
+use crate::common::{assert_refused, loam, repo, text};
 use std::path::{Path, PathBuf};
 use std::process::Output;
 

@@ -17,14 +17,14 @@ use loam_inverse::implicit::{
 use loam_scene::Scene;
 
 /// The scene of `verification/scenes/implicit_cantilever.toml` (described there).
-const CANTILEVER: &str = include_str!("../../../verification/scenes/implicit_cantilever.toml");
+const CANTILEVER: &str = include_str!("../../../../verification/scenes/implicit_cantilever.toml");
 
 /// The scene of `verification/scenes/implicit_cantilever_newmark.toml` (described there).
 const CANTILEVER_NEWMARK: &str =
-    include_str!("../../../verification/scenes/implicit_cantilever_newmark.toml");
+    include_str!("../../../../verification/scenes/implicit_cantilever_newmark.toml");
 
 /// The scene of `verification/scenes/implicit_footing.toml` (described there).
-const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footing.toml");
+const FOOTING: &str = include_str!("../../../../verification/scenes/implicit_footing.toml");
 
 fn scene(toml: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
     let built = Scene::from_toml_str(toml)

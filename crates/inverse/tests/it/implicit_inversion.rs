@@ -83,8 +83,8 @@ fn errors(found: &[f64], truth: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-const CANTILEVER: &str = include_str!("../../../verification/scenes/implicit_cantilever.toml");
-const FOOTING: &str = include_str!("../../../verification/scenes/implicit_footing.toml");
+const CANTILEVER: &str = include_str!("../../../../verification/scenes/implicit_cantilever.toml");
+const FOOTING: &str = include_str!("../../../../verification/scenes/implicit_footing.toml");
 
 /// E of the cantilever from the tip deflection after each of 10 load steps (ν known), from
 /// a start 50 % off. The data are noise-free, so the minimum is the truth and the tolerance

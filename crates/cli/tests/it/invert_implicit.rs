@@ -1,9 +1,7 @@
 //! End-to-end tests of `loam gradient`, `loam invert` and `loam check` on inversion files
 //! whose scene is implicit (quasi-static load steps, and Newmark time steps).
 
-mod common;
-
-use common::{assert_refused, loam, repo, text};
+use crate::common::{assert_refused, loam, repo, text};
 use std::path::Path;
 
 /// The verification cantilever (64 particles) over 3 load steps: E and the tip load from

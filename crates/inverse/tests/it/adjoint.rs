@@ -26,8 +26,7 @@ use loam_inverse::{
 use num_dual::Dual64;
 use std::collections::BTreeMap;
 
-mod common;
-use common::{FLUID_2D, scene};
+use crate::common::{FLUID_2D, scene};
 
 /// Tracked particles (every `stride`-th) pulled towards `target` at three steps.
 fn objective<const D: usize>(

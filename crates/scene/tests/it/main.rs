@@ -1,0 +1,6 @@
+//! The integration tests of `scene`, one binary (one link) for all of them.
+
+mod checkpoint;
+mod initial_state;
+mod output;
+mod scene_files;
