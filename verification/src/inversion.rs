@@ -1,11 +1,14 @@
 //! An inversion run to its end for the back-analysis cases (`inverse-v0`,
-//! `inverse-friction`, `inverse-cantilever`, `inverse-footing`): L-BFGS from `loam-inverse` on a loss and its gradient through the
-//! reparameterisation of each unknown ([`Variable`]), stopped by an iteration limit, a relative
-//! loss, or a line search that finds no decrease.
+//! `inverse-friction`, `inverse-cantilever`, `inverse-footing`, `inverse-triaxial-mcc`):
+//! L-BFGS or Levenberg–Marquardt from `loam-inverse` on a loss and its gradient through the
+//! reparameterisation of each unknown ([`Variable`]), stopped by an iteration limit, a
+//! relative loss, or an optimiser that finds no decrease.
 
 use crate::VerifyError;
 use loam_inverse::optimise::norm;
-use loam_inverse::{AdjointError, Evaluation, Lbfgs, Optimiser, Variable};
+use loam_inverse::{
+    AdjointError, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt, Optimiser, Variable,
+};
 use std::time::Instant;
 
 /// When an inversion stops.
@@ -60,6 +63,53 @@ pub(crate) fn lbfgs(
     theta0: &[f64],
     stop: Stop,
 ) -> Result<Recovered, VerifyError> {
+    minimise(
+        case,
+        Optimiser::Lbfgs(Lbfgs::new(10, 0.1)),
+        |theta| {
+            gradient(theta).map(|(loss, gradient)| GaussNewtonModel {
+                loss,
+                gradient,
+                matrix: Vec::new(),
+            })
+        },
+        variables,
+        theta0,
+        stop,
+    )
+}
+
+/// Minimises a least-squares loss from `theta0` by Levenberg–Marquardt (first damping
+/// 10⁻³), each unknown moved through its [`Variable`]; `model` gives the loss's Gauss–Newton
+/// model at `θ`.
+pub(crate) fn levenberg_marquardt(
+    case: &str,
+    model: impl Fn(&[f64]) -> Result<GaussNewtonModel, AdjointError>,
+    variables: &[Variable],
+    theta0: &[f64],
+    stop: Stop,
+) -> Result<Recovered, VerifyError> {
+    minimise(
+        case,
+        Optimiser::LevenbergMarquardt(LevenbergMarquardt::new(1e-3)),
+        model,
+        variables,
+        theta0,
+        stop,
+    )
+}
+
+/// Minimises a loss from `theta0` by `optimiser`; `model` gives `L(θ)`, `dL/dθ` and, for
+/// Levenberg–Marquardt, the Gauss–Newton matrix in `θ` (empty otherwise), which is carried
+/// to the optimiser's variables as `Sᵀ H S`, `S = diag(dθ/dz)`.
+fn minimise(
+    case: &str,
+    mut optimiser: Optimiser,
+    model: impl Fn(&[f64]) -> Result<GaussNewtonModel, AdjointError>,
+    variables: &[Variable],
+    theta0: &[f64],
+    stop: Stop,
+) -> Result<Recovered, VerifyError> {
     let start = Instant::now();
     let physical = |z: &[f64]| -> Vec<f64> {
         z.iter()
@@ -71,15 +121,19 @@ pub(crate) fn lbfgs(
     // z ↦ (L, ∇_z L), ∇_z L = dL/dθ · dθ/dz.
     let mut evaluate = |z: &[f64]| -> Result<Evaluation, AdjointError> {
         evaluations.set(evaluations.get() + 1);
-        let (loss, g) = gradient(&physical(z))?;
-        let gradient = (g.iter().zip(z).zip(variables))
-            .map(|((g, z), v)| g * v.slope(*z))
-            .collect();
+        let m = model(&physical(z))?;
+        let slopes: Vec<f64> = z.iter().zip(variables).map(|(z, v)| v.slope(*z)).collect();
+        let n = z.len();
+        let curvature = (!m.matrix.is_empty()).then(|| {
+            (0..n * n)
+                .map(|i| m.matrix[i] * slopes[i / n] * slopes[i % n])
+                .collect()
+        });
         Ok(Evaluation {
             x: z.to_vec(),
-            loss,
-            gradient,
-            curvature: None,
+            loss: m.loss,
+            gradient: m.gradient.iter().zip(&slopes).map(|(g, s)| g * s).collect(),
+            curvature,
         })
     };
     let project = |z: &mut [f64]| {
@@ -96,7 +150,6 @@ pub(crate) fn lbfgs(
         .collect();
     let mut current = evaluate(&z0).map_err(failed)?;
     let first_loss = current.loss;
-    let mut optimiser = Optimiser::Lbfgs(Lbfgs::new(10, 0.1));
     let mut iterations = 0;
     let mut history = vec![(current.loss, physical(&current.x))];
     while iterations < stop.max_iterations

@@ -20,6 +20,7 @@ pub mod footing;
 pub mod granular;
 pub mod implicit_adjoint_fd;
 pub mod incline;
+pub mod inverse_element;
 pub mod inverse_friction;
 pub mod inverse_implicit;
 pub mod inverse_mlp;
@@ -404,6 +405,11 @@ pub fn cases() -> Vec<Case> {
             name: "inverse-footing",
             description: "Study 5: strip footing on J2 clay under a prescribed settlement, σ_y (√3 c_u) and E from the load–settlement curve (reactions) within 0.5 % each",
             runner: Runner::Cpu(inverse_implicit::run_footing),
+        },
+        Case {
+            name: "inverse-triaxial-mcc",
+            description: "Modified Cam-Clay λ, κ, M fitted to a drained (q, ε_v) and an undrained (q, p′) triaxial curve (synthetic truth λ = 0.2, κ = 0.04, M = 1) by Levenberg–Marquardt with forward-mode derivatives through the element driver, from 25 % off: within 1 % each",
+            runner: Runner::Cpu(inverse_element::run),
         },
     ]
 }

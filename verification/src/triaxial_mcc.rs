@@ -50,18 +50,15 @@ fn run_stages(
     start: PointState,
     stages: &[StageSpec],
 ) -> Result<Vec<PointState>, VerifyError> {
-    let mut states = vec![start];
-    for spec in stages {
-        let last = states.last().expect("starts with one state").clone();
-        let stage = spec.stage(&last.f, &last.stress);
-        let more =
-            element::run(material, last.clone(), &[stage]).map_err(|e| VerifyError::Reference {
-                case: CASE.into(),
-                msg: e.to_string(),
-            })?;
-        states.extend(more.into_iter().skip(1));
+    let stages: Vec<_> = stages.iter().map(StageSpec::lab_stage).collect();
+    let run = element::run_test(material, material, start, &stages);
+    match run.failure {
+        Some(e) => Err(VerifyError::Reference {
+            case: CASE.into(),
+            msg: e.to_string(),
+        }),
+        None => Ok(run.states),
     }
-    Ok(states)
 }
 
 /// `(λ, κ)` measured as `−v₀ Δln v / Δln p′_τ` over the last increment of the loading stage

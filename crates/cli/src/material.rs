@@ -28,23 +28,15 @@ pub fn material(path: &Path, out: Option<&Path>, quiet: bool) -> Outcome {
         return Outcome::BadInput;
     }
     let material = test.material();
-    let mut states = vec![test.start(&material)];
-    let mut stage_of = vec![0usize];
-    let mut failure = None;
-    for (k, spec) in test.stages.iter().enumerate() {
-        let last = states.last().expect("start").clone();
-        let stage = spec.stage(&last.f, &last.stress);
-        match element::run(&material, last, &[stage]) {
-            Ok(run) => {
-                stage_of.extend(std::iter::repeat_n(k, run.len() - 1));
-                states.extend(run.into_iter().skip(1));
-            }
-            Err(e) => {
-                failure = Some(format!("stages[{k}] ({}): {e}", spec.name()));
-                break;
-            }
-        }
-    }
+    let path_run = element::run_test(&material, &material, test.start(&material), &test.stages());
+    let (states, stage_of) = (path_run.states, path_run.stage_of);
+    let failure = (path_run.failure).map(|e| {
+        format!(
+            "stages[{}] ({}): {e}",
+            e.stage(),
+            test.stages[e.stage()].name()
+        )
+    });
     if let Err(msg) = write(&dir, &test, &states, &stage_of) {
         eprintln!("error: {msg}");
         return Outcome::Failed;

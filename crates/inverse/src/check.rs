@@ -53,6 +53,18 @@ fn same_branches<const D: usize, O: ScalarObjective<D>>(
 /// The relative steps `δ / max(|θ|, 10⁻³)` [`central_difference`] tries, largest first.
 pub const DIFFERENCE_STEPS: [f64; 5] = [1e-4, 3e-5, 1e-5, 3e-6, 1e-6];
 
+/// The Richardson-extrapolated central difference of `along(d) = L(θ + d e)` at `d = 0`:
+/// `(4 D(δ/2) − D(δ))/3` with `D(δ) = (L(θ + δ) − L(θ − δ))/(2δ)`, whose truncation is
+/// `O(δ⁴)`.
+///
+/// # Errors
+/// Those of `along`.
+pub fn richardson<E>(mut along: impl FnMut(f64) -> Result<f64, E>, delta: f64) -> Result<f64, E> {
+    let d1 = (along(delta)? - along(-delta)?) / (2.0 * delta);
+    let d2 = (along(0.5 * delta)? - along(-0.5 * delta)?) / delta;
+    Ok((4.0 * d2 - d1) / 3.0)
+}
+
 /// A central difference and the relative step it was taken with.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Difference {
@@ -183,21 +195,18 @@ pub fn difference_at<const D: usize, O: ScalarObjective<D>>(
     base: &[Branches],
 ) -> Result<Option<Difference>, AdjointError> {
     let delta = relative_step * theta[k].abs().max(1e-3);
-    let points = [delta, -delta, 0.5 * delta, -0.5 * delta].map(|d| {
+    let moved = |d: f64| {
         let mut t = theta.to_vec();
         t[k] += d;
         t
-    });
-    for t in &points {
-        if !same_branches(problem, t, base)? {
+    };
+    for d in [delta, -delta, 0.5 * delta, -0.5 * delta] {
+        if !same_branches(problem, &moved(d), base)? {
             return Ok(None);
         }
     }
-    let [up, down, half_up, half_down] = points.map(|t| problem.loss(&t));
-    let d1 = (up? - down?) / (2.0 * delta);
-    let d2 = (half_up? - half_down?) / delta;
     Ok(Some(Difference {
-        value: (4.0 * d2 - d1) / 3.0,
+        value: richardson(|d| problem.loss(&moved(d)), delta)?,
         relative_step,
     }))
 }
@@ -477,11 +486,8 @@ mod tests {
         let estimates = CONVERGENCE_STEPS
             .iter()
             .map(|&s| {
-                let at = |d: f64| f(d).unwrap();
-                let d1 = (at(s) - at(-s)) / (2.0 * s);
-                let d2 = (at(0.5 * s) - at(-0.5 * s)) / s;
                 Some(Difference {
-                    value: (4.0 * d2 - d1) / 3.0,
+                    value: richardson(f, s).unwrap(),
                     relative_step: s,
                 })
             })

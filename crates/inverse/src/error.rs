@@ -2,6 +2,7 @@
 
 use loam_explicit::{ConfigError, StepError};
 use loam_implicit::ImplicitError;
+use loam_implicit::element::ElementError;
 use loam_implicit::linear::LinearError;
 use thiserror::Error;
 
@@ -41,6 +42,14 @@ pub enum AdjointError {
     /// The implicit forward run was refused or stopped.
     #[error("forward run: {0}")]
     Implicit(#[from] ImplicitError),
+    /// An element test stopped: a stage could not be completed.
+    #[error("element test {test}: {source}")]
+    Element {
+        /// The test (from 0).
+        test: usize,
+        /// The driver's error.
+        source: ElementError,
+    },
     /// An adjoint or tangent system of an implicit sub-step could not be solved.
     #[error("load step {step}: {what} system: {source}")]
     Linear {

@@ -23,6 +23,10 @@
 //! - [`implicit`]: the same for an implicit run, quasi-static or Newmark, by the adjoint of
 //!   its load steps (one transposed solve with each accepted sub-step's tangent).
 //!
+//! - [`element`]: the same for element tests (one material point through laboratory paths),
+//!   by forward-mode duals through the element driver: material constants fitted to
+//!   laboratory curves.
+//!
 //! - [`check`] compares a gradient with branch-aware central differences and runs the
 //!   Taylor test; [`choose`] picks tracked particles reproducibly.
 //!
@@ -33,6 +37,7 @@ mod adjoint_state;
 pub mod check;
 mod checkpoints;
 mod deposit;
+pub mod element;
 mod error;
 mod field;
 mod gradient;

@@ -90,6 +90,14 @@ impl MaterialField {
     }
 }
 
+impl MaterialField {
+    /// Whether the model of `material` has this constant (a Modified Cam-Clay material given
+    /// by its shear modulus has no Poisson's ratio, and the other way round).
+    pub fn applies_to(self, material: &Material<f64>) -> bool {
+        seed_material(material, self).is_some()
+    }
+}
+
 /// One scalar parameter of an explicit run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Param {

@@ -72,15 +72,17 @@ pub struct GradientCost {
     pub phases: Phases,
 }
 
-/// A Gauss–Newton model of a least-squares loss `L = Σᵢ rᵢ(θ)²` at a point
-/// ([`Problem::gauss_newton`]).
+/// A Gauss–Newton model of a least-squares loss `L = c Σᵢ rᵢ(θ)²` at a point: `∇L = 2c Jᵀr`
+/// and the Hessian less its terms in `∂²r`, `H = 2c JᵀJ`, with `J = ∂r/∂θ`. `c = 1` for
+/// an explicit run ([`Problem::gauss_newton`]), `c = ½` for element tests
+/// ([`crate::element::ElementProblem::gauss_newton`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct GaussNewtonModel {
     /// `L`.
     pub loss: f64,
-    /// `∇L = 2 Jᵀr`.
+    /// `∇L = 2c Jᵀr`.
     pub gradient: Vec<f64>,
-    /// `H = 2 JᵀJ`, row-major, `n × n`.
+    /// `H = 2c JᵀJ`, row-major, `n × n`.
     pub matrix: Vec<f64>,
 }
 

@@ -31,8 +31,8 @@
 use crate::error::{Issue, SceneError, SceneFormat};
 use crate::schema::MaterialSpec;
 use crate::validate::material_issues;
-use loam_core::constitutive::{Elasticity, Material, MaterialState};
-use loam_implicit::element::{PointState, Stage, Target};
+use loam_core::constitutive::{Elasticity, Material};
+use loam_implicit::element::{LabStage, Loading, PointState, Stage};
 use nalgebra::Matrix3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -149,52 +149,36 @@ impl StageSpec {
         }
     }
 
-    /// The driver's stage from the state at its start (`F` and stress of the previous stage's
-    /// end).
-    pub fn stage(&self, f: &Matrix3<f64>, stress: &Matrix3<f64>) -> Stage {
-        use Target::{Stress, Stretch};
-        let mut targets = [[Stretch(0.0); 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                targets[i][j] = Stretch(f[(i, j)]);
-            }
-        }
-        match *self {
-            Self::DrainedTriaxial { axial_strain, .. } => {
-                targets[0][0] = Stress(stress[(0, 0)]);
-                targets[1][1] = Stress(stress[(1, 1)]);
-                targets[2][2] = Stretch(f[(2, 2)] - axial_strain);
-            }
+    /// The stage as the driver takes it: its [`Loading`] and increments (default
+    /// [`DEFAULT_INCREMENTS`]).
+    pub fn lab_stage(&self) -> LabStage {
+        let loading = match *self {
+            Self::DrainedTriaxial { axial_strain, .. } => Loading::DrainedTriaxial { axial_strain },
             Self::UndrainedTriaxial { axial_strain, .. } => {
-                let fz = f[(2, 2)] - axial_strain;
-                let lateral = (f[(2, 2)] / fz).sqrt();
-                targets[0][0] = Stretch(f[(0, 0)] * lateral);
-                targets[1][1] = Stretch(f[(1, 1)] * lateral);
-                targets[2][2] = Stretch(fz);
+                Loading::UndrainedTriaxial { axial_strain }
             }
-            Self::Oedometer { axial_strain, .. } => {
-                targets[2][2] = Stretch(f[(2, 2)] - axial_strain);
-            }
-            Self::Isotropic { p, .. } => {
-                for a in 0..3 {
-                    targets[a][a] = Stress(-p);
-                }
-            }
+            Self::Oedometer { axial_strain, .. } => Loading::Oedometer { axial_strain },
+            Self::Isotropic { p, .. } => Loading::Isotropic { p },
             Self::SimpleShear {
                 shear_strain,
                 vertical_stress,
                 ..
-            } => {
-                targets[0][2] = Stretch(f[(0, 2)] + shear_strain);
-                if let Some(sv) = vertical_stress {
-                    targets[2][2] = Stress(-sv);
-                }
-            }
-        }
-        Stage {
-            targets,
+            } => Loading::SimpleShear {
+                shear_strain,
+                vertical_stress,
+            },
+        };
+        LabStage {
+            loading,
             increments: self.increments().unwrap_or(DEFAULT_INCREMENTS),
         }
+    }
+
+    /// The driver's stage from the state at its start (`F` and stress of the previous stage's
+    /// end): [`Loading::stage`].
+    pub fn stage(&self, f: &Matrix3<f64>, stress: &Matrix3<f64>) -> Stage {
+        let s = self.lab_stage();
+        s.loading.stage(f, stress, s.increments)
     }
 }
 
@@ -362,24 +346,23 @@ impl ElementTest {
         self.material.material(Elasticity::Hencky)
     }
 
-    /// The state the test starts from: `σ′_v = 3p′₀/(1 + 2K0)` along `z`, `K0 σ′_v` across,
-    /// carried by the model's history at `F = I`.
-    pub fn start(&self, material: &Material<f64>) -> PointState {
+    /// The initial Cauchy stress (Pa, tension positive): `σ′_v = 3p′₀/(1 + 2K0)` along `z`,
+    /// `K0 σ′_v` across.
+    pub fn initial_stress(&self) -> Matrix3<f64> {
         let k0 = self.initial.k0.unwrap_or(1.0);
         let sv = 3.0 * self.initial.p / (1.0 + 2.0 * k0);
-        let stress = Matrix3::from_diagonal(&nalgebra::vector![-k0 * sv, -k0 * sv, -sv]);
-        let history = if self.initial.p > 0.0 {
-            material
-                .prestressed_state(&stress)
-                .expect("validated: a model with history")
-        } else {
-            MaterialState::default()
-        };
-        PointState {
-            f: Matrix3::identity(),
-            stress,
-            history,
-        }
+        Matrix3::from_diagonal(&nalgebra::vector![-k0 * sv, -k0 * sv, -sv])
+    }
+
+    /// The state the test starts from: [`ElementTest::initial_stress`] carried by the model's
+    /// history at `F = I` ([`PointState::at_rest`]).
+    pub fn start(&self, material: &Material<f64>) -> PointState {
+        PointState::at_rest(material, &self.initial_stress())
+    }
+
+    /// The stages as the driver takes them ([`StageSpec::lab_stage`]).
+    pub fn stages(&self) -> Vec<LabStage> {
+        self.stages.iter().map(StageSpec::lab_stage).collect()
     }
 }
 

@@ -235,6 +235,11 @@ fn inverse_footing() {
 }
 
 #[test]
+fn inverse_triaxial_mcc() {
+    check("inverse-triaxial-mcc");
+}
+
+#[test]
 fn inverse_v0() {
     check("inverse-v0");
 }

@@ -331,8 +331,9 @@ impl From<SceneError> for Invalid {
     }
 }
 
-/// Reads and parses the inversion file (fields only).
-pub fn read(path: &Path) -> Result<InversionFile, Invalid> {
+/// Reads and parses an inversion file (fields only): a scene's ([`InversionFile`]) or element
+/// tests' ([`super::element::ElementInversionFile`]).
+pub fn read<S: serde::de::DeserializeOwned>(path: &Path) -> Result<S, Invalid> {
     if SceneFormat::from_path(path) != Some(SceneFormat::Toml) {
         return Err(Invalid(format!(
             "{}: unknown inversion file extension; expected `.toml`",
@@ -575,7 +576,7 @@ pub fn build<const D: usize>(
             issue("scene".into(), e.to_string());
         }
     }
-    check_optimiser(&file, &mut issue);
+    check_optimiser(&file.optimizer, &file.stop, &mut issue);
     if matches!(file.optimizer, OptimizerSpec::LevenbergMarquardt { .. }) {
         let unknowns: usize = controls.iter().map(Control::len).sum();
         if unknowns > LEVENBERG_MARQUARDT_UNKNOWNS {
@@ -749,7 +750,7 @@ pub fn build<const D: usize>(
                 );
             }
             if truth.is_none() {
-                require_truth(&file, &mut issue);
+                require_truth(&file.parameters, &mut issue);
             }
         }
         None => {
@@ -1134,8 +1135,8 @@ fn check_velocities(controls: &[Control], scalars: usize, issue: &mut dyn FnMut(
 }
 
 /// Names every parameter without a `truth`, which `[synthetic]` needs.
-pub fn require_truth(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
-    for (i, p) in file.parameters.iter().enumerate() {
+pub fn require_truth(parameters: &[ParameterSpec], issue: &mut dyn FnMut(String, String)) {
+    for (i, p) in parameters.iter().enumerate() {
         if p.truth.is_none() {
             issue(
                 format!("parameters[{i}].truth"),
@@ -1145,9 +1146,14 @@ pub fn require_truth(file: &InversionFile, issue: &mut dyn FnMut(String, String)
     }
 }
 
-pub fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, String)) {
+/// Checks the optimiser's settings and the stop rules.
+pub fn check_optimiser(
+    optimizer: &OptimizerSpec,
+    stop: &StopSpec,
+    issue: &mut dyn FnMut(String, String),
+) {
     let positive = |v: f64| v.is_finite() && v > 0.0;
-    match file.optimizer {
+    match *optimizer {
         OptimizerSpec::Adam {
             learning_rate,
             decay_rate,
@@ -1191,8 +1197,7 @@ pub fn check_optimiser(file: &InversionFile, issue: &mut dyn FnMut(String, Strin
             }
         }
     }
-    let s = &file.stop;
-    for (field, v) in [("loss", s.loss), ("gradient", s.gradient)] {
+    for (field, v) in [("loss", stop.loss), ("gradient", stop.gradient)] {
         if !(v.is_finite() && v >= 0.0) {
             issue(
                 format!("stop.{field}"),

@@ -1,7 +1,6 @@
 //! What an inversion writes: the history (CSV and JSON), its plots, the optimiser's
 //! checkpoint and the recovered scene.
 
-use super::file::InversionFile;
 use super::units::quantity;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
@@ -62,7 +61,7 @@ impl Checkpoint {
     pub const NAME: &str = "checkpoint.json";
 
     /// The inversion file as a checkpoint records it: without `[stop]`.
-    pub fn key(file: &InversionFile) -> serde_json::Value {
+    pub fn key(file: &impl Serialize) -> serde_json::Value {
         let mut v = serde_json::to_value(file).expect("the inversion file serialises");
         if let Some(map) = v.as_object_mut() {
             map.remove("stop");
@@ -254,10 +253,7 @@ pub fn recovered_scene(
     velocity_file: Option<&Path>,
 ) -> Result<String, String> {
     let body = toml::to_string(&s).map_err(|e| format!("cannot write the recovered scene: {e}"))?;
-    let mut head = format!("# Recovered by `loam invert` from {}:\n", source.display());
-    for (n, v) in names.iter().zip(theta) {
-        writeln!(head, "#   {n} = {v}").expect("string");
-    }
+    let mut head = recovered_header(source, names, theta);
     if let Some(file) = velocity_file {
         if let [body] = s.bodies.as_mut_slice() {
             body.velocity_file = Some(file.to_path_buf());
@@ -272,6 +268,15 @@ pub fn recovered_scene(
         }
     }
     Ok(head + "\n" + &body)
+}
+
+/// The comment that heads a recovered file: where it was recovered from and the values.
+pub fn recovered_header(source: &Path, names: &[String], theta: &[f64]) -> String {
+    let mut head = format!("# Recovered by `loam invert` from {}:\n", source.display());
+    for (n, v) in names.iter().zip(theta) {
+        writeln!(head, "#   {n} = {v}").expect("string");
+    }
+    head
 }
 
 /// Sets one parameter's field of the scene (validated: it exists).
@@ -290,8 +295,8 @@ fn set(s: &mut Scene, p: Param, v: f64) {
     }
 }
 
-/// Sets one constant of a scene material.
-fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
+/// Sets one constant of a scene material (or of an element test's `[material]`).
+pub fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
     use MaterialField as F;
     match field {
         F::Young => m.youngs_modulus = Some(v),

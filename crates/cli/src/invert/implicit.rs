@@ -115,7 +115,7 @@ pub fn build<const D: usize>(
             t
         });
     }
-    check_optimiser(&file, &mut issue);
+    check_optimiser(&file.optimizer, &file.stop, &mut issue);
     if matches!(file.optimizer, OptimizerSpec::LevenbergMarquardt { .. }) {
         issue(
             "optimizer.method".into(),
@@ -213,7 +213,7 @@ pub fn build<const D: usize>(
                 );
             }
             if truth.is_none() {
-                require_truth(&file, &mut issue);
+                require_truth(&file.parameters, &mut issue);
             }
         }
         None => {

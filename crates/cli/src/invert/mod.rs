@@ -10,6 +10,7 @@
 //! and a checkpoint that `--resume` continues from. A signal (Ctrl-C) stops it after the
 //! iteration in progress, with everything written so far kept.
 
+mod element;
 mod file;
 mod history;
 mod implicit;
@@ -20,31 +21,39 @@ mod units;
 
 use crate::Outcome;
 use crate::run::{interrupt, writable_folder};
-use file::{Invalid, Inversion, OptimizerSpec};
+use element::ElementInversion;
+use file::{Invalid, Inversion, OptimizerSpec, StopSpec};
 use history::{Checkpoint, Entry, History, write_atomic};
 pub use limits::Limits;
 use loam_core::tensor::Vector;
 use loam_inverse::check::Jump;
+use loam_inverse::implicit::Identifiability;
 use loam_inverse::optimise::{free_gradient_norm, norm};
 use loam_inverse::{
-    Adam, AdjointError, Control, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt, Optimiser,
+    Adam, AdjointError, Control, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt,
+    Optimiser, Variable,
 };
-use model::Model;
+use model::{CheckRow, Model};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Reads the inversion file and sets it up for the scene's dimension (with the adjoint's
-/// memory budget `memory` in bytes, `--memory`, within `limits`), then runs `then`.
+/// Reads the inversion file and sets it up: for the scene's dimension (with the adjoint's
+/// memory budget `memory` in bytes, `--memory`, within `limits`) for a scene's inversion,
+/// or for element tests ([`element`]: a file with `[[tests]]`); then runs the matching `then`.
 fn with_inversion(
     path: &Path,
     memory: Option<u64>,
     limits: Limits,
     then2: impl FnOnce(Inversion<2>) -> Outcome,
     then3: impl FnOnce(Inversion<3>) -> Outcome,
+    then_element: impl FnOnce(ElementInversion) -> Outcome,
 ) -> Outcome {
     let setup = || -> Result<Outcome, Invalid> {
-        let f = file::read(path)?;
+        if element::is_element_inversion(path) {
+            return Ok(then_element(element::build(path, memory)?));
+        }
+        let f: file::InversionFile = file::read(path)?;
         let (scene_path, scene) = file::scene_of(path, &f)?;
         Ok(match scene.dim() {
             2 => then2(file::build(path, f, scene_path, scene, memory, limits)?),
@@ -57,13 +66,144 @@ fn with_inversion(
     })
 }
 
+/// A point evaluated: `L`, `dL/dθ` and, when asked for, the Gauss–Newton matrix in `θ`
+/// (row-major).
+type Evaluated = (f64, Vec<f64>, Option<Vec<f64>>);
+
+/// What the optimisation loop, its history and its report need of an inversion, whatever it
+/// runs: a scene's run, explicit or implicit ([`Inversion`]), or element tests
+/// ([`ElementInversion`]).
+trait Inverse {
+    /// The inversion file.
+    fn path(&self) -> &Path;
+    /// The named parameters, the first unknowns.
+    fn names(&self) -> &[String];
+    /// The optimiser's view of every unknown.
+    fn variables(&self) -> &[Variable];
+    /// The first guess of every unknown.
+    fn initial(&self) -> &[f64];
+    /// The named parameters' truth values, when every one has one.
+    fn truth(&self) -> Option<&[f64]>;
+    /// The file as a checkpoint records it (without `[stop]`).
+    fn key(&self) -> serde_json::Value;
+    /// The optimiser asked for.
+    fn optimizer(&self) -> &OptimizerSpec;
+    /// When to stop.
+    fn stop(&self) -> &StopSpec;
+    /// Whether the observations come from a truth run.
+    fn synthetic(&self) -> bool;
+    /// `L(θ)`, `dL/dθ` and, with `gauss_newton`, the Gauss–Newton matrix in `θ`. Past the
+    /// `first` point a run that cannot be completed may count as an infinite loss.
+    fn evaluate(
+        &self,
+        theta: &[f64],
+        first: bool,
+        gauss_newton: bool,
+    ) -> Result<Evaluated, AdjointError>;
+    /// The velocity fields' relative errors against the truth at `theta` (none by default).
+    fn field_errors(&self, _theta: &[f64]) -> Vec<f64> {
+        Vec::new()
+    }
+    /// Writes the synthetic observations into `dir` as files the inversion can read.
+    fn write_synthetic(&self, dir: &Path) -> Result<(), String>;
+    /// Writes what the inversion recovered at `theta` into `dir` (the recovered scene or
+    /// element files, the fitted curves), returning the files' names.
+    fn write_recovered(&self, dir: &Path, theta: &[f64]) -> Result<Vec<String>, String>;
+    /// Prints what follows the recovered values in the report (identifiability, the velocity
+    /// fields' errors).
+    fn report_recovered(&self, theta: &[f64]) -> Result<(), AdjointError>;
+}
+
+impl<const D: usize> Inverse for Inversion<D> {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+    fn names(&self) -> &[String] {
+        &self.names
+    }
+    fn variables(&self) -> &[Variable] {
+        &self.variables
+    }
+    fn initial(&self) -> &[f64] {
+        &self.initial
+    }
+    fn truth(&self) -> Option<&[f64]> {
+        self.truth.as_deref()
+    }
+    fn key(&self) -> serde_json::Value {
+        Checkpoint::key(&self.file)
+    }
+    fn optimizer(&self) -> &OptimizerSpec {
+        &self.file.optimizer
+    }
+    fn stop(&self) -> &StopSpec {
+        &self.file.stop
+    }
+    fn synthetic(&self) -> bool {
+        self.file.synthetic.is_some()
+    }
+    fn evaluate(
+        &self,
+        theta: &[f64],
+        first: bool,
+        gauss_newton: bool,
+    ) -> Result<Evaluated, AdjointError> {
+        if gauss_newton {
+            let GaussNewtonModel {
+                loss,
+                gradient,
+                matrix,
+            } = self.problem.gauss_newton(theta)?;
+            return Ok((loss, gradient, Some(matrix)));
+        }
+        let (loss, g) = if first {
+            self.problem.gradient(theta)?
+        } else {
+            self.problem.trial_gradient(theta)?
+        };
+        Ok((loss, g, None))
+    }
+    fn field_errors(&self, theta: &[f64]) -> Vec<f64> {
+        Inversion::field_errors(self, theta)
+    }
+    fn write_synthetic(&self, dir: &Path) -> Result<(), String> {
+        write_synthetic(self, dir)
+    }
+    fn write_recovered(&self, dir: &Path, theta: &[f64]) -> Result<Vec<String>, String> {
+        write_recovered_scene(self, dir, theta)
+    }
+    fn report_recovered(&self, theta: &[f64]) -> Result<(), AdjointError> {
+        if let Model::Implicit { problem, .. } = &self.problem {
+            let g = problem.identifiability(theta)?;
+            print_identifiability(&self.names, problem.observations.items.len(), &g);
+        }
+        let errors = self.field_errors(theta);
+        for (f, (start, len)) in field_blocks(self).into_iter().enumerate() {
+            match errors.get(f) {
+                Some(r) => println!(
+                    "  velocity_field[{f}]: {len} weights; relative L2 error against the truth {:.3} % (first guess {:.3} %)",
+                    100.0 * r,
+                    100.0 * self.field_errors(&self.initial)[f],
+                ),
+                None => println!(
+                    "  velocity_field[{f}]: {len} weights, |w| = {:.6}",
+                    norm(&theta[start..start + len])
+                ),
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Whether `path` is an inversion file rather than a scene: a TOML file whose top level
-/// names a `scene` and has no `grid`.
+/// names a `scene` (or lists element `tests`) and has no `grid`.
 pub fn is_inversion(path: &Path) -> bool {
     let table = std::fs::read_to_string(path)
         .ok()
         .and_then(|t| t.parse::<toml::Table>().ok());
-    table.is_some_and(|t| t.contains_key("scene") && !t.contains_key("grid"))
+    table.is_some_and(|t| {
+        (t.contains_key("scene") || t.contains_key("tests")) && !t.contains_key("grid")
+    })
 }
 
 /// Validates an inversion file, its scene and observations (`loam check` on an inversion
@@ -97,7 +237,16 @@ pub fn check(path: &Path, limits: Limits) -> Outcome {
         );
         Outcome::Ok
     }
-    with_inversion(path, None, limits, report::<2>, report::<3>)
+    with_inversion(path, None, limits, report::<2>, report::<3>, |inv| {
+        println!(
+            "{}: valid inversion of {} element test(s): {} parameter(s), {} observation(s)",
+            inv.path.display(),
+            inv.tests.len(),
+            inv.names.len(),
+            inv.problem.observations()
+        );
+        Outcome::Ok
+    })
 }
 
 /// `loam gradient FILE [--check] [--memory SIZE]`.
@@ -108,6 +257,7 @@ pub fn gradient(path: &Path, check: bool, memory: Option<u64>, limits: Limits) -
         limits,
         |i| gradient_dim(i, check),
         |i| gradient_dim(i, check),
+        |i| element::gradient(&i, check),
     )
 }
 
@@ -180,18 +330,37 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
                 last[*k] / grad[*k]
             );
         }
-        if let Err(e) = print_identifiability(&inv, theta) {
-            return failed(&inv.path, e);
+        match problem.identifiability(theta) {
+            Ok(g) => print_identifiability(&inv.names, problem.observations.items.len(), &g),
+            Err(e) => return failed(&inv.path, e),
         }
     }
     if !check {
         return Outcome::Ok;
     }
     println!("\n{}", inv.problem.check_legend());
+    print_checks(&inv.path, "adjoint", &rows, &grad, |k| {
+        inv.problem.check_one(theta, loss, grad[k], k)
+    })
+}
+
+/// The table of `loam gradient --check`: per unknown of `rows` (name, index in `θ`) the
+/// gradient `grad` (computed as `what` says: `adjoint`, `forward`) against the dual
+/// derivative, the central differences and the Taylor remainders that `check_one` measures,
+/// then the jumps found. Exits 1 when the gradient and the dual derivative differ beyond
+/// round-off, or agree with each other but not with a converged central difference.
+fn print_checks(
+    path: &Path,
+    what: &str,
+    rows: &[(String, usize)],
+    grad: &[f64],
+    mut check_one: impl FnMut(usize) -> Result<CheckRow, AdjointError>,
+) -> Outcome {
+    let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(9);
     println!(
         "  {:width$}  {:>18}  {:>18}  {:>9}  {:>18}  {:>9}  {:>5}  {:>10} {:>10} {:>10} {:>10}  {:>5} {:>5} {:>5}",
         "parameter",
-        "adjoint",
+        what,
         "dual",
         "rel.diff",
         "central diff.",
@@ -206,16 +375,16 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         "ratio"
     );
     let mut worst = 0.0f64;
-    // Unknowns where the adjoint and the dual agree but a converged central difference does
+    // Unknowns where the gradient and the dual agree but a converged central difference does
     // not: the derivative misses a dependence of the forward run on the parameter.
     let mut missed = Vec::new();
     // What was found of jumps of the loss, one line per unknown, printed after the table.
     let mut jumps = Vec::new();
-    for (name, k) in &rows {
+    for (name, k) in rows {
         let k = *k;
-        let row = match inv.problem.check_one(theta, loss, grad[k], k) {
+        let row = match check_one(k) {
             Ok(row) => row,
-            Err(e) => return failed(&inv.path, e),
+            Err(e) => return failed(path, e),
         };
         let rel = |a: f64| (a - grad[k]).abs() / grad[k].abs().max(1e-300);
         worst = worst.max(rel(row.dual));
@@ -254,16 +423,16 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
     for note in &jumps {
         println!("{note}");
     }
-    // The adjoint and the dual run are the same derivative of the same discrete map:
+    // The gradient and the dual run are the same derivative of the same discrete map:
     // anything above round-off (1e-8 leaves room for losses summed over many steps) is a bug.
     if worst > 1e-8 {
-        eprintln!("error: the adjoint and the dual derivative differ by {worst:.1e} (relative)");
+        eprintln!("error: the {what} and the dual derivative differ by {worst:.1e} (relative)");
         return Outcome::Failed;
     }
     if !missed.is_empty() {
         eprintln!(
-            "error: the adjoint and the dual derivative agree but differ from a converged central \
-             difference by more than {:.0e} (relative): {}",
+            "error: the {what} and the dual derivative agree but differ from a converged \
+             central difference by more than {:.0e} (relative): {}",
             model::DIFFERENCE_TOLERANCE,
             missed.join("; ")
         );
@@ -340,8 +509,9 @@ pub fn invert(
         path,
         memory,
         limits,
-        |i| invert_dim(i, &dir, resume),
-        |i| invert_dim(i, &dir, resume),
+        |i| invert_with(&i, &dir, resume),
+        |i| invert_with(&i, &dir, resume),
+        |i| invert_with(&i, &dir, resume),
     )
 }
 
@@ -362,43 +532,34 @@ fn optimiser(spec: &OptimizerSpec, n: usize) -> Optimiser {
     }
 }
 
-fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Outcome {
+/// Runs the optimiser of `inv` to a stop rule, writing the history and the checkpoint into
+/// `dir` after every iteration (from the checkpoint there with `resume`), then the report.
+fn invert_with(inv: &dyn Inverse, dir: &Path, resume: bool) -> Outcome {
     let started = Instant::now();
-    let vars = &inv.variables;
-    let key = Checkpoint::key(&inv.file);
+    let vars = inv.variables();
+    let key = inv.key();
     let physical =
         |z: &[f64]| -> Vec<f64> { z.iter().zip(vars).map(|(z, v)| v.physical(*z)).collect() };
     // Runs of the loss this iteration, and dL/dθ at the last point evaluated (for the history).
     let runs = Cell::new(0usize);
     let last_physical = RefCell::new(Vec::new());
     // z ↦ (L, ∇_z L) with ∇_z L = dL/dθ · dθ/dz.
-    // After the first point, a trial point whose implicit run stops has an infinite loss.
+    // After the first point, a trial point whose run stops may count as an infinite loss.
     let first_done = Cell::new(resume);
-    let gauss_newton = matches!(inv.file.optimizer, OptimizerSpec::LevenbergMarquardt { .. });
+    let gauss_newton = matches!(inv.optimizer(), OptimizerSpec::LevenbergMarquardt { .. });
     let mut evaluate = |z: &[f64]| -> Result<Evaluation, AdjointError> {
         runs.set(runs.get() + 1);
         let theta = physical(z);
         let slopes: Vec<f64> = z.iter().zip(vars).map(|(z, v)| v.slope(*z)).collect();
-        let (loss, g, curvature) = if gauss_newton {
-            // The Gauss–Newton matrix in z: Sᵀ H S with S = diag(dθ/dz).
-            let GaussNewtonModel {
-                loss,
-                gradient,
-                matrix,
-            } = inv.problem.gauss_newton(&theta)?;
-            let n = z.len();
-            let h = (0..n * n)
-                .map(|i| matrix[i] * slopes[i / n] * slopes[i % n])
-                .collect();
-            (loss, gradient, Some(h))
-        } else if first_done.get() {
-            let (loss, g) = inv.problem.trial_gradient(&theta)?;
-            (loss, g, None)
-        } else {
-            let (loss, g) = inv.problem.gradient(&theta)?;
-            (loss, g, None)
-        };
+        let (loss, g, matrix) = inv.evaluate(&theta, !first_done.get(), gauss_newton)?;
         first_done.set(true);
+        // The Gauss–Newton matrix in z: Sᵀ H S with S = diag(dθ/dz).
+        let n = z.len();
+        let curvature = matrix.map(|m| {
+            (0..n * n)
+                .map(|i| m[i] * slopes[i / n] * slopes[i % n])
+                .collect()
+        });
         let gz = g.iter().zip(&slopes).map(|(g, s)| g * s).collect();
         *last_physical.borrow_mut() = g;
         Ok(Evaluation {
@@ -425,14 +586,14 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             eprintln!(
                 "error: --resume: {} differs from the inversion the checkpoint in {} was made \
                  for (only [stop] may change); start afresh without --resume",
-                inv.path.display(),
+                inv.path().display(),
                 dir.display()
             );
             return Outcome::BadInput;
         }
         println!(
             "{}: resuming from iteration {} (L = {:.6e}) in {}",
-            inv.path.display(),
+            inv.path().display(),
             cp.history.entries.last().map_or(0, |e| e.iteration),
             cp.current.loss,
             dir.display()
@@ -447,31 +608,29 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             );
             return Outcome::BadInput;
         }
-        if inv.file.synthetic.is_some()
-            && let Err(e) = write_synthetic(&inv, dir)
+        if inv.synthetic()
+            && let Err(e) = inv.write_synthetic(dir)
         {
             eprintln!("error: {e}");
             return Outcome::Failed;
         }
-        let mut z0: Vec<f64> = inv
-            .initial
-            .iter()
+        let mut z0: Vec<f64> = (inv.initial().iter())
             .zip(vars)
             .map(|(t, v)| v.internal(*t))
             .collect();
         project(&mut z0);
         let first = match evaluate(&z0) {
             Ok(e) => e,
-            Err(e) => return failed(&inv.path, e),
+            Err(e) => return failed(inv.path(), e),
         };
-        if let Err(outcome) = first_loss(&inv.path, first.loss) {
+        if let Err(outcome) = first_loss(inv.path(), first.loss) {
             return outcome;
         }
         let history = History {
-            names: inv.names.clone(),
-            truth: inv.truth.clone(),
+            names: inv.names().to_vec(),
+            truth: inv.truth().map(<[f64]>::to_vec),
             entries: vec![entry(
-                &inv,
+                inv,
                 0,
                 &first,
                 &physical(&first.x),
@@ -480,13 +639,13 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
                 started,
             )],
         };
-        (optimiser(&inv.file.optimizer, vars.len()), first, history)
+        (optimiser(inv.optimizer(), vars.len()), first, history)
     };
     if let Err(e) = interrupt::install() {
         eprintln!("error: {e}");
         return Outcome::Failed;
     }
-    let stop = &inv.file.stop;
+    let stop = inv.stop();
     let mut fresh = !resume;
     // Set when the optimiser stops without a decrease away from a minimum.
     let mut stalled = false;
@@ -509,7 +668,7 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
         // Printed after it is saved: a line on the screen is an iteration on disk, also when
         // the reader of stdout goes away (SIGPIPE) or Ctrl-C follows.
         if fresh {
-            print_line(&inv, &history, &last);
+            print_line(inv, &history, &last);
         }
         fresh = true;
         if last.iteration >= stop.max_iterations {
@@ -528,10 +687,10 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             eprintln!(
                 "{}: interrupted after iteration {}; the history and the checkpoint are kept in \
                  {}: `loam invert {} --out {} --resume` continues",
-                inv.path.display(),
+                inv.path().display(),
                 last.iteration,
                 dir.display(),
-                inv.path.display(),
+                inv.path().display(),
                 dir.display()
             );
             return Outcome::Interrupted;
@@ -542,7 +701,7 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
             Ok(Some(next)) => {
                 let theta = physical(&next.x);
                 let e = entry(
-                    &inv,
+                    inv,
                     last.iteration + 1,
                     &next,
                     &theta,
@@ -559,15 +718,15 @@ fn invert_dim<const D: usize>(inv: Inversion<D>, dir: &Path, resume: bool) -> Ou
                 stalled = verdict.is_err();
                 break verdict.unwrap_or_else(|e| e);
             }
-            Err(e) => return failed(&inv.path, e),
+            Err(e) => return failed(inv.path(), e),
         }
     };
-    match finish(&inv, dir, &history, &current, &reason, started) {
+    match finish(inv, dir, &history, &current, &reason, started) {
         Outcome::Ok if stalled => {
             eprintln!(
                 "error: {}: the optimiser stopped away from a minimum (the results are \
                  written, but are not a fit): {reason}",
-                inv.path.display()
+                inv.path().display()
             );
             Outcome::Failed
         }
@@ -621,8 +780,8 @@ fn first_loss(path: &Path, loss: f64) -> Result<(), Outcome> {
 
 /// The history entry of an evaluated point: the named parameters' values and derivatives,
 /// the velocity fields' errors.
-fn entry<const D: usize>(
-    inv: &Inversion<D>,
+fn entry(
+    inv: &dyn Inverse,
     iteration: usize,
     at: &Evaluation,
     theta: &[f64],
@@ -630,7 +789,7 @@ fn entry<const D: usize>(
     runs: usize,
     since: Instant,
 ) -> Entry {
-    let n = inv.names.len();
+    let n = inv.names().len();
     Entry {
         iteration,
         loss: at.loss,
@@ -645,15 +804,15 @@ fn entry<const D: usize>(
 
 /// One progress line: iteration, loss, gradient norm, parameters, seconds per iteration and
 /// the time left to `stop.max_iterations` at that pace.
-fn print_line<const D: usize>(inv: &Inversion<D>, history: &History, e: &Entry) {
+fn print_line(inv: &dyn Inverse, history: &History, e: &Entry) {
     let timed: Vec<f64> = history.entries.iter().skip(1).map(|e| e.seconds).collect();
     let per = if timed.is_empty() {
         e.seconds
     } else {
         timed.iter().sum::<f64>() / timed.len() as f64
     };
-    let left = inv.file.stop.max_iterations.saturating_sub(e.iteration) as f64 * per;
-    let params: Vec<String> = (inv.names.iter().zip(&e.parameters))
+    let left = inv.stop().max_iterations.saturating_sub(e.iteration) as f64 * per;
+    let params: Vec<String> = (inv.names().iter().zip(&e.parameters))
         .map(|(n, v)| format!("{n} = {v:.6}"))
         .chain(
             (e.field_errors.iter().enumerate())
@@ -729,143 +888,132 @@ fn write_synthetic<const D: usize>(inv: &Inversion<D>, dir: &Path) -> Result<(),
     Ok(())
 }
 
-/// The end of an inversion: plots, the recovered scene, and the recovered values against the
-/// truth when known.
-fn finish<const D: usize>(
-    inv: &Inversion<D>,
+/// The end of an inversion: plots, what it recovered ([`Inverse::write_recovered`]), and
+/// the recovered values against the truth when known.
+fn finish(
+    inv: &dyn Inverse,
     dir: &Path,
     history: &History,
     current: &Evaluation,
     reason: &str,
     started: Instant,
 ) -> Outcome {
-    let theta: Vec<f64> = current
-        .x
-        .iter()
-        .zip(&inv.variables)
+    let theta: Vec<f64> = (current.x.iter())
+        .zip(inv.variables())
         .map(|(z, v)| v.physical(*z))
         .collect();
-    let material_names: Vec<String> = inv.scene.materials.iter().map(|m| m.name.clone()).collect();
-    let scene_name = inv
-        .scene_path
-        .file_name()
-        .map_or("scene.toml".into(), |n| n.to_string_lossy().into_owned());
-    let recovered = dir.join(format!("recovered_{scene_name}"));
-    let velocity_file = (!field_blocks(inv).is_empty()).then(|| Path::new(VELOCITY_FILE));
-    let written = history.plot(dir).and_then(|()| {
-        if velocity_file.is_some() {
-            write_velocities(inv, &theta, &dir.join(VELOCITY_FILE))?;
+    let written = history
+        .plot(dir)
+        .and_then(|()| inv.write_recovered(dir, &theta));
+    let files = match written {
+        Ok(files) => files,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Outcome::Failed;
         }
-        let mut scene = inv.scene.clone();
-        match &inv.problem {
-            Model::Explicit(p) => {
-                history::set_controls(&mut scene, &p.controls, &theta, &material_names);
-            }
-            Model::Implicit { scene_params, .. } => {
-                history::set_implicit(&mut scene, scene_params, &theta);
-                if let Some(steps) = inv.file.steps {
-                    scene.solver.load_steps = Some(steps);
-                }
-            }
-        }
-        let text =
-            history::recovered_scene(scene, &inv.names, &theta, &inv.scene_path, velocity_file)?;
-        write_atomic(&recovered, &text)
-    });
-    if let Err(e) = written {
-        eprintln!("error: {e}");
-        return Outcome::Failed;
-    }
+    };
     let last = history.entries.last().map_or(0, |e| e.iteration);
     println!(
         "{}: stopped after {last} iterations ({reason}); L = {:.6e}; {:.1} s wall",
-        inv.path.display(),
+        inv.path().display(),
         current.loss,
         started.elapsed().as_secs_f64()
     );
-    for (k, name) in inv.names.iter().enumerate() {
-        match &inv.truth {
+    let initial = inv.initial();
+    for (k, name) in inv.names().iter().enumerate() {
+        match inv.truth() {
             Some(t) => println!(
                 "  {name}: {:.6} (truth {}, error {:.3e}, first guess {})",
                 theta[k],
                 t[k],
                 theta[k] - t[k],
-                inv.initial[k]
+                initial[k]
             ),
-            None => println!("  {name}: {:.6} (first guess {})", theta[k], inv.initial[k]),
+            None => println!("  {name}: {:.6} (first guess {})", theta[k], initial[k]),
         }
     }
-    if let Model::Implicit { .. } = &inv.problem
-        && let Err(e) = print_identifiability(inv, &theta)
-    {
-        return failed(&inv.path, e);
+    if let Err(e) = inv.report_recovered(&theta) {
+        return failed(inv.path(), e);
     }
-    let errors = inv.field_errors(&theta);
-    for (f, (start, len)) in field_blocks(inv).into_iter().enumerate() {
-        match errors.get(f) {
-            Some(r) => println!(
-                "  velocity_field[{f}]: {len} weights; relative L2 error against the truth {:.3} % (first guess {:.3} %)",
-                100.0 * r,
-                100.0 * inv.field_errors(&inv.initial)[f],
-            ),
-            None => println!(
-                "  velocity_field[{f}]: {len} weights, |w| = {:.6}",
-                norm(&theta[start..start + len])
-            ),
-        }
+    let mut plots = vec!["history_loss.png".to_owned()];
+    if !inv.names().is_empty() {
+        plots.push("history_parameters.png".into());
     }
-    let mut plots = vec!["history_loss.png"];
-    if !inv.names.is_empty() {
-        plots.push("history_parameters.png");
-    }
-    if !errors.is_empty() {
-        plots.push("history_field_error.png");
-    }
-    if velocity_file.is_some() {
-        plots.push(VELOCITY_FILE);
+    if !inv.field_errors(&theta).is_empty() {
+        plots.push("history_field_error.png".into());
     }
     println!(
-        "  wrote {0}/history.csv, history.json, {1}, {2}",
+        "  wrote {}/history.csv, history.json, {}",
         dir.display(),
-        plots.join(", "),
-        recovered
-            .file_name()
-            .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+        plots
+            .into_iter()
+            .chain(files)
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     Outcome::Ok
 }
 
-/// Prints the Gauss–Newton analysis of an implicit inversion's observations at `theta`
-/// ([`loam_inverse::implicit::Identifiability`]): the eigenvalues and condition number of
-/// `JᵀJ` in relative parameter changes, each parameter's relative standard deviation under
-/// unit noise (`σ` of the observations) and the correlations of the estimates.
-fn print_identifiability<const D: usize>(
+/// Writes the recovered scene of a scene's inversion at `theta` (and with velocity fields
+/// every particle's recovered initial velocity); returns the files' names.
+fn write_recovered_scene<const D: usize>(
     inv: &Inversion<D>,
+    dir: &Path,
     theta: &[f64],
-) -> Result<(), AdjointError> {
-    let Model::Implicit { problem, .. } = &inv.problem else {
-        return Ok(());
-    };
-    let g = problem.identifiability(theta)?;
+) -> Result<Vec<String>, String> {
+    let material_names: Vec<String> = inv.scene.materials.iter().map(|m| m.name.clone()).collect();
+    let scene_name = inv
+        .scene_path
+        .file_name()
+        .map_or("scene.toml".into(), |n| n.to_string_lossy().into_owned());
+    let recovered = format!("recovered_{scene_name}");
+    let velocity_file = (!field_blocks(inv).is_empty()).then(|| Path::new(VELOCITY_FILE));
+    let mut files = Vec::new();
+    if velocity_file.is_some() {
+        write_velocities(inv, theta, &dir.join(VELOCITY_FILE))?;
+        files.push(VELOCITY_FILE.to_owned());
+    }
+    let mut scene = inv.scene.clone();
+    match &inv.problem {
+        Model::Explicit(p) => {
+            history::set_controls(&mut scene, &p.controls, theta, &material_names);
+        }
+        Model::Implicit { scene_params, .. } => {
+            history::set_implicit(&mut scene, scene_params, theta);
+            if let Some(steps) = inv.file.steps {
+                scene.solver.load_steps = Some(steps);
+            }
+        }
+    }
+    let text = history::recovered_scene(scene, &inv.names, theta, &inv.scene_path, velocity_file)?;
+    write_atomic(&dir.join(&recovered), &text)?;
+    files.push(recovered);
+    Ok(files)
+}
+
+/// Prints a Gauss–Newton analysis `g` of `residuals` observations
+/// ([`Identifiability`]): the eigenvalues and condition number of `JᵀJ` in relative
+/// parameter changes, each parameter's relative standard deviation under unit noise (`σ`
+/// of the observations) and the correlations of the estimates.
+fn print_identifiability(names: &[String], residuals: usize, g: &Identifiability) {
     let eigen: Vec<String> = g.eigenvalues.iter().map(|e| format!("{e:.4e}")).collect();
     println!(
-        "\n  identifiability (Gauss–Newton JᵀJ of the {} residuals (m − d)/σ, θ scaled by its value):\n  \
+        "\n  identifiability (Gauss–Newton JᵀJ of the {residuals} residuals (m − d)/σ, θ scaled by its value):\n  \
          eigenvalues {}; condition number {:.4e}",
-        problem.observations.items.len(),
         eigen.join(", "),
         g.condition
     );
-    let width = inv.names.iter().map(String::len).max().unwrap_or(0).max(9);
+    let width = names.iter().map(String::len).max().unwrap_or(0).max(9);
     print!("  {:width$}  {:>14}", "parameter", "rel. std");
-    for n in &inv.names {
+    for n in names {
         print!("  {:>12}", format!("corr. {}", short(n)));
     }
     println!();
-    for (i, n) in inv.names.iter().enumerate() {
+    for (i, n) in names.iter().enumerate() {
         match (&g.relative_std, &g.correlation) {
             (Some(std), Some(c)) => {
                 print!("  {n:width$}  {:>14.4e}", std[i]);
-                for j in 0..inv.names.len() {
+                for j in 0..names.len() {
                     print!("  {:>12.6}", c[(i, j)]);
                 }
                 println!();
@@ -873,7 +1021,6 @@ fn print_identifiability<const D: usize>(
             _ => println!("  {n:width$}  {:>14}", "∞ (JᵀJ singular)"),
         }
     }
-    Ok(())
 }
 
 /// The last field of a parameter name (`materials[0].young` → `young`).

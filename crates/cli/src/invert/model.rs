@@ -142,7 +142,7 @@ impl<const D: usize> Model<D> {
             t
         };
         // The run's loss along `k`, the scale of the steps, the differences and the dual.
-        let (mut along, size, differences, dual) = match self {
+        let (along, size, differences, dual) = match self {
             Self::Explicit(problem) => (
                 Box::new(move |d| problem.loss(&moved(d))) as Along<'_>,
                 theta[k].abs().max(1e-3),
@@ -168,62 +168,85 @@ impl<const D: usize> Model<D> {
                 )
             }
         };
-        let taylor = |h0: f64, along: &mut Along<'_>| -> Result<[f64; 4], AdjointError> {
-            let mut r = [0.0; 4];
-            for (i, r) in r.iter_mut().enumerate() {
-                let h = h0 / f64::from(1u32 << i);
-                *r = (along(h)? - loss - h * adjoint).abs();
-            }
-            Ok(r)
-        };
-        let mut h0 = 1e-2 * size;
-        let mut remainders = taylor(h0, &mut along)?;
-        let falls = remainders.windows(2).all(|w| w[0] >= 3.0 * w[1]);
-        let jumps = if differences.value.is_none() || !falls {
-            check::find_jumps(loss, adjoint, size, &mut along)?
-        } else {
-            Vec::new()
-        };
-        let differences = if jumps.is_empty() {
-            differences
-        } else {
-            if let Some(h) = check::taylor_step_clear_of(&jumps, size, &check::JUMP_LADDER)
-                && h != h0
-            {
-                h0 = h;
-                remainders = taylor(h0, &mut along)?;
-            }
-            differences.clear_of(&jumps, size)
-        };
-        // Shown: the converged difference; else the estimate at the largest step that kept
-        // the branches (and cleared the jumps); else, where no jump was found, a plain central
-        // difference at δ = 10⁻⁴ size; else none.
-        let shown = match (
-            differences.value,
-            differences.estimates.iter().flatten().next(),
-        ) {
-            (Some(d), _) | (None, Some(&d)) => Some(d.value),
-            (None, None) if jumps.is_empty() => {
-                let delta = 1e-4 * size;
-                Some((along(delta)? - along(-delta)?) / (2.0 * delta))
-            }
-            (None, None) => None,
-        };
-        Ok(CheckRow {
-            dual,
-            difference: shown,
-            converged: differences
-                .value
-                .map(|d| (d.relative_step, differences.spread)),
-            remainders,
-            taylor_step: h0,
-            jumps,
-        })
+        check_row(loss, adjoint, along, size, differences, dual)
     }
 }
 
+/// What `loam gradient --check` measures of one unknown ([`CheckRow`]), at a point where the
+/// loss is `loss` and the gradient gives `adjoint`, from the loss `along` the unknown, the
+/// scale `size` of its steps, its central `differences` and its dual derivative `dual`.
+///
+/// Where the differences do not converge or the Taylor remainders do not fall 3× per
+/// halving, the loss along the unknown is searched for jumps ([`check::find_jumps`]): the
+/// differences whose stencil straddles one are left out and the Taylor test starts from the
+/// largest step of [`check::JUMP_LADDER`] short of them, so that neither reports a jump as a
+/// derivative.
+///
+/// # Errors
+/// A run that fails.
+pub fn check_row(
+    loss: f64,
+    adjoint: f64,
+    mut along: Along<'_>,
+    size: f64,
+    differences: Convergence,
+    dual: f64,
+) -> Result<CheckRow, AdjointError> {
+    let taylor = |h0: f64, along: &mut Along<'_>| -> Result<[f64; 4], AdjointError> {
+        let mut r = [0.0; 4];
+        for (i, r) in r.iter_mut().enumerate() {
+            let h = h0 / f64::from(1u32 << i);
+            *r = (along(h)? - loss - h * adjoint).abs();
+        }
+        Ok(r)
+    };
+    let mut h0 = 1e-2 * size;
+    let mut remainders = taylor(h0, &mut along)?;
+    let falls = remainders.windows(2).all(|w| w[0] >= 3.0 * w[1]);
+    let jumps = if differences.value.is_none() || !falls {
+        check::find_jumps(loss, adjoint, size, &mut along)?
+    } else {
+        Vec::new()
+    };
+    let differences = if jumps.is_empty() {
+        differences
+    } else {
+        if let Some(h) = check::taylor_step_clear_of(&jumps, size, &check::JUMP_LADDER)
+            && h != h0
+        {
+            h0 = h;
+            remainders = taylor(h0, &mut along)?;
+        }
+        differences.clear_of(&jumps, size)
+    };
+    // Shown: the converged difference; else the estimate at the largest step that kept
+    // the branches (and cleared the jumps); else, where no jump was found, a plain central
+    // difference at δ = 10⁻⁴ size; else none.
+    let shown = match (
+        differences.value,
+        differences.estimates.iter().flatten().next(),
+    ) {
+        (Some(d), _) | (None, Some(&d)) => Some(d.value),
+        (None, None) if jumps.is_empty() => {
+            let delta = 1e-4 * size;
+            Some((along(delta)? - along(-delta)?) / (2.0 * delta))
+        }
+        (None, None) => None,
+    };
+    Ok(CheckRow {
+        dual,
+        difference: shown,
+        converged: differences
+            .value
+            .map(|d| (d.relative_step, differences.spread)),
+        remainders,
+        taylor_step: h0,
+        jumps,
+    })
+}
+
 /// The loss along one unknown, `d ↦ L(θ + d eₖ)`, by the run of either path.
-type Along<'a> = Box<dyn FnMut(f64) -> Result<f64, AdjointError> + 'a>;
+pub type Along<'a> = Box<dyn FnMut(f64) -> Result<f64, AdjointError> + 'a>;
 
 /// How far (relative) the dual derivative may be from a converged central difference before
 /// `loam gradient --check` fails: ten times [`check::CONVERGENCE_TOLERANCE`], the agreement

@@ -18,7 +18,11 @@ pub struct Quantity {
 ///
 /// Ranges: Coulomb coefficients `μ` in [0, 10] (soils, rock and metals are below 1.5);
 /// moduli and strengths in [0, 10¹³] Pa (diamond's Young's modulus is 1.2·10¹² Pa), a
-/// hardening modulus in ±10¹³ Pa; Poisson's ratio in [−1, 0.5]; densities in [0, 10⁵] kg/m³
+/// hardening modulus in ±10¹³ Pa; the `e–ln p′` slopes `λ`, `κ` of Modified Cam-Clay in
+/// [0, 10] (peats reach `λ` ≈ 3), its critical state slope `M = 6 sin φ′/(3 − sin φ′)` in
+/// [0, 3] (its value at φ′ = 90°), its void ratio in [0, 20], its overconsolidation ratio in
+/// [1, 10³] (1: normally consolidated) and its preconsolidation pressure in [0, 10¹³] Pa;
+/// Poisson's ratio in [−1, 0.5]; densities in [0, 10⁵] kg/m³
 /// (osmium's is 2.26·10⁴); friction and dilation angles in [0, π/2] rad; a fluid's sound
 /// speed in [0, 10⁵] m/s and its Tait exponent in [0, 100]. Velocities, gravity, loads,
 /// displacements and viscosities have no range here.
@@ -42,7 +46,14 @@ pub fn quantity(name: &str) -> Quantity {
     }
     let modulus = (0.0, 1e13, "a modulus (Pa)");
     match last {
-        "young" | "bulk_modulus" | "cohesion" | "yield_stress" => of("Pa", Some(modulus)),
+        "young" | "bulk_modulus" | "cohesion" | "yield_stress" | "shear_modulus" => {
+            of("Pa", Some(modulus))
+        }
+        "lambda" | "kappa" => of("–", Some((0.0, 10.0, "a slope of the e–ln p′ line"))),
+        "critical_state_slope" => of("–", Some((0.0, 3.0, "a critical state slope M"))),
+        "void_ratio" => of("–", Some((0.0, 20.0, "a void ratio"))),
+        "ocr" => of("–", Some((1.0, 1e3, "an overconsolidation ratio"))),
+        "preconsolidation_pressure" => of("Pa", Some((0.0, 1e13, "a pressure (Pa)"))),
         "hardening" => of("Pa", Some((-1e13, 1e13, "a hardening modulus (Pa)"))),
         "poisson" => of("–", Some((-1.0, 0.5, "Poisson's ratio"))),
         "density" => of("kg/m³", Some((0.0, 1e5, "a density (kg/m³)"))),
@@ -73,5 +84,10 @@ mod tests {
         assert_eq!(quantity("point_loads[0].force[1]").unit, "N");
         assert_eq!(quantity("constraints[2].displacement[0]").unit, "m");
         assert_eq!(quantity("materials[0].viscosity").range, None);
+        assert_eq!(quantity("material.lambda").range.map(|r| r.1), Some(10.0));
+        assert_eq!(quantity("material.critical_state_slope").unit, "–");
+        assert_eq!(quantity("material.shear_modulus").unit, "Pa");
+        assert_eq!(quantity("material.ocr").range.map(|r| r.0), Some(1.0));
+        assert_eq!(quantity("material.preconsolidation_pressure").unit, "Pa");
     }
 }

@@ -6,6 +6,7 @@ mod fos;
 mod gpu;
 mod initial_state;
 mod invert;
+mod invert_element;
 mod invert_implicit;
 mod obstacle_forces;
 mod restart;

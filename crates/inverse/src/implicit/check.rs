@@ -21,15 +21,14 @@ pub fn central_difference<const D: usize>(
     k: usize,
     relative_step: f64,
 ) -> Result<f64, AdjointError> {
-    let delta = relative_step * theta[k].abs();
-    let at = |d: f64| {
-        let mut t = theta.to_vec();
-        t[k] += d;
-        problem.loss(&t, Some(schedule))
-    };
-    let d1 = (at(delta)? - at(-delta)?) / (2.0 * delta);
-    let d2 = (at(0.5 * delta)? - at(-0.5 * delta)?) / delta;
-    Ok((4.0 * d2 - d1) / 3.0)
+    crate::check::richardson(
+        |d| {
+            let mut t = theta.to_vec();
+            t[k] += d;
+            problem.loss(&t, Some(schedule))
+        },
+        relative_step * theta[k].abs(),
+    )
 }
 
 /// The Taylor remainders `r(h) = |L(θ + h v) − L(θ) − h ∇L·v|` at `h = h₀ / 2ⁱ`,
