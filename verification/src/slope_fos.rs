@@ -30,7 +30,7 @@ pub fn search_slope(h: f64, tolerance: f64) -> Result<Search, loam_implicit::Imp
     let config = built
         .implicit_config()
         .expect("the slope is an implicit scene");
-    search(&config, &built.particles, &settings, &|| false, |_| {})
+    search(&config, &built.particles, &settings, &|| false, |_, _| {})
 }
 
 /// Runs the case.

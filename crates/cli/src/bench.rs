@@ -341,8 +341,14 @@ fn tangent_rows(evaluations: usize, w: usize) -> Vec<Measured> {
                 ratio: None,
                 device_bytes: None,
             };
+            let (way, other) = if c.one_pass {
+                ("one 9-lane pass", "nine 1-lane passes")
+            } else {
+                ("nine 1-lane passes", "one 9-lane pass")
+            };
             println!(
-                "{:<w$} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {:.2} µs per point, {:.2}× Hencky's{}",
+                "{:<w$} {:>9} {:>10} {:>7} {:>10.3} {:>14.3e}  {:.2} µs per point, {:.2}× \
+                 Hencky's ({way}; {other}: {:.2} µs){}",
                 m.name,
                 m.precision,
                 m.particles,
@@ -351,6 +357,7 @@ fn tangent_rows(evaluations: usize, w: usize) -> Vec<Measured> {
                 m.rate(),
                 c.per_point_us(),
                 c.per_point_us() / hencky,
+                c.other_per_point_us(),
                 if c.plastic { ", plastic step" } else { "" }
             );
             m

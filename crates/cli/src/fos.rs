@@ -3,16 +3,19 @@
 //! the strength divided by `F`, doubled or halved until one stands and one fails, then
 //! bisected to the tolerance. It prints a line per trial and keeps `fos.json` (every trial,
 //! the bracket, the failure criterion) and `fos.png` (`F` against the largest displacement)
-//! up to date in the output folder. Ctrl-C stops it before the next load step with what was
+//! up to date in the output folder. At the end it writes the failure mechanism as frames in
+//! `mechanism/` ([`MECHANISM`]). Ctrl-C stops it before the next load step with what was
 //! done so far written (status `interrupted`, exit 130).
 
 use crate::Outcome;
 use crate::preflight::{self, MemoryLimit, StepLimit};
 use crate::run::interrupt;
+use loam_core::Particles;
 use loam_implicit::ImplicitError;
 use loam_implicit::strength_reduction::{
     Search, SearchEnd, SearchSettings, Trial, TrialOutcome, search,
 };
+use loam_scene::output::{Field, FrameWriter};
 use loam_scene::{Built, Scene};
 use loam_verification::{Series, write_plot};
 use serde::Serialize;
@@ -37,6 +40,11 @@ pub struct Options<'a> {
 const SUMMARY: &str = "fos.json";
 /// The plot's name in the output folder.
 const PLOT: &str = "fos.png";
+/// The folder of the failure mechanism in the output folder: a frame series
+/// (`particles.pvd`) of the last converged state of the largest stable trial and of the
+/// smallest failed one, in that order, each at the "time" of its factor `F`, with the
+/// displacement and plastic strain among its fields: the mechanism is where the two differ.
+const MECHANISM: &str = "mechanism";
 
 /// What `fos.json` holds.
 #[derive(Serialize)]
@@ -72,8 +80,62 @@ struct Summary {
     factor_of_safety: Option<f64>,
     /// Wall time so far (s).
     wall_time_s: f64,
+    /// The frame series of the mechanism ([`MECHANISM`]), once written.
+    mechanism: Option<String>,
     /// Every trial in the order run.
     trials: Vec<TrialSummary>,
+}
+
+/// The states of the bracket's two trials, for the frames of the mechanism: the largest
+/// stable factor and the smallest failed one, each with its particles at the trial's last
+/// converged load step.
+#[derive(Default)]
+struct Mechanism<const D: usize> {
+    stable: Option<(f64, Particles<f64, D>)>,
+    failed: Option<(f64, Particles<f64, D>)>,
+}
+
+impl<const D: usize> Mechanism<D> {
+    /// Keeps `state` when `trial` is a new end of the bracket.
+    fn record(&mut self, trial: &Trial, state: &Particles<f64, D>) {
+        let (slot, closer): (_, fn(f64, f64) -> bool) = match trial.outcome {
+            TrialOutcome::Stable => (&mut self.stable, |new, old| new > old),
+            TrialOutcome::Failed(_) => (&mut self.failed, |new, old| new < old),
+            TrialOutcome::Interrupted => return,
+        };
+        if slot.as_ref().is_none_or(|(f, _)| closer(trial.factor, *f)) {
+            *slot = Some((trial.factor, state.clone()));
+        }
+    }
+
+    /// Writes the kept states as frames into `dir` with `fields` (plus the displacement from
+    /// `initial` and the plastic strain); returns the series' path, or `None` when no trial
+    /// was kept.
+    fn write(
+        &self,
+        dir: &Path,
+        fields: &[Field],
+        initial: &[loam_core::tensor::Vector<f64, D>],
+    ) -> Result<Option<PathBuf>, String> {
+        let states: Vec<&(f64, Particles<f64, D>)> =
+            self.stable.iter().chain(&self.failed).collect();
+        if states.is_empty() {
+            return Ok(None);
+        }
+        let mut fields = fields.to_vec();
+        for f in [Field::Displacement, Field::PlasticStrain] {
+            if !fields.contains(&f) {
+                fields.push(f);
+            }
+        }
+        let mut writer = FrameWriter::create(dir, &fields).map_err(|e| e.to_string())?;
+        for (factor, particles) in states {
+            writer
+                .write_frame(*factor, particles, Some(initial))
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(Some(writer.pvd_path()))
+    }
 }
 
 /// One trial in `fos.json`.
@@ -296,9 +358,11 @@ fn fos_dim<const D: usize>(
             failed_factor: None,
             factor_of_safety: None,
             wall_time_s: 0.0,
+            mechanism: None,
             trials: Vec::new(),
         },
     };
+    let mut mechanism = Mechanism::<D>::default();
     let quiet = options.quiet;
     if !quiet {
         println!(
@@ -320,7 +384,8 @@ fn fos_dim<const D: usize>(
             &built.particles,
             settings,
             &interrupt::requested,
-            |t| {
+            |t, state| {
+                mechanism.record(t, state);
                 record.summary.trials.push(TrialSummary::new(t));
                 if !quiet {
                     println!(
@@ -369,6 +434,17 @@ fn fos_dim<const D: usize>(
             factor_text(found.bracket.failed),
         ));
     }
+    let frames = mechanism.write(
+        &record.dir.join(MECHANISM),
+        &built.output.fields,
+        &built.particles.x,
+    );
+    match frames {
+        Ok(path) => record.summary.mechanism = path.map(|p| p.display().to_string()),
+        Err(e) => {
+            write_error.get_or_insert(e);
+        }
+    }
     if let Err(e) = record.write() {
         write_error.get_or_insert(e);
     }
@@ -377,11 +453,14 @@ fn fos_dim<const D: usize>(
         return Outcome::Failed;
     }
     let wall = record.summary.wall_time_s;
-    let files = format!(
+    let mut files = format!(
         "{} and {}",
         record.dir.join(SUMMARY).display(),
         record.dir.join(PLOT).display()
     );
+    if let Some(m) = &record.summary.mechanism {
+        files = format!("{files}; the mechanism: {m}");
+    }
     match (found.end, found.factor_of_safety()) {
         (SearchEnd::Bracketed, Some(f)) => println!(
             "{}: factor of safety F = {f:.4} (stable at {}, fails at {}; {} trials in \

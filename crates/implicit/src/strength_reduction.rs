@@ -261,6 +261,18 @@ pub fn run_trial<const D: usize>(
     settings: &SearchSettings,
     stop: &dyn Fn() -> bool,
 ) -> Result<Trial, ImplicitError> {
+    trial_with_state(config, particles, factor, settings, stop).map(|(trial, _)| trial)
+}
+
+/// [`run_trial`], with the particles at the trial's last converged state (for a failed
+/// trial, its mechanism).
+fn trial_with_state<const D: usize>(
+    config: &ImplicitConfig<D>,
+    particles: &Particles<f64, D>,
+    factor: f64,
+    settings: &SearchSettings,
+    stop: &dyn Fn() -> bool,
+) -> Result<(Trial, Particles<f64, D>), ImplicitError> {
     let clock = std::time::Instant::now();
     let config = reduced_config(config, factor)?;
     let load_steps = config.load_steps;
@@ -329,18 +341,20 @@ pub fn run_trial<const D: usize>(
             }
         }
     };
-    Ok(Trial {
+    let trial = Trial {
         factor,
         outcome,
         load_factor: solver.load_factor(),
         steps,
         max_displacement: max_u,
         wall_time_s: clock.elapsed().as_secs_f64(),
-    })
+    };
+    Ok((trial, now))
 }
 
 /// Searches the factor of safety of the loading of `config` from `particles` (see the module
-/// docs), calling `on_trial` after every trial; `stop()` is asked before every trial and every
+/// docs), calling `on_trial` after every trial with the trial and the particles at its last
+/// converged load step (a failed trial's mechanism); `stop()` is asked before every trial and every
 /// load step and ends the search with [`SearchEnd::Interrupted`] (a trial it stops part-way
 /// is recorded as [`TrialOutcome::Interrupted`] and counts neither way).
 ///
@@ -351,7 +365,7 @@ pub fn search<const D: usize>(
     particles: &Particles<f64, D>,
     settings: &SearchSettings,
     stop: &dyn Fn() -> bool,
-    mut on_trial: impl FnMut(&Trial),
+    mut on_trial: impl FnMut(&Trial, &Particles<f64, D>),
 ) -> Result<Search, ImplicitError> {
     let bad = |field: &str, msg: String| ImplicitError::Config {
         field: field.into(),
@@ -404,8 +418,8 @@ pub fn search<const D: usize>(
             found.end = SearchEnd::Interrupted;
             return Ok(found);
         }
-        let trial = run_trial(config, particles, factor, settings, stop)?;
-        on_trial(&trial);
+        let (trial, state) = trial_with_state(config, particles, factor, settings, stop)?;
+        on_trial(&trial, &state);
         let outcome = trial.outcome.clone();
         found.trials.push(trial);
         match outcome {

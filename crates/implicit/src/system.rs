@@ -22,6 +22,20 @@ pub struct Inverted {
     pub particle: usize,
 }
 
+/// Whether the per-particle tangent of `material` in 3D is taken in one pass with all nine
+/// entries of `ΔF` seeded in a 9-lane dual (`DualSVec64<9>`) rather than in nine passes of a
+/// one-lane `Dual64`. A lane costs about as much as the real part, so nine single-lane
+/// passes do the model's real arithmetic nine times and one wide pass once: the wide pass
+/// wins where the real work is large, as in Modified Cam-Clay's local Newton iteration
+/// (`loam bench tangent` times both for every model; docs/performance.md). In 2D the four
+/// entries always go in one pass.
+pub fn tangent_in_one_pass<T: loam_core::Scalar>(material: &Material<T>) -> bool {
+    matches!(
+        material.model,
+        loam_core::constitutive::Model::ModifiedCamClay(_)
+    )
+}
+
 /// Material tables lifted to the scalar types the tangents use.
 pub struct Materials {
     /// Real parameters (residual).
@@ -507,6 +521,9 @@ impl<const D: usize> StepSystem<D> {
         let g = self.delta_f_real(p, x);
         if D == 2 {
             return self.material_tangent_lanes::<4>(fr, &g, &materials.dual4[fr.material]);
+        }
+        if tangent_in_one_pass(&materials.real[fr.material]) {
+            return self.material_tangent_lanes::<9>(fr, &g, &materials.dual9[fr.material]);
         }
         let mat = &materials.dual[fr.material];
         let mut out = [[Tensor::<f64, D>::zeros(); D]; D];

@@ -121,6 +121,19 @@ fn fos_brackets_a_vertical_cut_and_writes_its_summary_and_plot() {
     }
     let png = std::fs::read(out_dir.join("fos.png")).expect("fos.png");
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // The mechanism: the bracket's stable and failed states as two frames at their factors.
+    let pvd = out_dir.join("mechanism").join("particles.pvd");
+    assert_eq!(s["mechanism"].as_str(), pvd.to_str());
+    let frames = loam_scene::output::read_pvd(&pvd).expect("the mechanism's series");
+    let times: Vec<f64> = frames.iter().map(|e| e.time).collect();
+    assert_eq!(times, [lo, hi]);
+    for e in &frames {
+        assert!(
+            out_dir.join("mechanism").join(&e.file).is_file(),
+            "{}",
+            e.file
+        );
+    }
 }
 
 /// Bad input exits 2 naming the field: the option, a `[fos]` key, a scene without a strength

@@ -109,8 +109,8 @@ fn a_vertical_cut_converges_to_its_limit_analysis_height() {
     for h in [0.5, 0.25] {
         let (config, particles) = cut(h);
         let mut seen = 0;
-        let found =
-            search(&config, &particles, &settings, &|| false, |_| seen += 1).expect("valid set-up");
+        let found = search(&config, &particles, &settings, &|| false, |_, _| seen += 1)
+            .expect("valid set-up");
         assert_eq!(seen, found.trials.len());
         assert_eq!(found.end, SearchEnd::Bracketed);
         let f = found.factor_of_safety().expect("bracketed");
@@ -177,7 +177,7 @@ fn a_stop_request_ends_the_search_after_the_load_step_in_progress() {
         &particles,
         &SearchSettings::default(),
         &stop,
-        |_| {},
+        |_, _| {},
     )
     .expect("valid set-up");
     assert_eq!(found.end, SearchEnd::Interrupted);
@@ -199,7 +199,7 @@ fn a_stop_request_ends_the_search_after_the_load_step_in_progress() {
         start: 0.25,
         ..SearchSettings::default()
     };
-    let found = search(&config, &particles, &settings, &stop, |_| {}).expect("valid set-up");
+    let found = search(&config, &particles, &settings, &stop, |_, _| {}).expect("valid set-up");
     assert_eq!(found.end, SearchEnd::Interrupted);
     assert_eq!(found.trials.len(), 1);
     assert!(found.trials[0].stable(), "{:?}", found.trials[0].outcome);
@@ -315,7 +315,7 @@ fn set_ups_without_a_strength_or_with_bad_settings_are_refused() {
             "displacement_limit",
         ),
     ] {
-        let e = search(&config, &particles, &settings, &|| false, |_| {}).unwrap_err();
+        let e = search(&config, &particles, &settings, &|| false, |_, _| {}).unwrap_err();
         assert_eq!(field(e), name);
     }
     assert_eq!(field(reduced_config(&config, -1.0).unwrap_err()), "factor");
