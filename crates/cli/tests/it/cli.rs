@@ -1,14 +1,9 @@
 //! End-to-end tests of the `loam` binary: exit codes, messages and files.
 
+use crate::common::loam;
+#[cfg(unix)]
+use crate::common::{interrupt_when, spawn_loam};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn loam(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args(args)
-        .output()
-        .expect("the loam binary runs")
-}
 
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -676,7 +671,6 @@ fn too_many_threads_are_refused() {
 #[cfg(unix)]
 #[test]
 fn sigint_ends_a_run_cleanly() {
-    use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().expect("tempdir");
     // 1000 s at 1e-3 s a step: a run of minutes, with a frame every 10 steps.
     let scene = scene_file(
@@ -685,35 +679,16 @@ fn sigint_ends_a_run_cleanly() {
         &readme_scene(1.0e6, 1000.0, 100_000),
     );
     let out_dir = dir.path().join("out");
-    let child = Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args([
-            "run",
-            &scene,
-            "--quiet",
-            "--out",
-            out_dir.to_str().expect("path"),
-        ])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("the loam binary starts");
+    let child = spawn_loam(&[
+        "run",
+        &scene,
+        "--quiet",
+        "--out",
+        out_dir.to_str().expect("path"),
+    ]);
     // Wait for a few frames, then interrupt.
-    let start = Instant::now();
-    while !out_dir.join("frame_0003.vtu").exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "no frames after 60 s"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let kill = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(kill.success());
-    let out = child.wait_with_output().expect("the run ends");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    let (code, stderr) = interrupt_when(child, 60, || out_dir.join("frame_0003.vtu").exists());
+    assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("interrupted after"), "{stderr}");
     let s = summary(&out_dir);
     assert_eq!(s["status"], "interrupted");
@@ -731,42 +706,6 @@ fn listed_times(dir: &Path) -> Vec<f64> {
             t.parse().expect("a time")
         })
         .collect()
-}
-
-/// Starts `loam run ARGS` in the background.
-#[cfg(unix)]
-fn spawn_loam(args: &[&str]) -> std::process::Child {
-    Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args(args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("the loam binary starts")
-}
-
-/// Sends SIGINT to `child` once `ready()` holds (within 60 s) and returns its exit code and
-/// stderr.
-#[cfg(unix)]
-fn interrupt_when(child: std::process::Child, ready: impl Fn() -> bool) -> (Option<i32>, String) {
-    use std::time::{Duration, Instant};
-    let start = Instant::now();
-    while !ready() {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "not ready after 60 s"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let kill = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(kill.success());
-    let out = child.wait_with_output().expect("the run ends");
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 /// Ctrl-C with checkpoints: the interrupted run keeps its latest checkpoint and names the
@@ -798,7 +737,7 @@ fn an_interrupted_run_keeps_its_checkpoint_and_continues_without_duplicate_frame
         "--checkpoint-every",
         "20",
     ]);
-    let (code, stderr) = interrupt_when(child, || saved_step() >= 40);
+    let (code, stderr) = interrupt_when(child, 60, || saved_step() >= 40);
     assert_eq!(code, Some(130), "{stderr}");
     assert!(
         stderr.contains(&format!("loam run --resume {out_arg}")),
@@ -841,7 +780,7 @@ fn an_interrupted_run_keeps_its_checkpoint_and_continues_without_duplicate_frame
         "--checkpoint-every",
         "20",
     ]);
-    let (code, stderr) = interrupt_when(child, || saved_step() >= saved + 40);
+    let (code, stderr) = interrupt_when(child, 60, || saved_step() >= saved + 40);
     assert_eq!(code, Some(130), "{stderr}");
     let second = summary(&out_dir);
     assert_eq!(second["status"], "interrupted");
@@ -1179,7 +1118,7 @@ fn a_closed_stdout_pipe_ends_loam_by_sigpipe_without_a_panic() {
     use std::os::unix::process::ExitStatusExt;
     let (reader, writer) = std::io::pipe().expect("a pipe");
     drop(reader);
-    let out = Command::new(env!("CARGO_BIN_EXE_loam"))
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_loam"))
         .args(["verify", "--list"])
         .stdout(writer)
         .output()

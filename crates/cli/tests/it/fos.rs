@@ -1,15 +1,10 @@
 //! End-to-end tests of `loam fos`: the search's files and exit codes, bad input naming the
 //! field, and Ctrl-C.
 
+use crate::common::loam;
+#[cfg(unix)]
+use crate::common::{interrupt_when, spawn_loam};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn loam(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args(args)
-        .output()
-        .expect("the loam binary runs")
-}
 
 /// A vertical cut 4 m high in undrained clay (J2: Tresca with c_u = 10 kPa; γ = 20 kN/m³),
 /// a block `[0, 8] × [0, 4]` m on a fixed base with a slip wall behind it, cells of `h` m,
@@ -222,43 +217,28 @@ fn fos_refuses_bad_input_with_exit_2_naming_the_field() {
 #[cfg(unix)]
 #[test]
 fn sigint_ends_a_search_with_what_was_done_written() {
-    use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().expect("tempdir");
     // Trials of 400 load steps: seconds each, so the second is still running when asked.
     let scene = cut_scene(dir.path(), 0.5, 400, "[fos]\nstart = 0.1\ntolerance = 1e-6");
     let out_dir = dir.path().join("out");
-    let child = Command::new(env!("CARGO_BIN_EXE_loam"))
-        .args([
-            "fos",
-            &scene,
-            "--quiet",
-            "--out",
-            out_dir.to_str().expect("path"),
-        ])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("the loam binary starts");
-    let start = Instant::now();
-    while !out_dir.join("fos.json").exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "no trial after 120 s"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let child = spawn_loam(&[
+        "fos",
+        &scene,
+        "--quiet",
+        "--out",
+        out_dir.to_str().expect("path"),
+    ]);
     // The second trial starts as soon as the first is written; half a second into its
     // 400 load steps (seconds in all) it is running, but a slow machine may still be
     // between the trials, where the search stops without starting it.
-    std::thread::sleep(Duration::from_millis(500));
-    let kill = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(kill.success());
-    let out = child.wait_with_output().expect("the search ends");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    let (code, stderr) = interrupt_when(child, 120, || {
+        let written = out_dir.join("fos.json").exists();
+        if written {
+            std::thread::sleep(std::time::Duration::from_millis(500));
+        }
+        written
+    });
+    assert_eq!(code, Some(130), "{stderr}");
     assert!(stderr.contains("interrupted after"), "{stderr}");
     let s = summary(&out_dir);
     assert_eq!(s["status"], "interrupted");

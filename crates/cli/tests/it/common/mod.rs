@@ -1,5 +1,5 @@
-//! Helpers shared by the end-to-end tests of `loam gradient`, `loam invert` and `loam check`
-//! on inversion files (explicit and implicit scenes).
+//! Helpers shared by the end-to-end tests: running the `loam` binary (and interrupting it),
+//! the refusals of `loam gradient`, `loam invert` and `loam check` on inversion files.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -49,4 +49,44 @@ pub fn assert_refused(dir: &Path, cases: &[(String, &str, &str)]) {
             );
         }
     }
+}
+
+/// Starts `loam ARGS` in the background, its output piped.
+#[cfg(unix)]
+pub fn spawn_loam(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_loam"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the loam binary starts")
+}
+
+/// Sends SIGINT to `child` once `ready()` holds (asked every 20 ms, for at most `patience_s`
+/// seconds) and returns its exit code and stderr.
+#[cfg(unix)]
+pub fn interrupt_when(
+    child: std::process::Child,
+    patience_s: u64,
+    ready: impl Fn() -> bool,
+) -> (Option<i32>, String) {
+    use std::time::{Duration, Instant};
+    let start = Instant::now();
+    while !ready() {
+        assert!(
+            start.elapsed() < Duration::from_secs(patience_s),
+            "not ready after {patience_s} s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("the process ends");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
