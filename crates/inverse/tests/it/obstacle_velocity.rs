@@ -17,20 +17,11 @@
 //! itself (measured spreads 5e-12 to 7e-9: truncation O(δ⁴) and the round-off of the loss
 //! over δ), far below the error of a derivative that misses the obstacle's motion.
 
+use crate::common::scene;
 use loam_core::Particles;
 use loam_core::tensor::Vector;
-use loam_explicit::Config;
 use loam_inverse::{Checkpoints, Control, Param, Problem, TrackedPositions, check};
-use loam_scene::Scene;
 use std::collections::BTreeMap;
-
-/// The solver inputs of a scene file's text.
-fn scene<const D: usize>(toml: &str) -> (Config<f64, D>, Particles<f64, D>) {
-    let built = Scene::from_toml_str(toml)
-        .and_then(|s| s.build::<D>())
-        .unwrap_or_else(|e| panic!("{e}"));
-    (built.explicit_config().expect("explicit"), built.particles)
-}
 
 /// Water at rest in a slip-walled tank, a disk of radius 0.04 m coming down into it at
 /// (0.2, −0.8) m/s from 1 cm above the surface, with friction.
