@@ -11,9 +11,10 @@
 //!   iterations); unknowns σ_y, E, the hardening and the settlement; the loss is the footing
 //!   load after every load step and the settlement of a surface point beside it;
 //! - `implicit_clay_footing`: the footing pushed 1 cm into lightly overconsolidated Modified
-//!   Cam-Clay at rest under gravity (a geostatic initial stress, K0 = 0.6: gravity in full
-//!   from the first load step); unknowns λ, κ, M and the OCR, which also move the history
-//!   that carries the initial stress (held as data); the loss as for the J2 footing;
+//!   Cam-Clay at rest under gravity (a geostatic initial stress, K0 = 0.6, balanced on the
+//!   grid: gravity in full from the first load step); unknowns λ, κ, M and the OCR, which
+//!   also move the history that carries the initial stress (held as data, as the balance
+//!   is); the loss as for the J2 footing;
 //! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
 //!   density (which now also sets the inertia); the loss tracks the tip's deflection and

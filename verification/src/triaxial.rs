@@ -242,6 +242,7 @@ pub fn run_mc(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         friction_angle: phi,
         dilation_angle: 0.0,
         cohesion: c,
+        tension_cutoff: None,
     };
     let material = |c: f64| Material {
         density: 2000.0,

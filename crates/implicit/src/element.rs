@@ -588,6 +588,7 @@ mod tests {
                 friction_angle: theta[0],
                 dilation_angle: 0.0,
                 cohesion: theta[1],
+                tension_cutoff: None,
             }),
         }
     }
@@ -748,6 +749,7 @@ mod tests {
                 friction_angle: phi,
                 dilation_angle: 0.0,
                 cohesion: 0.0,
+                tension_cutoff: None,
             }),
         };
         let ratio = (1.0 + phi.sin()) / (1.0 - phi.sin());
@@ -779,6 +781,7 @@ mod tests {
                 friction_angle: 30f64.to_radians(),
                 dilation_angle: 0.0,
                 cohesion: 0.0,
+                tension_cutoff: None,
             }),
         };
         // Axial stress raised to 5 × the confining: beyond the ratio 3 of φ = 30°.
@@ -807,6 +810,7 @@ mod tests {
                 friction_angle: 30f64.to_radians(),
                 dilation_angle: 0.0,
                 cohesion: 20e3,
+                tension_cutoff: None,
             }),
         };
         let fz = 0.9f64;

@@ -5,6 +5,8 @@
 //!
 //! - [`kernel`]: the per-particle stress kernel of the updated-Lagrangian step, generic over
 //!   the scalar type.
+//! - [`balance`]: the per-particle force that balances a prestressed body's initial stress
+//!   against gravity on the grid, so a K0 state is kept through the first load step.
 //! - [`dofs`]: unknowns, walls (mirror images), prescribed displacements.
 //! - [`system`]: residual, the per-particle AD tangent and the block-colour-seeded reference
 //!   tangent, particle update.
@@ -14,6 +16,7 @@
 //! - [`strength_reduction`]: the factor of safety of a loading by strength reduction, a
 //!   search over ordinary runs with the strength divided by a trial factor.
 
+pub mod balance;
 pub mod dofs;
 pub mod element;
 pub mod kernel;
@@ -23,6 +26,7 @@ pub mod solver;
 pub mod strength_reduction;
 pub mod system;
 
+pub use balance::{Balance, balance_initial_stress};
 pub use dofs::NodeDof;
 pub use loam_core::{NodeConstraint, PointLoad};
 pub use newton::{NewtonReport, NewtonSettings, TangentMethod};

@@ -46,6 +46,10 @@ pub struct ImplicitConfig<const D: usize> {
     /// A node below it keeps `Δu = 0` in a quasi-static step and follows an active neighbour
     /// in a dynamic one.
     pub min_node_support: f64,
+    /// Per particle, a force that acts in full at every step (N; N per m in 2D): the balance
+    /// of a prestressed body's initial stress against gravity on the grid
+    /// ([`crate::balance`]). Empty: none.
+    pub balance: Vec<Vector<f64, D>>,
 }
 
 impl<const D: usize> ImplicitConfig<D> {
@@ -275,6 +279,16 @@ impl<const D: usize> ImplicitSolver<D> {
                 ),
             ));
         }
+        if !config.balance.is_empty() && config.balance.len() != particles.len() {
+            return Err(bad(
+                "balance",
+                format!(
+                    "{} forces for {} particles",
+                    config.balance.len(),
+                    particles.len()
+                ),
+            ));
+        }
         Ok(Self {
             materials: Materials::new(config.materials.clone()),
             linear: LinearSolver::new(config.newton.linear),
@@ -365,8 +379,8 @@ impl<const D: usize> ImplicitSolver<D> {
         };
         let mut dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
         follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
-        // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so does
-        // gravity on a prestressed body.
+        // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so do
+        // gravity on a prestressed body and its balance.
         let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
         let g_factor = if cfg.gravity_in_full { 1.0 } else { factor };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
@@ -374,7 +388,8 @@ impl<const D: usize> ImplicitSolver<D> {
             loads[l.particle] += Vector::<f64, D>::from(l.force) * factor;
         }
         let mut system = StepSystem::new(grid, frozen, dofs, |i| {
-            p.mass[i] * g_factor * cfg.gravity + loads[i]
+            let balance = cfg.balance.get(i).copied().unwrap_or_else(Vector::zeros);
+            p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
         });
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;

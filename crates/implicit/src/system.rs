@@ -441,6 +441,42 @@ impl<const D: usize> StepSystem<D> {
         }
     }
 
+    /// The consistent mass `M_ij = Σ_p m_p N_ip N_jp` on the step's unknowns (one block per
+    /// component; the pattern of the tangent).
+    pub fn consistent_mass(&self, mass: &[f64]) -> SparseMatrix {
+        let mut m = SparseMatrix::zeros(self.pattern.clone());
+        for (p, fr) in self.frozen.iter().enumerate() {
+            let mut nodes = Vec::with_capacity(fr.stencil.len());
+            fr.stencil
+                .for_each(|node| nodes.push((node.flat, node.weight)));
+            for &(fi, wi) in &nodes {
+                for c in 0..D {
+                    let NodeDof::Free { dof: row, sign: si } = self.dofs.get(fi, c) else {
+                        continue;
+                    };
+                    for &(fj, wj) in &nodes {
+                        if let NodeDof::Free { dof: col, sign: sj } = self.dofs.get(fj, c) {
+                            m.values[self.slot(row, col)] += si * sj * mass[p] * wi * wj;
+                        }
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// A field on the unknowns `v` at particle `p`, `Σ_i N_ip v_i` (zero at the components
+    /// that are not unknowns).
+    pub fn interpolate(&self, p: usize, v: &[f64]) -> Vector<f64, D> {
+        let mut out = Vector::<f64, D>::zeros();
+        self.frozen[p].stencil.for_each(|n| {
+            for a in 0..D {
+                out[a] += n.weight * self.dofs.field(n.flat, a, v);
+            }
+        });
+        out
+    }
+
     /// Makes this a Newmark step of size `dt` (see [`Inertia`]): assembles the consistent
     /// mass, the grid momentum `pₙ = Σ_p m_p N_ip v_p` and the start-of-step force
     /// `rₙ = f_ext − f_int(0)`. `Err` names a particle whose start state has no stress (a
@@ -453,25 +489,16 @@ impl<const D: usize> StepSystem<D> {
         materials: &Materials,
     ) -> Result<(), Inverted> {
         let n = self.len();
-        let mut m = SparseMatrix::zeros(self.pattern.clone());
+        let m = self.consistent_mass(mass);
         let mut momentum = vec![0.0; n];
         for (p, fr) in self.frozen.iter().enumerate() {
-            let mut nodes = Vec::with_capacity(fr.stencil.len());
-            fr.stencil
-                .for_each(|node| nodes.push((node.flat, node.weight)));
-            for &(fi, wi) in &nodes {
+            fr.stencil.for_each(|node| {
                 for c in 0..D {
-                    let NodeDof::Free { dof: row, sign: si } = self.dofs.get(fi, c) else {
-                        continue;
-                    };
-                    momentum[row] += si * mass[p] * wi * v[p][c];
-                    for &(fj, wj) in &nodes {
-                        if let NodeDof::Free { dof: col, sign: sj } = self.dofs.get(fj, c) {
-                            m.values[self.slot(row, col)] += si * sj * mass[p] * wi * wj;
-                        }
+                    if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, c) {
+                        momentum[dof] += sign * mass[p] * node.weight * v[p][c];
                     }
                 }
-            }
+            });
         }
         let f0 = self.internal_force(&vec![0.0; n], materials)?;
         let force = self.f_ext.iter().zip(&f0).map(|(e, i)| e - i).collect();

@@ -107,6 +107,9 @@ pub struct ImplicitPlan {
     pub newmark_dt: Option<f64>,
     /// Newton and linear-solver settings, as the solver takes them.
     pub newton: NewtonSettings,
+    /// Whether the bodies' initial stress is balanced against gravity on the grid
+    /// (`solver.balance_initial_stress`, [`loam_implicit::balance`]).
+    pub balance_initial_stress: bool,
 }
 
 impl LinearSpec {
@@ -164,6 +167,7 @@ impl SolverSpec {
             SolverKind::Implicit => SolverPlan::Implicit(ImplicitPlan {
                 load_steps: self.load_steps?,
                 newmark_dt: self.newmark_dt,
+                balance_initial_stress: self.balance_initial_stress.unwrap_or(false),
                 newton: self
                     .newton
                     .unwrap_or_default()
@@ -235,12 +239,15 @@ impl<const D: usize> Built<D> {
     }
 
     /// The implicit solver's configuration of this scene (`None` for an explicit scene), as
-    /// [`Built::explicit_config`] is for the explicit one.
+    /// [`Built::explicit_config`] is for the explicit one; with
+    /// `solver.balance_initial_stress`, the balance of the particles' initial stress
+    /// ([`loam_implicit::balance_initial_stress`]; left empty where it cannot be computed, a
+    /// state the first load step then reports).
     pub fn implicit_config(&self) -> Option<loam_implicit::ImplicitConfig<D>> {
         let SolverPlan::Implicit(plan) = self.plan else {
             return None;
         };
-        Some(loam_implicit::ImplicitConfig {
+        let mut config = loam_implicit::ImplicitConfig {
             grid: self.grid.clone(),
             shape: self.shape,
             boundary: self.boundary,
@@ -253,7 +260,14 @@ impl<const D: usize> Built<D> {
             dynamics: plan.newmark_dt,
             gravity_in_full: self.prestressed,
             min_node_support: loam_implicit::ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
-        })
+            balance: Vec::new(),
+        };
+        if plan.balance_initial_stress
+            && let Ok(balance) = loam_implicit::balance_initial_stress(&config, &self.particles)
+        {
+            config.balance = balance.forces;
+        }
+        Some(config)
     }
 
     /// The steps after which frames are written, from 0 (the initial state), where frames
@@ -650,6 +664,7 @@ impl MaterialSpec {
                     friction_angle: m.friction_angle.unwrap_or(f64::NAN).to_radians(),
                     dilation_angle: m.dilation_angle.unwrap_or(0.0).to_radians(),
                     cohesion: m.cohesion.unwrap_or(0.0),
+                    tension_cutoff: m.tension_cutoff,
                 }),
             },
             ModelKind::ModifiedCamClay => Material {

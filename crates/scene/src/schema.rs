@@ -84,7 +84,7 @@ fn default_shape_function() -> Shape {
 ///
 /// Which keys apply depends on `model`: the solid models need `youngs_modulus` and
 /// `poisson_ratio`; `drucker_prager` and `mohr_coulomb` also need `friction_angle` and take
-/// `dilation_angle` and `cohesion`; `drucker_prager` takes `tension_cutoff`, `cone` and
+/// `dilation_angle`, `cohesion` and `tension_cutoff`; `drucker_prager` takes `cone` and
 /// `elasticity`; `fluid` needs exactly one of `sound_speed` and
 /// `bulk_modulus` and takes `gamma` and `viscosity`. A key of another model is an error naming
 /// it.
@@ -139,8 +139,8 @@ pub struct MaterialSpec {
     /// cohesionless).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cohesion: Option<f64>,
-    /// Model `drucker_prager`: tension cutoff `σ_t` (Pa) on the mean stress, `0 ≤ σ_t ≤
-    /// c cot φ` (default: the apex of the cone, `c cot φ`).
+    /// Models `drucker_prager` (on the mean stress) and `mohr_coulomb` (on every principal
+    /// stress): tension cutoff `σ_t` (Pa), `0 ≤ σ_t ≤ c cot φ` (default: the apex, `c cot φ`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tension_cutoff: Option<f64>,
     /// Model `drucker_prager`: the Mohr–Coulomb section the cone is matched to,
@@ -439,7 +439,8 @@ impl SolverKind {
 ///
 /// Which keys apply depends on `type`: `scheme`, `transfer`, `time_step`, `end_time` and
 /// `device` are for the explicit solver (`time_step` and `end_time` required there); `load_steps`
-/// (required), `newton` and `linear` for the implicit one. A key of the other family is an
+/// (required), `newmark_dt`, `balance_initial_stress`, `newton` and `linear` for the implicit
+/// one. A key of the other family is an
 /// error. The absent optional settings take their defaults when the scene is built
 /// ([`crate::SolverPlan`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -474,6 +475,14 @@ pub struct SolverSpec {
     /// bodies may have an initial `velocity`. Omitted: quasi-static.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub newmark_dt: Option<f64>,
+    /// Implicit, optional: balance the bodies' `initial_stress` against gravity on the grid
+    /// with a force per particle, so that the initial state is an exact discrete equilibrium
+    /// and a K0 state is kept through the first load step (default `false`;
+    /// [`loam_implicit::balance`]). For ground under a level surface, where the initial stress
+    /// is in equilibrium in the continuum and the out-of-balance is an error of the grid; under
+    /// a slope it would hold up a real imbalance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub balance_initial_stress: Option<bool>,
     /// Implicit: Newton settings, `[solver.newton]` (default [`NewtonSpec::default`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSpec>,

@@ -328,8 +328,8 @@ fn check_material(c: &mut Checker, path: &str, m: &MaterialSpec) {
                     c.issue(
                         tpath,
                         format!(
-                            "must be in [0, c cot φ] = [0, {apex}] Pa (the apex of the cone, \
-                             which is the default), got {t}"
+                            "must be in [0, c cot φ] = [0, {apex}] Pa (the apex, which is \
+                             the default), got {t}"
                         ),
                     );
                 }
@@ -656,6 +656,7 @@ impl Scene {
                 for (key, given) in [
                     ("load_steps", s.load_steps.is_some()),
                     ("newmark_dt", s.newmark_dt.is_some()),
+                    ("balance_initial_stress", s.balance_initial_stress.is_some()),
                     ("newton", s.newton.is_some()),
                     ("linear", s.linear.is_some()),
                 ] {
@@ -792,6 +793,15 @@ impl Scene {
         }
         if let Some(dt) = s.newmark_dt {
             c.positive("solver.newmark_dt", dt);
+        }
+        if s.balance_initial_stress == Some(true)
+            && self.bodies.iter().all(|b| b.initial_stress.is_none())
+        {
+            c.issue(
+                "solver.balance_initial_stress",
+                "no body has an initial_stress to balance; give one (e.g. initial_stress = \
+                 { type = \"geostatic\", k0 = 0.5 }) or remove the key",
+            );
         }
         if let Some(n) = &s.newton {
             c.open_unit("solver.newton.residual_tol", n.residual_tol);

@@ -91,6 +91,7 @@ fn models() -> [(&'static str, Material<f64>); 5] {
                 friction_angle: phi,
                 dilation_angle: psi,
                 cohesion: c,
+                tension_cutoff: None,
             })),
         ),
         (

@@ -19,6 +19,9 @@ pub fn run<const D: usize>(
     let config = built
         .implicit_config()
         .expect("an implicit plan has an implicit configuration");
+    if plan.balance_initial_stress && !quiet {
+        report_balance(&config, &built.particles);
+    }
     let mut solver = match ImplicitSolver::new(config, &built.particles) {
         Ok(s) => s,
         Err(e) => {
@@ -137,4 +140,34 @@ pub fn run<const D: usize>(
         stop,
         &done,
     )
+}
+
+/// Says how large the balance of the initial stress is (`solver.balance_initial_stress`):
+/// `|Σ_p f_p|` and `max_p |f_p|` against the total and the particle's weight, or why it could
+/// not be computed.
+fn report_balance<const D: usize>(
+    config: &loam_implicit::ImplicitConfig<D>,
+    particles: &loam_core::Particles<f64, D>,
+) {
+    if config.balance.is_empty() {
+        if let Err(e) = loam_implicit::balance_initial_stress(config, particles) {
+            eprintln!("warning: the initial stress is not balanced: {e}");
+        }
+        return;
+    }
+    let g = config.gravity.norm();
+    let weight: f64 = particles.mass.iter().sum::<f64>() * g;
+    let total = config
+        .balance
+        .iter()
+        .sum::<loam_core::tensor::Vector<f64, D>>();
+    let largest = (config.balance.iter().zip(&particles.mass))
+        .map(|(f, m)| f.norm() / (m * g))
+        .fold(0.0, f64::max);
+    println!(
+        "initial stress balanced on the grid: net balancing force {:.2} % of the weight; \
+         the largest on one particle {:.2} times its weight",
+        100.0 * total.norm() / weight,
+        largest
+    );
 }

@@ -201,10 +201,11 @@ pub enum Region {
     /// Return to the yield surface along the flow direction: [`J2`]'s radial return, or
     /// [`DruckerPrager`]'s return to the cone along its plastic potential.
     Shear,
-    /// [`DruckerPrager`]: return to the tension cutoff plane `p = σ_t` (deviator unchanged).
+    /// [`DruckerPrager`]: return to the tension cutoff plane `p = σ_t` (deviator unchanged);
+    /// [`MohrCoulomb`]: return to one, two or all three of the cutoff planes `τ_i = σ_t`.
     Tension,
     /// [`DruckerPrager`]: return to the corner where the cone meets the cutoff (the apex when
-    /// `σ_t = c cot φ`).
+    /// `σ_t = c cot φ`); [`MohrCoulomb`]: to where a cutoff plane meets the pyramid.
     Corner,
     /// [`MohrCoulomb`]: return to an edge of the pyramid (two planes active).
     Edge,
@@ -397,6 +398,7 @@ impl<T: Scalar> Material<T> {
                 friction_angle: T::cst(std::f64::consts::FRAC_PI_6),
                 dilation_angle: T::zero(),
                 cohesion: T::cst(f64::INFINITY),
+                tension_cutoff: None,
             }),
             ModelKind::Fluid => panic!(
                 "Material::elastic: model `fluid` takes a bulk modulus, not E and ν; \

@@ -31,6 +31,19 @@
 //!    on the extension edge);
 //! 3. **apex**: otherwise `τ = c cot φ I` (for perfect plasticity the apex is a point).
 //!
+//! **Tension cutoff** (optional, `σ_t ≤ c cot φ`; none is the apex): the Rankine planes
+//! `f_Ti = τ_i − σ_t` with associated flow (`A_Ti = D e_i`). When the pyramid's return (or the
+//! elastic trial) leaves a principal stress above `σ_t`, the return is taken over the nine
+//! planes of the cut pyramid in unordered principal space (the six Mohr–Coulomb planes
+//! `(τ_i − τ_j) + (τ_i + τ_j) sin φ = 2c cos φ`, `i ≠ j`, and the three cutoffs): the first
+//! active set of one, two or three planes, holding a cutoff, whose multipliers solve
+//! `[N_a·A_b] Δγ = fᵗʳ` with `Δγ ≥ 0` and whose stress lies inside every plane. Three sets
+//! suffice (Carathéodory: a return direction in the cone of four or more flow vectors is a
+//! non-negative combination of three of them). With only cutoffs active the region is
+//! `Tension` (`σ_t I` at the corner of all three), with a Mohr–Coulomb plane too, `Corner`.
+//! The search runs on real parts and the chosen set is solved again in the scalar type, so a
+//! dual evaluation is exact in these regions as well.
+//!
 //! The stress tensor is `τ = Σ τ_i n_i n_iᵀ` on the eigenvectors of `bₑᵗʳ`, `εₑ = C⁻¹:τ`,
 //! `bₑ = exp(2εₑ)`, and the equivalent plastic strain grows by `√(2/3) ‖εᵗʳ − εₑ‖`.
 //!
@@ -61,7 +74,23 @@ pub struct MohrCoulomb<T> {
     pub dilation_angle: T,
     /// Cohesion `c ≥ 0` (Pa).
     pub cohesion: T,
+    /// Tension cutoff `σ_t` on every principal stress (Pa), `0 ≤ σ_t ≤ c cot φ`; `None`: the
+    /// apex `c cot φ` bounds the tension.
+    pub tension_cutoff: Option<T>,
 }
+
+/// One plane of the cut pyramid in unordered principal stress space: `f = n·τ − k ≤ 0`,
+/// return direction `A = D g` (`g` the gradient of the plastic potential).
+#[derive(Clone, Copy)]
+struct Plane<T> {
+    n: [T; 3],
+    a: [T; 3],
+    k: T,
+    cutoff: bool,
+}
+
+/// Planes of [`MohrCoulomb::planes`]: the three cutoffs, then the six Mohr–Coulomb planes.
+const PLANES: usize = 9;
 
 /// The principal return of a [`MohrCoulomb`] material, as a [`PrincipalMap`] of the trial
 /// principal Hencky strains to the principal Kirchhoff stresses.
@@ -99,6 +128,7 @@ impl<T: Scalar> MohrCoulomb<T> {
             friction_angle: self.friction_angle.re(),
             dilation_angle: self.dilation_angle.re(),
             cohesion: self.cohesion.re(),
+            tension_cutoff: self.tension_cutoff.map(|t| t.re()),
         }
     }
 
@@ -117,11 +147,115 @@ impl<T: Scalar> MohrCoulomb<T> {
     }
 
     /// The return of trial principal strains `εᵗʳ` (any order) to principal Kirchhoff stresses
-    /// in the same order, with the region taken (see the module docs).
+    /// in the same order, with the region taken (see the module docs): the pyramid's return,
+    /// then the cut pyramid's where a stress is left above the tension cutoff.
     pub fn principal_return(&self, eps: [T; 3]) -> ([T; 3], Region) {
+        let (tau, region) = self.pyramid_return(eps);
+        match self.tension_cutoff {
+            Some(cutoff) if max3(tau).re() > cutoff.re() * (1.0 + 1e-12) => {
+                self.cutoff_return(eps, cutoff)
+            }
+            _ => (tau, region),
+        }
+    }
+
+    /// The trial stresses `τᵗʳ = D εᵗʳ`.
+    fn trial(&self, eps: [T; 3]) -> [T; 3] {
         let (lambda, two_mu) = (self.lame.lambda, self.lame.mu * T::cst(2.0));
         let tr = eps[0] + eps[1] + eps[2];
-        let trial: [T; 3] = std::array::from_fn(|i| lambda * tr + two_mu * eps[i]);
+        std::array::from_fn(|i| lambda * tr + two_mu * eps[i])
+    }
+
+    /// `D v = λ (Σ v) 1 + 2μ v`.
+    fn stiff(&self, v: [T; 3]) -> [T; 3] {
+        let tr = v[0] + v[1] + v[2];
+        std::array::from_fn(|i| self.lame.lambda * tr + self.lame.mu * T::cst(2.0) * v[i])
+    }
+
+    /// The planes of the cut pyramid (module docs) for the cutoff `σ_t`.
+    fn planes(&self, cutoff: T) -> [Plane<T>; PLANES] {
+        let (sin_phi, sin_psi) = (self.friction_angle.sin(), self.dilation_angle.sin());
+        let k = self.cohesion * T::cst(2.0) * self.friction_angle.cos();
+        let unit = |i: usize| -> [T; 3] {
+            std::array::from_fn(|a| if a == i { T::one() } else { T::zero() })
+        };
+        let mohr = |i: usize, j: usize, sin: T| -> [T; 3] {
+            std::array::from_fn(|a| {
+                if a == i {
+                    T::one() + sin
+                } else if a == j {
+                    sin - T::one()
+                } else {
+                    T::zero()
+                }
+            })
+        };
+        const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
+        std::array::from_fn(|p| {
+            if p < 3 {
+                Plane {
+                    n: unit(p),
+                    a: self.stiff(unit(p)),
+                    k: cutoff,
+                    cutoff: true,
+                }
+            } else {
+                let (i, j) = PAIRS[p - 3];
+                Plane {
+                    n: mohr(i, j, sin_phi),
+                    a: self.stiff(mohr(i, j, sin_psi)),
+                    k,
+                    cutoff: false,
+                }
+            }
+        })
+    }
+
+    /// The return to the cut pyramid (module docs) of trial strains `εᵗʳ` whose pyramid
+    /// return breaks the cutoff `σ_t`.
+    fn cutoff_return(&self, eps: [T; 3], cutoff: T) -> ([T; 3], Region) {
+        let trial = self.trial(eps);
+        let real = self.real();
+        let real_trial = real.trial(eps.map(|e| e.re()));
+        let real_planes = real.planes(cutoff.re());
+        let scale = real_trial.iter().fold(0.0f64, |m, t| m.max(t.abs()))
+            + real_planes[3].k.abs()
+            + cutoff.re().abs();
+        // A stress is inside a plane to 1e-10 of the stress scale (round-off of the solves).
+        let inside =
+            |tau: &[f64; 3]| (real_planes.iter()).all(|p| dot(&p.n, tau) - p.k <= 1e-10 * scale);
+        let mut chosen = None;
+        'sets: for size in 1..=3 {
+            for set in active_sets(size) {
+                if set.iter().all(|&p| !real_planes[p].cutoff) {
+                    continue;
+                }
+                if let Some((tau, dgamma)) = solve_set(&real_planes, &set, &real_trial)
+                    && dgamma.iter().all(|&g| g >= -1e-14)
+                    && inside(&tau)
+                {
+                    chosen = Some(set);
+                    break 'sets;
+                }
+            }
+        }
+        let Some(set) = chosen else {
+            return ([cutoff; 3], Region::Tension);
+        };
+        let region = if set.iter().all(|&p| real_planes[p].cutoff) {
+            Region::Tension
+        } else {
+            Region::Corner
+        };
+        match solve_set(&self.planes(cutoff), &set, &trial) {
+            Some((tau, _)) => (tau, region),
+            None => ([cutoff; 3], Region::Tension),
+        }
+    }
+
+    /// The return of trial principal strains to the pyramid alone (no cutoff).
+    fn pyramid_return(&self, eps: [T; 3]) -> ([T; 3], Region) {
+        let trial = self.trial(eps);
         // Sorted descending on real parts: τ₁ ≥ τ₂ ≥ τ₃.
         let mut order = [0usize, 1, 2];
         order.sort_by(|&a, &b| trial[b].re().total_cmp(&trial[a].re()));
@@ -141,11 +275,8 @@ impl<T: Scalar> MohrCoulomb<T> {
         if f_main.re() <= 0.0 {
             return (trial, Region::Elastic);
         }
-        let stiff = |n: [T; 3]| -> [T; 3] {
-            let trn = n[0] + n[1] + n[2];
-            std::array::from_fn(|i| lambda * trn + two_mu * n[i])
-        };
-        let dot = |a: [T; 3], b: [T; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let stiff = |n: [T; 3]| self.stiff(n);
+        let dot = |a: [T; 3], b: [T; 3]| dot(&a, &b);
         let ordered = |t: &[T; 3]| t[0].re() >= t[1].re() && t[1].re() >= t[2].re();
         let unsort = |t: [T; 3]| {
             let mut out = [T::zero(); 3];
@@ -252,8 +383,82 @@ impl MohrCoulomb<f64> {
             friction_angle: T::cst(self.friction_angle),
             dilation_angle: T::cst(self.dilation_angle),
             cohesion: T::cst(self.cohesion),
+            tension_cutoff: self.tension_cutoff.map(T::cst),
         }
     }
+}
+
+/// `a·b` of principal triples.
+fn dot<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The sets of `size` plane indices `i < j < l` out of [`PLANES`], in lexicographic order.
+fn active_sets(size: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    let mut set = Vec::with_capacity(size);
+    fn grow(from: usize, size: usize, set: &mut Vec<usize>, out: &mut Vec<Vec<usize>>) {
+        if set.len() == size {
+            out.push(set.clone());
+            return;
+        }
+        for p in from..PLANES {
+            set.push(p);
+            grow(p + 1, size, set, out);
+            set.pop();
+        }
+    }
+    grow(0, size, &mut set, &mut out);
+    out
+}
+
+/// The return onto the planes `set` (all active): `Σ_b (N_a·A_b) Δγ_b = N_a·τᵗʳ − k_a`,
+/// `τ = τᵗʳ − Σ Δγ_b A_b`, solved by Cramer's rule (at most 3 × 3); `None` when the system
+/// is singular (planes that do not meet in a point, line or plane of their own).
+fn solve_set<T: Scalar>(
+    planes: &[Plane<T>; PLANES],
+    set: &[usize],
+    trial: &[T; 3],
+) -> Option<([T; 3], Vec<T>)> {
+    let n = set.len();
+    let m = |a: usize, b: usize| dot(&planes[set[a]].n, &planes[set[b]].a);
+    let rhs: Vec<T> = (set.iter())
+        .map(|&p| dot(&planes[p].n, trial) - planes[p].k)
+        .collect();
+    let det3 = |c: [[T; 3]; 3]| {
+        c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1])
+            - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
+            + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0])
+    };
+    // The matrix padded to 3 × 3 with the identity, and its columns replaced by the rhs.
+    let matrix = |column: Option<usize>| -> [[T; 3]; 3] {
+        std::array::from_fn(|a| {
+            std::array::from_fn(|b| {
+                if a >= n || b >= n {
+                    if a == b { T::one() } else { T::zero() }
+                } else if Some(b) == column {
+                    rhs[a]
+                } else {
+                    m(a, b)
+                }
+            })
+        })
+    };
+    let det = det3(matrix(None));
+    let size = (0..n)
+        .flat_map(|a| (0..n).map(move |b| (a, b)))
+        .fold(0.0f64, |s, (a, b)| s.max(m(a, b).re().abs()));
+    if det.re().abs() <= 1e-12 * size.powi(n as i32) {
+        return None;
+    }
+    let dgamma: Vec<T> = (0..n).map(|b| det3(matrix(Some(b))) / det).collect();
+    let mut tau = *trial;
+    for (g, &p) in dgamma.iter().zip(set) {
+        for i in 0..3 {
+            tau[i] -= *g * planes[p].a[i];
+        }
+    }
+    Some((tau, dgamma))
 }
 
 impl<T: Scalar> Constitutive<T> for MohrCoulomb<T> {

@@ -17,6 +17,7 @@ fn mc(phi_deg: f64, psi_deg: f64, cohesion: f64) -> MohrCoulomb<f64> {
         friction_angle: phi_deg.to_radians(),
         dilation_angle: psi_deg.to_radians(),
         cohesion,
+        tension_cutoff: None,
     }
 }
 
@@ -244,6 +245,7 @@ fn mohr_coulomb_parameter_derivatives_match_central_differences() {
                 friction_angle: p[0],
                 dilation_angle: p[1],
                 cohesion: p[2],
+                tension_cutoff: None,
             };
             let (p0, _) = with(base);
             let mut pd: [Dual64; 3] = p0.map(Dual64::from_re);
@@ -253,6 +255,7 @@ fn mohr_coulomb_parameter_derivatives_match_central_differences() {
                 friction_angle: pd[0],
                 dilation_angle: pd[1],
                 cohesion: pd[2],
+                tension_cutoff: None,
             };
             let dual = md
                 .return_map(&df.map(Dual64::from_re), &state.lift())
@@ -363,4 +366,119 @@ fn hencky_and_jaumann_drucker_prager_agree_at_small_strain() {
         (tau_h - tau_j).norm() < 1e-3 * tau_h.norm(),
         "{tau_h} vs {tau_j}"
     );
+}
+
+/// c = 10 kPa, φ = 30°, ψ = 10° (apex c cot φ = 17.3 kPa) cut at σ_t = 5 kPa.
+fn mc_cut() -> MohrCoulomb<f64> {
+    MohrCoulomb {
+        tension_cutoff: Some(5e3),
+        ..mc(30.0, 10.0, 10e3)
+    }
+}
+
+/// `ΔF = diag(exp ε)` from the stress-free state: the trial Hencky strains are `ε`.
+fn stretch(eps: [f64; 3]) -> Matrix3<f64> {
+    Matrix3::from_diagonal(&nalgebra::vector![eps[0].exp(), eps[1].exp(), eps[2].exp()])
+}
+
+/// Over random trial states around a low confinement, the cut pyramid's return never leaves
+/// a principal stress above `σ_t` nor outside the pyramid, and every region is reached.
+#[test]
+fn mohr_coulomb_returns_respect_the_tension_cutoff() {
+    let m = mc_cut();
+    let cutoff = 5e3;
+    let state = compressed(&m.lame, 5e3);
+    let mut seed = 11;
+    let mut regions = std::collections::HashSet::new();
+    for _ in 0..4000 {
+        let df = Matrix3::identity()
+            + Matrix3::from_fn(|_, _| 0.004 * (2.0 * rng(&mut seed) - 1.0))
+            + Matrix3::identity() * 0.003 * (2.0 * rng(&mut seed) - 1.0);
+        let (tau, _, region) = m.return_map(&df, &state);
+        regions.insert(format!("{region:?}"));
+        let t = principal(&tau);
+        // 1e-9 of the stress scale: round-off of the closed-form solves and the eigenbasis.
+        let scale = tau.norm().max(1e3);
+        assert!(t[0] <= cutoff + 1e-9 * scale, "{region:?}: {t:?}");
+        let f = m.yield_function(t);
+        assert!(f <= 1e-9 * scale, "{region:?}: f = {f}");
+        if matches!(region, Region::Tension | Region::Corner) {
+            assert!((t[0] - cutoff).abs() <= 1e-9 * scale, "{region:?}: {t:?}");
+        }
+        if region == Region::Corner {
+            assert!(f.abs() <= 1e-9 * scale, "corner off the pyramid: f = {f}");
+        }
+    }
+    for r in ["Elastic", "Shear", "Edge", "Tension", "Corner"] {
+        assert!(
+            regions.contains(r),
+            "no trial state reached {r}: {regions:?}"
+        );
+    }
+}
+
+/// Uniaxial extension beyond the cutoff returns along `D e₁` to `τ₁ = σ_t`, which leaves the
+/// lateral stresses at `λ/(λ + 2μ) σ_t = ν/(1 − ν) σ_t` (closed form, 1e-12 relative); two
+/// and three equal stretches end at `τ₁ = τ₂ = σ_t` and at `σ_t I`.
+#[test]
+fn mohr_coulomb_cutoff_returns_have_the_closed_forms() {
+    let m = mc_cut();
+    let cutoff = 5e3;
+    let state = MaterialState::default();
+    let (tau, _, region) = m.return_map(&stretch([1e-3, 0.0, 0.0]), &state);
+    assert_eq!(region, Region::Tension);
+    let lateral = POISSON / (1.0 - POISSON) * cutoff;
+    assert!((tau[(0, 0)] - cutoff).abs() < 1e-12 * cutoff, "{tau}");
+    for i in 1..3 {
+        assert!((tau[(i, i)] - lateral).abs() < 1e-12 * cutoff, "{tau}");
+    }
+    let (tau, _, region) = m.return_map(&stretch([1e-3, 0.9e-3, 0.0]), &state);
+    assert_eq!(region, Region::Tension);
+    assert!((tau[(0, 0)] - cutoff).abs() < 1e-12 * cutoff, "{tau}");
+    assert!((tau[(1, 1)] - cutoff).abs() < 1e-12 * cutoff, "{tau}");
+    assert!(tau[(2, 2)] < cutoff, "{tau}");
+    let (tau, _, region) = m.return_map(&stretch([1e-3; 3]), &state);
+    assert_eq!(region, Region::Tension);
+    assert!(
+        (tau - Matrix3::identity() * cutoff).norm() < 1e-12 * cutoff,
+        "{tau}"
+    );
+    // Without a cutoff the same isotropic extension goes to the apex c cot φ.
+    let (tau, _, region) = mc(30.0, 10.0, 10e3).return_map(&stretch([1e-3; 3]), &state);
+    assert_eq!(region, Region::Apex);
+    let apex = 10e3 / 30f64.to_radians().tan();
+    assert!(
+        (tau - Matrix3::identity() * apex).norm() < 1e-9 * apex,
+        "{tau}"
+    );
+}
+
+/// The dual tangent against central differences (as [`check_tangent`]) at one, two and three
+/// active cutoffs and at a cutoff meeting the pyramid's main plane.
+#[test]
+fn mohr_coulomb_cutoff_tangent_matches_central_differences() {
+    let m = mc_cut();
+    let md = m.lift::<Dual64>();
+    let state = MaterialState::default();
+    let sd = state.lift::<Dual64>();
+    let d = matrix![0.3, 0.1, -0.2; 0.05, -0.4, 0.25; -0.1, 0.2, 0.15];
+    for (eps, expected) in [
+        ([1e-3, 0.0, 0.0], Region::Tension),
+        ([1e-3, 0.9e-3, 0.0], Region::Tension),
+        ([1e-3; 3], Region::Tension),
+        ([2e-3, 0.0, -1e-3], Region::Corner),
+    ] {
+        let df = stretch(eps);
+        let (_, _, region) = m.return_map(&df, &state);
+        assert_eq!(region, expected, "ε = {eps:?}");
+        for dir in [d, Matrix3::identity(), d.transpose() + d] {
+            check_tangent(
+                |x| md.return_map(x, &sd).0,
+                |x| m.return_map(x, &state).0,
+                &df,
+                &dir,
+                &format!("{expected:?} at ε = {eps:?}"),
+            );
+        }
+    }
 }

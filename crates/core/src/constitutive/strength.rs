@@ -85,6 +85,7 @@ mod tests {
                 friction_angle: phi_deg.to_radians(),
                 dilation_angle: psi_deg.to_radians(),
                 cohesion,
+                tension_cutoff: None,
             }),
         }
     }

@@ -47,6 +47,7 @@ fn block(
         dynamics: Some(dt),
         gravity_in_full: false,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
+        balance: Vec::new(),
     };
     (config, particles)
 }

@@ -51,6 +51,7 @@ fn cut(h: f64) -> (ImplicitConfig<2>, Particles<f64, 2>) {
         dynamics: None,
         gravity_in_full: false,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
+        balance: Vec::new(),
     };
     (config, particles)
 }

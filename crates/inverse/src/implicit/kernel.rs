@@ -145,6 +145,9 @@ pub struct Loads<T, const D: usize> {
     pub gravity: Vector<T, D>,
     /// Total point load on the particle at load factor 1.
     pub point: Vector<T, D>,
+    /// The balance of the particle's initial stress, in full at every step
+    /// ([`loam_implicit::ImplicitConfig::balance`]; data of the initial state).
+    pub balance: Vector<T, D>,
 }
 
 /// The particle's part of the step (module docs) for the nodal increments `du(flat, a)`;
@@ -173,7 +176,9 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         &g,
     )?;
     let lambda = T::cst(setting.load_factor);
-    let q = loads.gravity * (state.mass * T::cst(setting.gravity_factor)) + loads.point * lambda;
+    let q = loads.gravity * (state.mass * T::cst(setting.gravity_factor))
+        + loads.point * lambda
+        + loads.balance;
     let mut x = state.x;
     let mut nodes = Vec::with_capacity(stencil.len());
     stencil.for_each(|n| {
@@ -220,5 +225,6 @@ pub fn lift_loads<const D: usize>(loads: &Loads<f64, D>) -> Loads<Dual64, D> {
     Loads {
         gravity: loads.gravity.map(Dual64::from_re),
         point: loads.point.map(Dual64::from_re),
+        balance: loads.balance.map(Dual64::from_re),
     }
 }

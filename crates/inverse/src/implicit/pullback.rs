@@ -294,7 +294,8 @@ impl<const D: usize> Linearisation<D> {
         let h0 = D + D * D;
         let x_end = Vector::<f64, D>::from_fn(|a, _| cot.end[a]);
         let q = self.loads.gravity * (self.mass * self.gravity_factor)
-            + self.loads.point * self.load_factor;
+            + self.loads.point * self.load_factor
+            + self.loads.balance;
         let (vi, mi) = (velocity_index(D), mass_index(D));
         let v_end = Vector::<f64, D>::from_fn(|a, _| cot.end[vi + a]);
         let inertia =
@@ -660,6 +661,7 @@ mod tests {
         let loads = Loads {
             gravity: Vector::<f64, 2>::new(0.0, -9.81),
             point: Vector::<f64, 2>::new(3.0, -2.0),
+            balance: Vector::<f64, 2>::new(-0.4, 1.7),
         };
         let du = |f: usize, a: usize| 0.004 * (0.7 * f as f64 + a as f64).sin();
         let nodes = grid.num_nodes();

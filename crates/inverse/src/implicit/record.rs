@@ -228,6 +228,7 @@ impl<'a, const D: usize> Replay<'a, D> {
         Loads {
             gravity: self.config.gravity,
             point: self.point[p],
+            balance: (self.config.balance.get(p).copied()).unwrap_or_else(Vector::zeros),
         }
     }
 

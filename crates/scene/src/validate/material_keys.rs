@@ -214,8 +214,9 @@ pub(crate) const MATERIAL_KEYS: &[MaterialKey] = &[
     },
     MaterialKey {
         name: "tension_cutoff",
-        what: "the tension cutoff on the mean stress, Pa",
-        models: &DRUCKER_PRAGER_OPTIONAL,
+        what: "the tension cutoff, Pa (drucker_prager: on the mean stress; mohr_coulomb: on \
+               every principal stress)",
+        models: &FRICTIONAL_OPTIONAL,
         range: None,
         unit: "",
         value: |m| m.tension_cutoff,

@@ -327,6 +327,13 @@ fn misused_initial_state_keys_are_errors_naming_the_field() {
             "material = \"rubber\"\nshape = {{ type = \"box\", lo = [0.1, 0.1], hi = [0.3, 0.2] }}\n{extra}"
         )
     };
+    // The scene with an implicit solver that balances the initial stress.
+    let implicit = |text: &str| {
+        let head = text.split("[solver]").next().expect("a solver section");
+        format!(
+            "{head}[solver]\ntype = \"implicit\"\nload_steps = 1\nbalance_initial_stress = true\n"
+        )
+    };
     let water = r#"
 [[materials]]
 name = "water"
@@ -425,6 +432,21 @@ sound_speed = 20.0
             ),
             "bodies[0].initial_stress: surface = 0.15 lies below particles of the body (the \
              highest at y = 0.1875)",
+        ),
+        // The balance of an initial stress is an implicit setting, and needs one.
+        (
+            scene_2d(
+                RUBBER,
+                &body("initial_stress = { type = \"geostatic\" }"),
+                "apic",
+                "[0.0, -9.81]",
+            )
+            .replace("[solver]\n", "[solver]\nbalance_initial_stress = true\n"),
+            "solver.balance_initial_stress: only used by the implicit solver",
+        ),
+        (
+            implicit(&scene_2d(RUBBER, &body(""), "apic", "[0.0, -9.81]")),
+            "solver.balance_initial_stress: no body has an initial_stress to balance",
         ),
     ];
     for (text, expected) in cases {

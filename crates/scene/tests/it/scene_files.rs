@@ -225,8 +225,8 @@ const BAD: &[(&str, &[&str])] = &[
     (
         "drucker_prager_tension_cutoff_above_apex.toml",
         &[
-            "materials[0].tension_cutoff: must be in [0, c cot φ] = [0, 1000] Pa (the apex of the \
-             cone, which is the default), got 2000",
+            "materials[0].tension_cutoff: must be in [0, c cot φ] = [0, 1000] Pa (the apex, \
+             which is the default), got 2000",
         ],
     ),
     (
@@ -898,6 +898,23 @@ density = 1600.0"#,
         1,
     );
     Scene::from_toml_str(&at_apex).unwrap();
+    // Mohr–Coulomb takes the same cutoff, on every principal stress, within the same bounds.
+    let mohr = text.replacen(
+        r#"model = "drucker_prager""#,
+        r#"model = "mohr_coulomb""#,
+        1,
+    );
+    let built = Scene::from_toml_str(&mohr).unwrap().build::<2>().unwrap();
+    match &built.materials[0].model {
+        Model::MohrCoulomb(m) => assert_eq!(m.tension_cutoff, Some(1.0e3)),
+        other => panic!("expected Mohr–Coulomb, got {other:?}"),
+    }
+    let beyond = mohr.replacen("tension_cutoff = 1.0e3", "tension_cutoff = 3.0e3", 1);
+    let err = Scene::from_toml_str(&beyond).unwrap_err().to_string();
+    assert!(
+        err.contains("materials[0].tension_cutoff: must be in [0, c cot φ] = [0, 2856.3] Pa"),
+        "{err}"
+    );
 }
 
 /// The implicit 2D fixture: constraint boxes as written, each point load on the particles
@@ -966,6 +983,7 @@ fn implicit_2d_fixture_builds_constraints_and_point_loads() {
                     max_iter: 500,
                 },
             },
+            balance_initial_stress: false,
         })
     );
     assert_eq!(built.gravity, nalgebra::vector![0.0, -9.81]);
@@ -1005,6 +1023,7 @@ fn implicit_3d_fixture_builds_with_the_defaults() {
             newmark_dt: None,
             load_steps: 3,
             newton: NewtonSpec::default().settings(LinearSolverKind::Lu),
+            balance_initial_stress: false,
         })
     );
     assert_eq!(NewtonSpec::default().residual_tol, 1e-8);
