@@ -46,7 +46,10 @@ pub struct Solver<T: Scalar, const D: usize> {
     /// Per node, the folded P2G sums of a traced step ([`Solver::step_traced`]; empty until
     /// one is taken).
     sums: Vec<NodeSums<T, D>>,
-    wave_speed: Vec<f64>,
+    /// Per material, its elastic wave speed, or `None` where it depends on the particle's
+    /// state
+    /// ([`loam_core::constitutive::Constitutive::stiffness_depends_on_state`]).
+    wave_speed: Vec<Option<f64>>,
     mass_floor: f64,
     steps: usize,
     time: f64,
@@ -128,7 +131,12 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
             });
         }
         let n = config.grid.num_nodes();
-        let wave_speed = config.materials.iter().map(|m| m.wave_speed()).collect();
+        let wave_speed = (config.materials.iter())
+            .map(|m| {
+                let state_dependent = m.constitutive().stiffness_depends_on_state();
+                (!state_dependent).then(|| m.wave_speed())
+            })
+            .collect();
         Ok(Self {
             blocks: Blocks::new(&config.grid, config.shape.support_width(), &config.boundary),
             keys: Vec::new(),
@@ -197,23 +205,28 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
         energy(particles, &self.config.materials, &self.config.gravity)
     }
 
-    /// The stability bound `h / (c_p + |v_p|)` of one particle, with its wave speed and speed.
+    /// The elastic wave speed `c_p` of particle `i`: its material's, or from its own state
+    /// where the stiffness depends on it ([`loam_core::Material::wave_speed_in`]).
     #[inline]
-    fn particle_limit(&self, p: usize, v: &Vector<T, D>, material: u32) -> (f64, usize, f64, f64) {
-        let c = self.wave_speed[material as usize];
-        let s = v.map(|x| x.re()).norm();
-        (self.config.grid.h / (c + s), p, c, s)
+    fn particle_wave_speed(&self, p: &Particles<T, D>, i: usize) -> f64 {
+        let m = p.material[i] as usize;
+        self.wave_speed[m].unwrap_or_else(|| self.config.materials[m].wave_speed_in(&p.state[i]))
+    }
+
+    /// The stability bound `h / (c_p + |v_p|)` of particle `i`, with its wave speed and speed.
+    #[inline]
+    fn particle_limit(&self, p: &Particles<T, D>, i: usize) -> (f64, usize, f64, f64) {
+        let c = self.particle_wave_speed(p, i);
+        let s = p.v[i].map(|x| x.re()).norm();
+        (self.config.grid.h / (c + s), i, c, s)
     }
 
     /// The stability bound `min_p h / (c_p + |v_p|)` and the particle that sets it, with its
     /// wave speed and speed. Ties go to the lowest id, so the result is deterministic.
     pub fn stability_limit(&self, particles: &Particles<T, D>) -> (f64, usize, f64, f64) {
-        particles
-            .v
-            .par_iter()
-            .zip(particles.material.par_iter())
-            .enumerate()
-            .map(|(p, (v, &m))| self.particle_limit(p, v, m))
+        (0..particles.len())
+            .into_par_iter()
+            .map(|i| self.particle_limit(particles, i))
             .reduce(|| (f64::INFINITY, usize::MAX, 0.0, 0.0), lower_limit)
     }
 
@@ -469,7 +482,7 @@ impl<T: Scalar, const D: usize> Solver<T, D> {
                     acc = Located::join(
                         acc,
                         Located {
-                            max_rate: self.wave_speed[p.material[i] as usize] + speed,
+                            max_rate: self.particle_wave_speed(p, i) + speed,
                             max_mass: p.mass[i].re(),
                             off_grid: *key == OFF_GRID,
                         },

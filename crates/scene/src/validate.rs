@@ -694,16 +694,6 @@ impl Scene {
 
     fn check_explicit(&self, c: &mut Checker) {
         let s = &self.solver;
-        for (i, m) in self.materials.iter().enumerate() {
-            if m.model == ModelKind::ModifiedCamClay {
-                c.issue(
-                    format!("materials[{i}].model"),
-                    "\"modified_cam_clay\" runs in implicit scenes (solver.type = \
-                     \"implicit\"): its stiffness grows with the pressure, and the explicit \
-                     solver's time-step bound takes one elastic wave speed per material",
-                );
-            }
-        }
         let shape = self.grid.shape_function;
         if s.transfer == Some(Transfer::Mls) && shape.apic_inverse_inertia().is_none() {
             c.issue(

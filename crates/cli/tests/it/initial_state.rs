@@ -1,6 +1,6 @@
 //! Initial states from scene files, run: a rotating disk keeps its angular momentum (audited
-//! from the frames, with the affine field), and columns with a geostatic or hydrostatic
-//! initial stress stay at rest under gravity.
+//! from the frames, with the affine field), columns with a geostatic or hydrostatic initial
+//! stress stay at rest under gravity, and a clay column's time step follows its pressure.
 
 use loam_core::Particles;
 use loam_explicit::Solver;
@@ -237,4 +237,62 @@ fn columns_with_an_initial_stress_at_rest_stay_at_rest() {
             assert!(p.state.iter().all(|s| s.plastic_strain == 0.0), "{name}");
         }
     }
+    // Modified Cam-Clay has no stiffness at zero stress, so only its column at rest can run
+    // (over 400 steps bounded by every particle's own wave speed); it stays at rest within
+    // the same bound, and inside its ellipse (OCR 1.5).
+    for transfer in ["apic", "mls"] {
+        let (p, still) = run(&column(CLAY, "clay", Some(GEOSTATIC), transfer), 400);
+        assert!(
+            still < 1e-3 * scale,
+            "clay {transfer}: {:.3e} √(gH)",
+            still / scale
+        );
+        assert!(p.state.iter().all(|s| s.plastic_strain == 0.0), "clay");
+    }
+}
+
+const GEOSTATIC: &str = "{ type = \"geostatic\" }";
+
+/// A lightly overconsolidated soft clay (λ = 0.2, κ = 0.04, M = 1,
+/// e₀ = 1, ν = 0.3, OCR 1.5).
+const CLAY: &str = r#"
+[[materials]]
+name = "clay"
+model = "modified_cam_clay"
+density = 1800.0
+lambda = 0.2
+kappa = 0.04
+critical_state_slope = 1.0
+void_ratio = 1.0
+poisson_ratio = 0.3
+ocr = 1.5
+"#;
+
+/// An explicit step on Modified Cam-Clay is bounded by each particle's own wave speed: in a
+/// geostatic column the deepest particles, with the largest `p′`, set it, at
+/// `c = √((K + 4G/3)/ρ₀)` with `K = p′/κ̃`, `G = 3(1 − 2ν)/(2(1 + ν)) K` and
+/// `p′ = (1 + 2K0)/3 · ρ₀ g d` (K0 = Jaky's `1 − 3M/(6 + M)`, the default; 1e-9: the
+/// stress goes through the elastic strain and back, `exp ∘ ln`).
+#[test]
+fn an_explicit_clay_step_is_bounded_by_its_deepest_particles() {
+    let built = column(CLAY, "clay", Some(GEOSTATIC), "apic");
+    let p = &built.particles;
+    let solver = Solver::new(built.explicit_config().expect("explicit"), p).expect("valid");
+    let (limit, particle, c, _) = solver.stability_limit(p);
+    let deepest = p.x.iter().map(|x| x[1]).fold(f64::INFINITY, f64::min);
+    assert_eq!(
+        p.x[particle][1], deepest,
+        "particle {particle} sets the bound"
+    );
+    let (rho, kappa, nu) = (1800.0, 0.04 / 2.0, 0.3);
+    let k0 = 1.0 - 3.0 / 7.0;
+    let pressure = (1.0 + 2.0 * k0) / 3.0 * rho * 9.81 * (0.4 - deepest);
+    let bulk = pressure / kappa;
+    let shear = 1.5 * (1.0 - 2.0 * nu) / (1.0 + nu) * bulk;
+    let expected = ((bulk + 4.0 / 3.0 * shear) / rho).sqrt();
+    assert!(
+        (c - expected).abs() <= 1e-9 * expected,
+        "c = {c} vs {expected}"
+    );
+    assert!((limit - 0.02 / expected).abs() <= 1e-9 * limit, "{limit}");
 }

@@ -345,6 +345,12 @@ fn trial_re<T: Scalar>(trial: (T, T)) -> (f64, f64) {
 }
 
 impl ModifiedCamClay<f64> {
+    /// The elastic constrained modulus `K + 4G/3` at mean effective stress `p`, with the
+    /// tangent bulk modulus `K = dp/dε_v = p/κ̃` and `G` at `p`.
+    pub fn p_wave_modulus_at(&self, p: f64) -> f64 {
+        p / self.kappa_log() + self.shear_modulus(p) * 4.0 / 3.0
+    }
+
     /// The same parameters as constants of another scalar type (zero derivative parts).
     pub fn lift<T: Scalar>(&self) -> ModifiedCamClay<T> {
         ModifiedCamClay {
@@ -421,10 +427,22 @@ impl<T: Scalar> Constitutive<T> for ModifiedCamClay<T> {
     }
 
     /// The constrained modulus `K + 4G/3` at the reference pressure scale of 1 MPa (the
-    /// stiffness grows with `p`; explicit scenes do not take this model).
+    /// stiffness grows with `p`: the explicit solver takes each particle's own,
+    /// [`Constitutive::p_wave_modulus_in`]).
     fn p_wave_modulus(&self) -> f64 {
+        self.real().p_wave_modulus_at(1.0e6)
+    }
+
+    /// `K + 4G/3` at the mean effective stress of the state, `p = p_r exp(ε_v/κ̃)` with the
+    /// elastic volumetric strain `ε_v = −tr εₑ = −½ ln det bₑ` (compression positive).
+    fn p_wave_modulus_in(&self, state: &MaterialState<T>) -> f64 {
+        let b = state.tensor.map(|x| x.re());
+        let eps_v = -0.5 * det::<f64, 3>(&b).ln();
         let real = self.real();
-        let p = 1.0e6;
-        p / real.kappa_log() + real.shear_modulus(p) * 4.0 / 3.0
+        real.p_wave_modulus_at(real.pressure(eps_v))
+    }
+
+    fn stiffness_depends_on_state(&self) -> bool {
+        true
     }
 }

@@ -260,3 +260,37 @@ fn triaxial_return_keeps_the_symmetry() {
     let t = principal(&tau);
     assert!((t[0] - t[1]).abs() <= 1e-9 * t[2].abs());
 }
+
+/// The wave speed of the explicit time-step bound comes from the state's own stiffness: at an
+/// isotropic state `p₀` (inside the ellipse, OCR 2) the constrained modulus `∂τ_zz/∂ε_zz` of a
+/// uniaxial Hencky strain, by central differences of the return map (δ = 1e-6: truncation
+/// ~δ² and round-off ~1e-10 |τ|/δ, both far below the 1e-6 tolerance), equals
+/// `p_wave_modulus_in = p₀/κ̃ + 4G(p₀)/3`, and it grows in proportion to `p₀` (`K` and `G`
+/// both ∝ `p` with `G` from ν).
+#[test]
+fn the_wave_speed_follows_the_state_pressure() {
+    let m = clay(Shear::Poisson(0.3), Preconsolidation::Ratio(2.0));
+    assert!(m.stiffness_depends_on_state());
+    let mut moduli = Vec::new();
+    for p0 in [50e3, 400e3] {
+        let state = m.initial_state(&isotropic(p0)).expect("p₀ > 0");
+        let modulus = m.p_wave_modulus_in(&state);
+        let h = 1e-6;
+        let tau_zz = |e: f64| {
+            let df = Matrix3::from_diagonal(&nalgebra::vector![1.0, 1.0, e.exp()]);
+            let (tau, _, region) = m.return_map(&df, &state);
+            assert_eq!(region, Region::Elastic);
+            tau[(2, 2)]
+        };
+        let fd = (tau_zz(h) - tau_zz(-h)) / (2.0 * h);
+        assert!(
+            (fd - modulus).abs() <= 1e-6 * modulus,
+            "p₀ = {p0}: central difference {fd:.9e} vs {modulus:.9e}"
+        );
+        let kappa = 0.04 / 2.0;
+        let g = 1.5 * (1.0 - 0.6) / 1.3 * p0 / kappa;
+        assert!((modulus - (p0 / kappa + 4.0 / 3.0 * g)).abs() <= 1e-9 * modulus);
+        moduli.push(modulus);
+    }
+    assert!((moduli[1] / moduli[0] - 8.0).abs() < 1e-9, "{moduli:?}");
+}

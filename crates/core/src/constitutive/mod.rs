@@ -221,6 +221,20 @@ pub trait Constitutive<T: Scalar>: Send + Sync {
     /// The constrained modulus `M` at small strain (real part), for the time-step bound
     /// `Δt ≤ h / (√(M/ρ) + |v|)`.
     fn p_wave_modulus(&self) -> f64;
+
+    /// The constrained modulus of a point in `state` (real part), for models whose elastic
+    /// stiffness depends on the state ([`Constitutive::stiffness_depends_on_state`]); the
+    /// others return [`Constitutive::p_wave_modulus`].
+    fn p_wave_modulus_in(&self, _state: &MaterialState<T>) -> f64 {
+        self.p_wave_modulus()
+    }
+
+    /// Whether the elastic stiffness, and so the wave speed, depends on the state (Modified
+    /// Cam-Clay's grows with the pressure): the explicit solver then bounds its step with
+    /// every particle's own [`Constitutive::p_wave_modulus_in`].
+    fn stiffness_depends_on_state(&self) -> bool {
+        false
+    }
 }
 
 /// A hyperelastic model: stress derives from a stored energy `ψ(F)`.
@@ -471,6 +485,13 @@ impl<T: Scalar> Material<T> {
     /// [`Fluid`].
     pub fn wave_speed(&self) -> f64 {
         (self.constitutive().p_wave_modulus() / self.density.re()).sqrt()
+    }
+
+    /// The elastic P-wave speed `√(M/ρ₀)` of a point in `state`, with `M` from
+    /// [`Constitutive::p_wave_modulus_in`] (the same as [`Material::wave_speed`] for models
+    /// whose stiffness does not depend on the state).
+    pub fn wave_speed_in(&self, state: &MaterialState<T>) -> f64 {
+        (self.constitutive().p_wave_modulus_in(state) / self.density.re()).sqrt()
     }
 
     /// The model as a trait object (for code that does not need static dispatch).
