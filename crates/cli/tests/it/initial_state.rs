@@ -270,9 +270,11 @@ ocr = 1.5
 
 /// An explicit step on Modified Cam-Clay is bounded by each particle's own wave speed: in a
 /// geostatic column the deepest particles, with the largest `p′`, set it, at
-/// `c = √((K + 4G/3)/ρ₀)` with `K = p′/κ̃`, `G = 3(1 − 2ν)/(2(1 + ν)) K` and
-/// `p′ = (1 + 2K0)/3 · ρ₀ g d` (K0 = Jaky's `1 − 3M/(6 + M)`, the default; 1e-9: the
-/// stress goes through the elastic strain and back, `exp ∘ ln`).
+/// `c = √((K + 4G/3 + ‖dev τ‖/κ̃)/ρ₀)` with `K = p′/κ̃`, `G = 3(1 − 2ν)/(2(1 + ν)) K`,
+/// `p′ = (1 + 2K0)/3 · σ_v`, `‖dev τ‖ = √6 (1 − K0) σ_v / 3`, `σ_v = ρ₀ g d` (K0 = Jaky's
+/// `1 − 3M/(6 + M)`, the default; the last term is `2 (dG/dε_v) ‖dev εₑ‖` of
+/// `p_wave_modulus_in`; 1e-9: the stress goes through the elastic strain and back,
+/// `exp ∘ ln`).
 #[test]
 fn an_explicit_clay_step_is_bounded_by_its_deepest_particles() {
     let built = column(CLAY, "clay", Some(GEOSTATIC), "apic");
@@ -286,10 +288,12 @@ fn an_explicit_clay_step_is_bounded_by_its_deepest_particles() {
     );
     let (rho, kappa, nu) = (1800.0, 0.04 / 2.0, 0.3);
     let k0 = 1.0 - 3.0 / 7.0;
-    let pressure = (1.0 + 2.0 * k0) / 3.0 * rho * 9.81 * (0.4 - deepest);
+    let vertical = rho * 9.81 * (0.4 - deepest);
+    let pressure = (1.0 + 2.0 * k0) / 3.0 * vertical;
     let bulk = pressure / kappa;
     let shear = 1.5 * (1.0 - 2.0 * nu) / (1.0 + nu) * bulk;
-    let expected = ((bulk + 4.0 / 3.0 * shear) / rho).sqrt();
+    let distortion = 6f64.sqrt() * (1.0 - k0) * vertical / 3.0 / kappa;
+    let expected = ((bulk + 4.0 / 3.0 * shear + distortion) / rho).sqrt();
     assert!(
         (c - expected).abs() <= 1e-9 * expected,
         "c = {c} vs {expected}"

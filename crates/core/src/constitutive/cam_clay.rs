@@ -433,13 +433,24 @@ impl<T: Scalar> Constitutive<T> for ModifiedCamClay<T> {
         self.real().p_wave_modulus_at(1.0e6)
     }
 
-    /// `K + 4G/3` at the mean effective stress of the state, `p = p_r exp(ε_v/κ̃)` with the
-    /// elastic volumetric strain `ε_v = −tr εₑ = −½ ln det bₑ` (compression positive).
+    /// A bound on the elastic stiffness of the state, for the explicit time step:
+    /// `K + 4G/3 + 2 |dG/dε_v| ‖dev εₑ‖` at the mean effective stress `p = p_r exp(ε_v/κ̃)`,
+    /// `εₑ = ½ ln bₑ`, `ε_v = −tr εₑ` (compression positive). The law
+    /// `τ = −p I + 2G(p) dev εₑ` has the tangent `K 1⊗1 + 2G I_dev − 2 (dG/dε_v) dev εₑ ⊗ 1`;
+    /// the last term (with `G` from ν, `dG/dε_v = G/κ̃`) is zero at an isotropic state but grows
+    /// with the elastic distortion, which a heavily overconsolidated point (`p_c ≫ p`) can
+    /// carry.
     fn p_wave_modulus_in(&self, state: &MaterialState<T>) -> f64 {
-        let b = state.tensor.map(|x| x.re());
-        let eps_v = -0.5 * det::<f64, 3>(&b).ln();
         let real = self.real();
-        real.p_wave_modulus_at(real.pressure(eps_v))
+        let eps = symmetric_fn(&state.tensor.map(|x| x.re()), &Log) * 0.5;
+        let eps_v = -eps.trace();
+        let distortion = (eps + Matrix3::identity() * (eps_v / 3.0)).norm();
+        let p = real.pressure(eps_v);
+        let coupling = match real.shear {
+            Shear::Modulus(_) => 0.0,
+            Shear::Poisson(_) => real.shear_modulus(p) / real.kappa_log(),
+        };
+        real.p_wave_modulus_at(p) + 2.0 * coupling * distortion
     }
 
     fn stiffness_depends_on_state(&self) -> bool {

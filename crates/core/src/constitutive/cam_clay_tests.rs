@@ -266,7 +266,8 @@ fn triaxial_return_keeps_the_symmetry() {
 /// uniaxial Hencky strain, by central differences of the return map (δ = 1e-6: truncation
 /// ~δ² and round-off ~1e-10 |τ|/δ, both far below the 1e-6 tolerance), equals
 /// `p_wave_modulus_in = p₀/κ̃ + 4G(p₀)/3`, and it grows in proportion to `p₀` (`K` and `G`
-/// both ∝ `p` with `G` from ν).
+/// both ∝ `p` with `G` from ν); at a distorted state it bounds the stiffness along every
+/// axis.
 #[test]
 fn the_wave_speed_follows_the_state_pressure() {
     let m = clay(Shear::Poisson(0.3), Preconsolidation::Ratio(2.0));
@@ -293,4 +294,27 @@ fn the_wave_speed_follows_the_state_pressure() {
         moduli.push(modulus);
     }
     assert!((moduli[1] / moduli[0] - 8.0).abs() < 1e-9, "{moduli:?}");
+    // At a distorted state (τ = diag(−50, −100, −200) kPa) the bound covers the stiffness
+    // along every axis, which the coupling `2 (dG/dε_v) dev εₑ ⊗ 1` raises above K + 4G/3.
+    let state = m
+        .initial_state(&Matrix3::from_diagonal(&nalgebra::vector![
+            -50e3, -100e3, -200e3
+        ]))
+        .expect("p₀ > 0");
+    let bound = m.p_wave_modulus_in(&state);
+    for axis in 0..3 {
+        let h = 1e-6;
+        let tau = |e: f64| {
+            let mut d = nalgebra::Vector3::from_element(1.0);
+            d[axis] = e.exp();
+            let (tau, _, region) = m.return_map(&Matrix3::from_diagonal(&d), &state);
+            assert_eq!(region, Region::Elastic);
+            tau[(axis, axis)]
+        };
+        let fd = (tau(h) - tau(-h)) / (2.0 * h);
+        assert!(
+            fd <= bound,
+            "axis {axis}: stiffness {fd:.6e} above the bound {bound:.6e}"
+        );
+    }
 }
