@@ -316,6 +316,16 @@ fn seed<const D: usize>(
                 msg: format!("the component must be below the dimension {D}"),
             });
         }
+        Param::Material(_, MaterialField::Ocr | MaterialField::PreconsolidationPressure) => {
+            // They set p_c of the initial state only, which explicit runs take as built.
+            return Err(AdjointError::Parameter {
+                param: param.to_string(),
+                msg: "acts only through the initial state of a prestressed body, which an \
+                      explicit run takes as built: not a parameter of explicit scenes (it is \
+                      one of implicit scenes and element tests)"
+                    .into(),
+            });
+        }
         Param::Material(k, field) => {
             let m = config.materials.get(k).ok_or_else(unknown)?;
             let (seeded, value) =
