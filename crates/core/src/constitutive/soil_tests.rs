@@ -107,16 +107,25 @@ pub(super) fn check_tangent(
     );
 }
 
+/// `count` relative deformation gradients `I + a R + b s I` with the entries of `R` and `s`
+/// pseudo-random in [−1, 1) from `seed`: distortions of size `a`, volume changes of size `b`.
+fn random_df(seed: u64, count: usize, a: f64, b: f64) -> Vec<Matrix3<f64>> {
+    let mut seed = seed;
+    (0..count)
+        .map(|_| {
+            Matrix3::identity()
+                + Matrix3::from_fn(|_, _| a * (2.0 * rng(&mut seed) - 1.0))
+                + Matrix3::identity() * b * (2.0 * rng(&mut seed) - 1.0)
+        })
+        .collect()
+}
+
 #[test]
 fn mohr_coulomb_returns_end_on_the_pyramid() {
     let m = mc(30.0, 10.0, 10e3);
     let state = compressed(&m.lame, 100e3);
-    let mut seed = 7;
     let mut regions = std::collections::HashSet::new();
-    for _ in 0..2000 {
-        let df = Matrix3::identity()
-            + Matrix3::from_fn(|_, _| 0.04 * (2.0 * rng(&mut seed) - 1.0))
-            + Matrix3::identity() * 0.03 * (2.0 * rng(&mut seed) - 1.0);
+    for df in random_df(7, 2000, 0.04, 0.03) {
         let (tau, _, region) = m.return_map(&df, &state);
         regions.insert(format!("{region:?}"));
         let f = m.yield_function(principal(&tau));
@@ -388,12 +397,8 @@ fn mohr_coulomb_returns_respect_the_tension_cutoff() {
     let m = mc_cut();
     let cutoff = 5e3;
     let state = compressed(&m.lame, 5e3);
-    let mut seed = 11;
     let mut regions = std::collections::HashSet::new();
-    for _ in 0..4000 {
-        let df = Matrix3::identity()
-            + Matrix3::from_fn(|_, _| 0.004 * (2.0 * rng(&mut seed) - 1.0))
-            + Matrix3::identity() * 0.003 * (2.0 * rng(&mut seed) - 1.0);
+    for df in random_df(11, 4000, 0.004, 0.003) {
         let (tau, _, region) = m.return_map(&df, &state);
         regions.insert(format!("{region:?}"));
         let t = principal(&tau);
