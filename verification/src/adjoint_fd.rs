@@ -229,6 +229,7 @@ fn check_scene<const D: usize>(
             name: match control {
                 Control::Param(p) => p.to_string(),
                 Control::InitialVelocity { .. } => "velocity[0]".into(),
+                Control::K0 { material } => format!("materials[{material}].k0"),
                 Control::VelocityField(_) => {
                     unreachable!("the adjoint-fd scenes have one unknown per control")
                 }

@@ -14,7 +14,8 @@
 //!   Cam-Clay at rest under gravity (a geostatic initial stress, K0 = 0.6, balanced on the
 //!   grid: gravity in full from the first load step); unknowns λ, κ, M and the OCR, which
 //!   also move the history that carries the initial stress (held as data, as the balance
-//!   is); the loss as for the J2 footing;
+//!   is), and K0, which moves the initial stress itself, its history and its balance; the
+//!   loss as for the J2 footing;
 //! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
 //!   density (which now also sets the inertia); the loss tracks the tip's deflection and
@@ -233,7 +234,7 @@ fn j2_footing() -> Result<Outcome, VerifyError> {
 
 /// The footing on prestressed Modified Cam-Clay: λ, κ, M and the OCR, which act also through
 /// the history that carries the initial stress (κ, through the elastic strain; M and the
-/// OCR, through `p_c₀`).
+/// OCR, through `p_c₀`), and K0, through the initial stress, its history and its balance.
 fn clay_footing() -> Result<Outcome, VerifyError> {
     footing(
         "prestressed clay footing",
@@ -243,6 +244,7 @@ fn clay_footing() -> Result<Outcome, VerifyError> {
             ImplicitParam::Material(0, MaterialField::Kappa),
             ImplicitParam::Material(0, MaterialField::CriticalStateSlope),
             ImplicitParam::Material(0, MaterialField::Ocr),
+            ImplicitParam::K0(0),
         ],
     )
 }

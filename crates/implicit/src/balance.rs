@@ -20,9 +20,9 @@
 
 use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::solver::{ImplicitConfig, ImplicitError, ImplicitSolver};
-use crate::system::Inverted;
+use crate::system::{Inverted, StepSystem};
 use loam_core::Particles;
-use loam_core::tensor::Vector;
+use loam_core::tensor::{Tensor, Vector};
 
 /// The balance of an initial stress and how far from equilibrium the state was.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,16 +44,7 @@ pub fn balance_initial_stress<const D: usize>(
     config: &ImplicitConfig<D>,
     particles: &Particles<f64, D>,
 ) -> Result<Balance<D>, ImplicitError> {
-    let rest = ImplicitConfig {
-        point_loads: Vec::new(),
-        dynamics: None,
-        gravity_in_full: true,
-        balance: Vec::new(),
-        ..config.clone()
-    };
-    let solver = ImplicitSolver::new(rest, particles)?;
-    // From load factor 0 to 0: prescribed displacements are zero, gravity acts in full.
-    let system = solver.system(particles, 0.0, 0.0)?;
+    let (solver, system) = at_rest(config, particles)?;
     let n = system.len();
     let f_int = system
         .internal_force(&vec![0.0; n], solver.materials())
@@ -68,19 +59,64 @@ pub fn balance_initial_stress<const D: usize>(
     } else {
         0.0
     };
+    Ok(Balance {
+        forces: spread(&system, particles, &r0)?,
+        out_of_balance,
+    })
+}
+
+/// The derivative of the balancing forces when the particles' initial Kirchhoff stresses
+/// move at the rates `tau_rate` (3×3, one per particle; the weight held): the balance is
+/// linear in the residual `R₀ = f_int − f_ext` and `f_int` at rest is linear in the stress,
+/// `Ṙ₀_i = Σ_p V⁰_p τ̇_p ∇N_ip`, so the rate is the balance of `Ṙ₀`.
+///
+/// # Errors
+/// As [`balance_initial_stress`].
+pub fn balance_rate<const D: usize>(
+    config: &ImplicitConfig<D>,
+    particles: &Particles<f64, D>,
+    tau_rate: &[nalgebra::Matrix3<f64>],
+) -> Result<Vec<Vector<f64, D>>, ImplicitError> {
+    let (_, system) = at_rest(config, particles)?;
+    let s: Vec<Tensor<f64, D>> = (tau_rate.iter().zip(&particles.volume0))
+        .map(|(t, v)| Tensor::<f64, D>::from_fn(|a, b| t[(a, b)] * v))
+        .collect();
+    spread(&system, particles, &system.divergence(&s))
+}
+
+/// The solver and the system of `particles` at rest under `config`'s gravity in full, with
+/// no point loads and no prescribed displacement (from load factor 0 to 0).
+fn at_rest<const D: usize>(
+    config: &ImplicitConfig<D>,
+    particles: &Particles<f64, D>,
+) -> Result<(ImplicitSolver<D>, StepSystem<D>), ImplicitError> {
+    let rest = ImplicitConfig {
+        point_loads: Vec::new(),
+        dynamics: None,
+        gravity_in_full: true,
+        balance: Vec::new(),
+        ..config.clone()
+    };
+    let solver = ImplicitSolver::new(rest, particles)?;
+    let system = solver.system(particles, 0.0, 0.0)?;
+    Ok((solver, system))
+}
+
+/// The particle forces `f_p = m_p Σ_i N_ip c_i` with `M c = r` on the consistent mass.
+fn spread<const D: usize>(
+    system: &StepSystem<D>,
+    particles: &Particles<f64, D>,
+    r: &[f64],
+) -> Result<Vec<Vector<f64, D>>, ImplicitError> {
     let mass = system.consistent_mass(&particles.mass);
-    let mut c = vec![0.0; n];
+    let mut c = vec![0.0; r.len()];
     LinearSolver::new(LinearSolverKind::Cholesky)
-        .solve(&mass, &r0, &mut c)
+        .solve(&mass, r, &mut c)
         .map_err(|e| ImplicitError::Config {
             field: "balance".into(),
             msg: format!("the consistent mass of the balance cannot be factored: {e}"),
         })?;
-    let forces = (0..particles.len())
+    Ok((0..particles.len())
         .map(|p| system.interpolate(p, &c) * particles.mass[p])
-        .collect();
-    Ok(Balance {
-        forces,
-        out_of_balance,
-    })
+        .collect())
 }

@@ -26,7 +26,7 @@ pub mod solver;
 pub mod strength_reduction;
 pub mod system;
 
-pub use balance::{Balance, balance_initial_stress};
+pub use balance::{Balance, balance_initial_stress, balance_rate};
 pub use dofs::NodeDof;
 pub use loam_core::{NodeConstraint, PointLoad};
 pub use newton::{NewtonReport, NewtonSettings, TangentMethod};

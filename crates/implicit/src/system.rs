@@ -401,6 +401,23 @@ impl<const D: usize> StepSystem<D> {
         Ok(f)
     }
 
+    /// The force `f = Σ_p s_p ∇N_i` on the unknowns of the per-particle tensors `s_p` (at
+    /// `Δu = 0` the internal force of a stress field is that of `s_p = V⁰_p τ_p`).
+    pub fn divergence(&self, s: &[Tensor<f64, D>]) -> Vec<f64> {
+        let mut f = vec![0.0; self.len()];
+        for (fr, s) in self.frozen.iter().zip(s) {
+            fr.stencil.for_each(|node| {
+                let fi = s * node.gradient;
+                for a in 0..D {
+                    if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, a) {
+                        f[dof] += sign * fi[a];
+                    }
+                }
+            });
+        }
+        f
+    }
+
     /// Internal force `f_i = Σ_p V⁰τΔF⁻ᵀ ∇N_i` on every grid node (flat index), before any
     /// folding of ghost nodes: at prescribed nodes it is the reaction the constraint exerts.
     pub fn nodal_internal_force(

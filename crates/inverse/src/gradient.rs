@@ -169,7 +169,8 @@ pub fn gradient<const D: usize>(
             }
             phases.reverse += clock.elapsed().as_secs_f64() - replayed;
         }
-        // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p.
+        // Parameters that act through the initial state: the density, through m_p = ρ₀ V⁰_p;
+        // the OCR and p_c₀, through a prestressed body's history.
         for (k, param) in params.iter().enumerate() {
             if let (Acts::Initial, Param::Material(m, MaterialField::Density)) =
                 (param.acts(), param)
@@ -178,6 +179,10 @@ pub fn gradient<const D: usize>(
                     .filter(|&i| initial.material[i] as usize == *m)
                     .map(|i| adjoint.mass[i] * initial.volume0[i])
                     .sum::<f64>();
+            }
+            for (i, h) in param.initial_histories(config, initial)? {
+                let (bar, dh) = (adjoint.history[i].components(), h.components());
+                grad[k] += bar.iter().zip(&dh).map(|(b, d)| b * d.eps).sum::<f64>();
             }
         }
         Ok(Gradient {

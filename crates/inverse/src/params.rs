@@ -12,8 +12,9 @@
 
 use crate::error::AdjointError;
 use loam_core::Material;
-use loam_core::constitutive::{Lame, Model, Preconsolidation, Shear};
+use loam_core::constitutive::{Lame, MaterialState, Model, Preconsolidation, Shear};
 use loam_explicit::Config;
+use nalgebra::Matrix3;
 use num_dual::Dual64;
 use std::fmt;
 use std::str::FromStr;
@@ -221,7 +222,12 @@ impl Param {
             | Param::ObstacleFriction(_)
             | Param::ObstacleVelocity(..)
             | Param::Gravity(_) => Acts::Nodes,
-            Param::Material(_, MaterialField::Density) => Acts::Initial,
+            Param::Material(
+                _,
+                MaterialField::Density
+                | MaterialField::Ocr
+                | MaterialField::PreconsolidationPressure,
+            ) => Acts::Initial,
             Param::Material(k, _) => Acts::Particles(k),
         }
     }
@@ -270,6 +276,56 @@ impl Param {
         Ok(())
     }
 
+    /// For a constant of material `k` (not its density): per particle of the material that
+    /// carries an initial stress, the history `h₀(θ)` that carries its initial Kirchhoff
+    /// stress `τ₀ = J σ₀` (held: a prestressed body's initial stress is data, as in implicit
+    /// runs) in the material with `θ` seeded ([`Material::prestressed_state`]), the
+    /// derivative `dh₀/dθ` on the dual parts; none for a particle without stress or a model
+    /// that carries its stress in `F` (the elastic models). Modified Cam-Clay's `ocr` and
+    /// `preconsolidation_pressure` act only through it (`p_c₀`).
+    ///
+    /// # Errors
+    /// `ocr` or `preconsolidation_pressure` of a material none of whose particles carries
+    /// an initial stress (they would move nothing).
+    pub fn initial_histories<const D: usize>(
+        &self,
+        config: &Config<f64, D>,
+        particles: &loam_core::Particles<f64, D>,
+    ) -> Result<Vec<(usize, MaterialState<Dual64>)>, AdjointError> {
+        let Param::Material(k, field) = *self else {
+            return Ok(Vec::new());
+        };
+        if field == MaterialField::Density {
+            return Ok(Vec::new());
+        }
+        let (seeded, _) = seed(config, *self)?;
+        let material = &seeded.materials[k];
+        let out: Vec<(usize, MaterialState<Dual64>)> = (0..particles.len())
+            .filter(|&p| {
+                particles.material[p] as usize == k && particles.stress[p] != Matrix3::zeros()
+            })
+            .filter_map(|p| {
+                let j = loam_core::tensor::det(&particles.f[p]);
+                let tau = (particles.stress[p] * j).map(Dual64::from_re);
+                Some((p, material.prestressed_state(&tau)?))
+            })
+            .collect();
+        if out.is_empty()
+            && matches!(
+                field,
+                MaterialField::Ocr | MaterialField::PreconsolidationPressure
+            )
+        {
+            return Err(AdjointError::Parameter {
+                param: self.to_string(),
+                msg: "sets p_c₀ of a prestressed body: no particle of the material carries an \
+                      initial stress (give its bodies an `initial_stress`)"
+                    .into(),
+            });
+        }
+        Ok(out)
+    }
+
     fn unknown<const D: usize>(&self, config: &Config<f64, D>) -> AdjointError {
         AdjointError::Parameter {
             param: self.to_string(),
@@ -316,16 +372,6 @@ fn seed<const D: usize>(
                 msg: format!("the component must be below the dimension {D}"),
             });
         }
-        Param::Material(_, MaterialField::Ocr | MaterialField::PreconsolidationPressure) => {
-            // They set p_c of the initial state only, which explicit runs take as built.
-            return Err(AdjointError::Parameter {
-                param: param.to_string(),
-                msg: "acts only through the initial state of a prestressed body, which an \
-                      explicit run takes as built: not a parameter of explicit scenes (it is \
-                      one of implicit scenes and element tests)"
-                    .into(),
-            });
-        }
         Param::Material(k, field) => {
             let m = config.materials.get(k).ok_or_else(unknown)?;
             let (seeded, value) =
@@ -340,12 +386,9 @@ fn seed<const D: usize>(
     Ok((lifted, value))
 }
 
-/// `E` and `ν` of Lamé constants: `E = μ(3λ + 2μ)/(λ + μ)`, `ν = λ/(2(λ + μ))`.
+/// `E` and `ν` of Lamé constants ([`Lame::young`], [`Lame::poisson`]).
 fn young_poisson(l: &Lame<f64>) -> (f64, f64) {
-    (
-        l.mu * (3.0 * l.lambda + 2.0 * l.mu) / (l.lambda + l.mu),
-        l.lambda / (2.0 * (l.lambda + l.mu)),
-    )
+    (l.young(), l.poisson())
 }
 
 /// Lamé constants with the derivative with respect to `E` (`young`) or `ν` on their dual

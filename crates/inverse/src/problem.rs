@@ -6,10 +6,13 @@ use crate::checkpoints::Checkpoints;
 use crate::error::AdjointError;
 use crate::field::VelocityField;
 use crate::gradient::{Phases, gradient};
+use crate::k0::K0State;
 use crate::objective::ScalarObjective;
 use crate::params::{MaterialField, Param};
+use loam_core::constitutive::MaterialState;
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
+use nalgebra::Matrix3;
 use num_dual::Dual64;
 
 /// One unknown of an inversion: a scalar `θ`, or a block of them (a velocity field's
@@ -32,6 +35,14 @@ pub enum Control {
     /// The initial velocity along a direction given by an MLP of the initial position: its
     /// [`Mlp::len`](crate::Mlp::len) weights and biases, in the network's order.
     VelocityField(VelocityField),
+    /// `K0`, the lateral earth-pressure coefficient of the geostatic initial stress of the
+    /// particles of material `material` (`materials[k].k0`, [`K0State`]): it sets their
+    /// initial stress and history. Its gradient is
+    /// `dL/dK0 = Σ_p σ̄_p : ∂σ_p/∂K0 + h̄_p · ∂h_p/∂K0` over those particles.
+    K0 {
+        /// The material `k`.
+        material: usize,
+    },
 }
 
 impl Control {
@@ -57,6 +68,28 @@ impl Control {
     /// Whether it holds no unknown (a field with no layer).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// The K0 state a [`Control::K0`] sets, of `particles` under `config`.
+    ///
+    /// # Errors
+    /// A material the scene does not have, or as [`K0State::of`] (named by the parameter).
+    fn k0_state<const D: usize>(
+        material: usize,
+        config: &Config<f64, D>,
+        particles: &Particles<f64, D>,
+    ) -> Result<K0State, AdjointError> {
+        let error = |msg: String| AdjointError::Parameter {
+            param: format!("materials[{material}].k0"),
+            msg,
+        };
+        let m = config.materials.get(material).ok_or_else(|| {
+            error(format!(
+                "no such material: the scene has {}",
+                config.materials.len()
+            ))
+        })?;
+        K0State::of(m, &config.gravity, particles, material).map_err(error)
     }
 }
 
@@ -134,6 +167,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
             match c {
                 Control::Param(p) => out.push(p.value(&self.config)?),
                 Control::VelocityField(f) => out.extend(f.mlp.glorot(f.seed)),
+                Control::K0 { material } => {
+                    out.push(Control::k0_state(*material, &self.config, &self.initial)?.k0)
+                }
                 Control::InitialVelocity { direction, .. } => {
                     let along: Vec<f64> = (0..self.initial.len())
                         .filter(|&p| c.selects(self.initial.material[p]))
@@ -190,6 +226,24 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                     }
                 }
                 Control::VelocityField(field) => field.apply(values, &mut particles),
+                Control::K0 { material } => {
+                    let state = Control::k0_state(*material, &config, &particles)?;
+                    (state.set(&config.materials[*material], &mut particles, values[0])).map_err(
+                        |msg| AdjointError::Parameter {
+                            param: format!("materials[{material}].k0"),
+                            msg,
+                        },
+                    )?;
+                }
+            }
+        }
+        // A prestressed body's initial stress is data: the history that carries it follows
+        // the final constants of its material.
+        for c in &self.controls {
+            if let Control::Param(param) = c {
+                for (p, h) in param.initial_histories(&config, &particles)? {
+                    particles.state[p] = h.map(|c| c.re);
+                }
             }
         }
         Ok((config, particles))
@@ -252,6 +306,23 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                 Control::VelocityField(f) => {
                     derivative.extend(f.gradient(values, &particles, &g.initial))
                 }
+                Control::K0 { material } => {
+                    let state = Control::k0_state(*material, &config, &particles)?;
+                    let rates = state.rates(&config.materials[*material], &particles);
+                    derivative.push(
+                        (rates.iter())
+                            .map(|(p, ds, dh)| {
+                                let bar = g.initial.history[*p].components();
+                                g.initial.stress[*p].dot(ds)
+                                    + bar
+                                        .iter()
+                                        .zip(dh.components())
+                                        .map(|(b, d)| b * d)
+                                        .sum::<f64>()
+                            })
+                            .sum(),
+                    )
+                }
             }
         }
         let cost = GradientCost {
@@ -267,7 +338,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
         (self.controls.iter())
             .filter_map(|c| match c {
                 Control::Param(p) => Some(*p),
-                Control::InitialVelocity { .. } | Control::VelocityField(_) => None,
+                Control::InitialVelocity { .. }
+                | Control::VelocityField(_)
+                | Control::K0 { .. } => None,
             })
             .collect()
     }
@@ -349,6 +422,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                         }
                     }
                 }
+                for (p, h) in param.initial_histories(&config, &particles)? {
+                    lifted.state[p] = h;
+                }
                 param.seeded(&config)?
             }
             Control::InitialVelocity { direction, .. } => {
@@ -370,6 +446,16 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
                     for a in 0..D {
                         lifted.v[p][a].eps = field.direction[a] * df;
                     }
+                }
+                config.lift()
+            }
+            Control::K0 { material } => {
+                let state = Control::k0_state(*material, &config, &particles)?;
+                for (p, ds, dh) in state.rates(&config.materials[*material], &particles) {
+                    let (s, h) = (particles.stress[p], particles.state[p].components());
+                    lifted.stress[p] = Matrix3::from_fn(|i, j| Dual64::new(s[(i, j)], ds[(i, j)]));
+                    let dh = dh.components();
+                    lifted.state[p] = MaterialState::from_components(|c| Dual64::new(h[c], dh[c]));
                 }
                 config.lift()
             }

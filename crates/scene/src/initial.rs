@@ -393,7 +393,7 @@ fn default_k0(material: &Material<f64>) -> f64 {
                 | Model::MohrCoulomb(_)
                 | Model::ModifiedCamClay(_) => return 1.0,
             };
-            let nu = lame.lambda / (2.0 * (lame.lambda + lame.mu));
+            let nu = lame.poisson();
             nu / (1.0 - nu)
         }
     }

@@ -11,7 +11,7 @@ use loam_core::TimeStep;
 use loam_core::tensor::Vector;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{
-    Checkpoints, Control, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
+    Checkpoints, Control, K0State, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
     Transform, Variable, VelocityField,
 };
 use loam_scene::{Built, Issue, Scene, SceneError, SceneFormat, SolverPlan};
@@ -508,6 +508,22 @@ pub fn build<const D: usize>(
                 }
             }
             match p.name.parse::<Param>() {
+                Err(_) if let Ok(ImplicitParam::K0(k)) = p.name.parse::<ImplicitParam>() => {
+                    let state = config.as_ref().map(|c| match c.materials.get(k) {
+                        Some(m) => K0State::of(m, &c.gravity, &built.particles, k),
+                        None => Err(format!(
+                            "no such material: the scene has {}",
+                            c.materials.len()
+                        )),
+                    });
+                    match state {
+                        Some(Err(msg)) => {
+                            issue(at("name"), format!("parameter `{}`: {msg}", p.name));
+                            None
+                        }
+                        _ => Some(Control::K0 { material: k }),
+                    }
+                }
                 Ok(param) => match config.as_ref().map(|c| param.value(c)) {
                     Some(Err(e)) => {
                         issue(at("name"), e.to_string());
@@ -1111,7 +1127,7 @@ fn check_velocities(controls: &[Control], scalars: usize, issue: &mut dyn FnMut(
             direction,
         } => Some((*material, direction.clone())),
         Control::VelocityField(f) => Some((f.material, f.direction.clone())),
-        Control::Param(_) => None,
+        Control::Param(_) | Control::K0 { .. } => None,
     };
     for (i, a) in controls.iter().enumerate() {
         for b in &controls[..i] {

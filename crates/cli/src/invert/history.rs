@@ -4,7 +4,7 @@
 use super::units::quantity;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
-use loam_scene::{MaterialSpec, Scene};
+use loam_scene::{InitialStressSpec, MaterialSpec, Scene};
 use loam_verification::{Panel, Series, write_panels};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -204,6 +204,7 @@ pub fn set_controls(s: &mut Scene, controls: &[Control], theta: &[f64], material
         match control {
             Control::VelocityField(_) => {}
             Control::Param(p) => set(s, *p, v),
+            Control::K0 { material } => set_k0(s, *material, v),
             Control::InitialVelocity {
                 material,
                 direction,
@@ -225,6 +226,16 @@ pub fn set_controls(s: &mut Scene, controls: &[Control], theta: &[f64], material
     }
 }
 
+/// Sets the K0 of every geostatic body of material `k` to `v`.
+fn set_k0(s: &mut Scene, k: usize, v: f64) {
+    let name = s.materials[k].name.clone();
+    for body in s.bodies.iter_mut().filter(|b| b.material == name) {
+        if let Some(InitialStressSpec::Geostatic { k0, .. }) = &mut body.initial_stress {
+            *k0 = Some(v);
+        }
+    }
+}
+
 /// Sets the implicit path's parameters `params` (as the scene numbers them) to `theta` in
 /// the scene.
 pub fn set_implicit(s: &mut Scene, params: &[ImplicitParam], theta: &[f64]) {
@@ -232,6 +243,7 @@ pub fn set_implicit(s: &mut Scene, params: &[ImplicitParam], theta: &[f64]) {
     for (&p, &v) in params.iter().zip(theta) {
         match p {
             ImplicitParam::Material(k, field) => set_material(&mut s.materials[k], field, v),
+            ImplicitParam::K0(k) => set_k0(s, k, v),
             ImplicitParam::Gravity(a) => {
                 s.loads.gravity.get_or_insert_with(|| vec![0.0; dim])[a] = v;
             }

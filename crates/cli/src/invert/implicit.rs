@@ -12,6 +12,7 @@ use super::file::{
 use super::limits;
 use super::model::Model;
 use super::observed;
+use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_implicit::ImplicitConfig;
 use loam_inverse::Param;
@@ -99,7 +100,7 @@ pub fn build<const D: usize>(
                 );
             }
         }
-        match solver_param(p, &scene, &config) {
+        match solver_param(p, &scene, &config, &built.particles) {
             Ok((named, solver)) => {
                 if params.contains(&solver) {
                     issue(at("name"), format!("`{}` is given twice", p.name));
@@ -335,6 +336,7 @@ fn solver_param<const D: usize>(
     p: &ParameterSpec,
     scene: &Scene,
     config: &ImplicitConfig<D>,
+    particles: &Particles<f64, D>,
 ) -> Result<(ImplicitParam, ImplicitParam), String> {
     let named = p.name.parse::<ImplicitParam>().map_err(|msg| {
         let explicit = p.name == "velocity" || p.name.parse::<Param>().is_ok();
@@ -360,7 +362,7 @@ fn solver_param<const D: usize>(
         }
         other => other,
     };
-    solver.value(config).map_err(|e| e.to_string())?;
+    solver.value(config, particles).map_err(|e| e.to_string())?;
     Ok((named, solver))
 }
 

@@ -47,6 +47,16 @@ impl<T: Scalar> Lame<T> {
         }
     }
 
+    /// Young's modulus `E = μ(3λ + 2μ)/(λ + μ)`.
+    pub fn young(&self) -> T {
+        self.mu * (self.lambda * T::cst(3.0) + self.mu * T::cst(2.0)) / (self.lambda + self.mu)
+    }
+
+    /// Poisson's ratio `ν = λ/(2(λ + μ))`.
+    pub fn poisson(&self) -> T {
+        self.lambda / ((self.lambda + self.mu) * T::cst(2.0))
+    }
+
     /// P-wave (constrained) modulus `M = λ + 2μ`, which sets the elastic wave speed
     /// `c = √(M/ρ)`.
     pub fn p_wave_modulus(&self) -> T {

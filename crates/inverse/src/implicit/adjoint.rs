@@ -99,6 +99,11 @@ fn reverse_from<const D: usize>(
                 .collect()
         })
         .collect();
+    // Per parameter, the derivative of each particle's balancing force (a K0's; empty for
+    // the others).
+    let balance_rates: Vec<Vec<Vector<f64, D>>> = (params.iter())
+        .map(|q| q.balance_tangent(config, initial))
+        .collect::<Result<_, _>>()?;
     let zeros = vec![Vector::<f64, D>::zeros(); nodes];
     let mut linear = LinearSolver::new(config.newton.linear);
     let mut mass_solver = LinearSolver::new(LinearSolverKind::Cholesky);
@@ -281,6 +286,11 @@ fn reverse_from<const D: usize>(
                             lin.load_share(&cot)[a]
                         }
                         ImplicitParam::PointLoad(..) => continue,
+                        // Through the initial history, below, and the balancing forces.
+                        ImplicitParam::K0(_) => match balance_rates[j].get(p) {
+                            Some(rate) => lin.balance_share(&cot).dot(rate),
+                            None => continue,
+                        },
                         ImplicitParam::Displacement(..) => {
                             let rate = rates[j].as_ref().expect("rates of displacements");
                             let through = |l: &Linearisation<D>, cot: &Cotangent<'_, D>| {
@@ -307,7 +317,7 @@ fn reverse_from<const D: usize>(
         }
     }
     // The parameters the initial state depends on (the density through the masses, a
-    // prestressed body's constants through its history): s̄₀ · ds₀/dθ.
+    // prestressed body's constants and K0 through its history): s̄₀ · ds₀/dθ.
     for (g, q) in grad.iter_mut().zip(params) {
         for (p, t) in q.initial_tangent(config, initial) {
             *g += t.iter().zip(&sbar[p]).map(|(a, b)| a * b).sum::<f64>();

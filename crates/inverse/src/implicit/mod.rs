@@ -73,7 +73,7 @@ impl<const D: usize> ImplicitProblem<D> {
     /// A parameter or an observation that does not fit (named by its field).
     pub fn validate(&self) -> Result<(), AdjointError> {
         for p in &self.params {
-            p.value(&self.config)?;
+            p.value(&self.config, &self.initial)?;
         }
         self.observations.validate(&self.config, &self.initial)
     }
@@ -83,7 +83,10 @@ impl<const D: usize> ImplicitProblem<D> {
     /// # Errors
     /// As [`ImplicitProblem::validate`].
     pub fn values(&self) -> Result<Vec<f64>, AdjointError> {
-        self.params.iter().map(|p| p.value(&self.config)).collect()
+        self.params
+            .iter()
+            .map(|p| p.value(&self.config, &self.initial))
+            .collect()
     }
 
     /// The configuration and particles with the parameters set to `theta`.

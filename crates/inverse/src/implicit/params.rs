@@ -2,8 +2,10 @@
 
 use super::kernel::{mass_index, state_len};
 use crate::error::AdjointError;
+use crate::k0::K0State;
 use crate::params::{MaterialField, seed_material, set_material};
-use loam_core::constitutive::HISTORY_LEN;
+use loam_core::constitutive::{HISTORY_LEN, MaterialState};
+use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::ImplicitConfig;
 use nalgebra::Matrix3;
@@ -26,12 +28,17 @@ pub enum ImplicitParam {
     /// Component `a` of the total prescribed displacement of constraint `k`
     /// (`ImplicitConfig::constraints[k]`).
     Displacement(usize, usize),
+    /// `K0 = σ′_h/σ′_v` of the geostatic initial stress of material `k`'s particles
+    /// (`materials[k].k0`; see [`ImplicitParam::k0_rates`]): it moves their initial stress,
+    /// the history that carries it and, where the scene balances it, the balancing forces.
+    K0(usize),
 }
 
 impl fmt::Display for ImplicitParam {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::Material(k, field) => write!(f, "materials[{k}].{}", field.name()),
+            Self::K0(k) => write!(f, "materials[{k}].k0"),
             Self::Gravity(a) => write!(f, "gravity[{a}]"),
             Self::PointLoad(k, a) => write!(f, "point_loads[{k}].force[{a}]"),
             Self::Displacement(k, a) => write!(f, "constraints[{k}].displacement[{a}]"),
@@ -46,9 +53,10 @@ impl FromStr for ImplicitParam {
     fn from_str(s: &str) -> Result<Self, String> {
         let expected = || {
             format!(
-                "unknown parameter `{s}`; expected `materials[k].<constant>` (young, poisson, \
-                 yield_stress, hardening, friction_angle, dilation_angle, cohesion, density), \
-                 `gravity[a]`, `point_loads[k].force[a]` or `constraints[k].displacement[a]`"
+                "unknown parameter `{s}`; expected `materials[k].<constant>` (a constant of the \
+                 material's model, e.g. young, poisson, friction_angle, lambda, ocr, density), \
+                 `materials[k].k0`, `gravity[a]`, `point_loads[k].force[a]` or \
+                 `constraints[k].displacement[a]`"
             )
         };
         let indexed = |t: &str, name: &str| -> Option<(usize, String)> {
@@ -75,6 +83,9 @@ impl FromStr for ImplicitParam {
         }
         if let Some((k, rest)) = indexed(s, "materials") {
             let field = rest.strip_prefix('.').ok_or_else(expected)?;
+            if field == "k0" {
+                return Ok(Self::K0(k));
+            }
             return [
                 MaterialField::Young,
                 MaterialField::Poisson,
@@ -122,12 +133,17 @@ impl ImplicitParam {
         })
     }
 
-    /// Its value in `config`.
+    /// Its value in `config` with the initial particles `particles` (which hold a K0).
     ///
     /// # Errors
-    /// An item the configuration does not have, a constant its model does not have, or a
-    /// constraint component that is left free.
-    pub fn value<const D: usize>(&self, config: &ImplicitConfig<D>) -> Result<f64, AdjointError> {
+    /// An item the configuration does not have, a constant its model does not have, a
+    /// constraint component that is left free, or a K0 the particles do not carry
+    /// ([`ImplicitParam::k0_rates`]).
+    pub fn value<const D: usize>(
+        &self,
+        config: &ImplicitConfig<D>,
+        particles: &Particles<f64, D>,
+    ) -> Result<f64, AdjointError> {
         match *self {
             Self::Material(k, field) => {
                 let m = self.material(config, k)?;
@@ -135,6 +151,7 @@ impl ImplicitParam {
                     .map(|s| s.1)
                     .ok_or_else(|| self.error("the material's model has no such constant"))
             }
+            Self::K0(k) => self.k0_rates(config, particles, k).map(|r| r.k0),
             Self::Gravity(a) => self.component::<D>(a).map(|a| config.gravity[a]),
             Self::PointLoad(k, a) => {
                 let a = self.component::<D>(a)?;
@@ -180,8 +197,9 @@ impl ImplicitParam {
         particles: &mut Particles<f64, D>,
         value: f64,
     ) -> Result<(), AdjointError> {
-        self.value(config)?;
+        self.value(config, particles)?;
         match *self {
+            Self::K0(k) => self.set_k0(config, particles, k, value)?,
             Self::Material(k, field) => {
                 // A prestressed body's initial stress is data: the history that carries it
                 // follows the material (the elastic strain of E, ν, κ, …; MCC's p_c₀).
@@ -222,6 +240,14 @@ impl ImplicitParam {
         config: &ImplicitConfig<D>,
         initial: &Particles<f64, D>,
     ) -> Vec<(usize, Vec<f64>)> {
+        if let Self::K0(k) = *self {
+            let Ok(rates) = self.k0_rates(config, initial, k) else {
+                return Vec::new();
+            };
+            return (rates.rates(&config.materials[k], initial).into_iter())
+                .map(|(p, _, h)| (p, state_tangent::<D>(&h)))
+                .collect();
+        }
         let Self::Material(k, field) = *self else {
             return Vec::new();
         };
@@ -245,14 +271,67 @@ impl ImplicitParam {
             .into_iter()
             .filter_map(|(p, tau0)| {
                 let h = seeded.prestressed_state(&tau0.map(Dual64::from_re))?;
-                let mut t = vec![0.0; state_len(D)];
-                let h0 = D + D * D;
-                for (o, c) in t[h0..h0 + HISTORY_LEN].iter_mut().zip(h.components()) {
-                    *o = c.eps;
-                }
-                Some((p, t))
+                Some((p, state_tangent::<D>(&h.map(|c| c.eps))))
             })
             .collect()
+    }
+
+    /// Per particle, the derivative of its balancing force ([`ImplicitConfig::balance`]) by
+    /// this parameter: for a K0 in a scene that balances its initial stress, the balance of
+    /// the stress rates ∂τ₀/∂K0 ([`loam_implicit::balance_rate`]); empty for every other
+    /// parameter, whose balance is data of the initial state (the stress it balances is
+    /// held).
+    ///
+    /// # Errors
+    /// As [`ImplicitParam::value`], or a balance that cannot be computed.
+    pub fn balance_tangent<const D: usize>(
+        &self,
+        config: &ImplicitConfig<D>,
+        initial: &Particles<f64, D>,
+    ) -> Result<Vec<Vector<f64, D>>, AdjointError> {
+        let Self::K0(k) = *self else {
+            return Ok(Vec::new());
+        };
+        if config.balance.is_empty() {
+            return Ok(Vec::new());
+        }
+        let mut rates = vec![Matrix3::zeros(); initial.len()];
+        for (p, _, rate) in self.k0_rates(config, initial, k)?.particles {
+            rates[p] = rate;
+        }
+        Ok(loam_implicit::balance_rate(config, initial, &rates)?)
+    }
+
+    /// The K0 state of material `k`'s particles ([`K0State::of`]).
+    ///
+    /// # Errors
+    /// As [`K0State::of`], named by the parameter.
+    pub fn k0_rates<const D: usize>(
+        &self,
+        config: &ImplicitConfig<D>,
+        particles: &Particles<f64, D>,
+        k: usize,
+    ) -> Result<K0State, AdjointError> {
+        let material = self.material(config, k)?;
+        K0State::of(material, &config.gravity, particles, k).map_err(|m| self.error(m))
+    }
+
+    /// Sets the K0 of material `k`'s particles to `value` ([`ImplicitParam::k0_rates`]): their
+    /// initial stress `τ₀ + (K0′ − K0) ∂τ₀/∂K0`, the history that carries it, their Cauchy
+    /// stress `τ₀/J`, and the balancing forces where the scene balances its initial stress.
+    fn set_k0<const D: usize>(
+        &self,
+        config: &mut ImplicitConfig<D>,
+        particles: &mut Particles<f64, D>,
+        k: usize,
+        value: f64,
+    ) -> Result<(), AdjointError> {
+        let state = self.k0_rates(config, particles, k)?;
+        (state.set(&config.materials[k], particles, value)).map_err(|m| self.error(m))?;
+        if !config.balance.is_empty() {
+            config.balance = loam_implicit::balance_initial_stress(config, particles)?.forces;
+        }
+        Ok(())
     }
 
     /// Material `k` lifted to `Dual64` with this parameter seeded when it is one of its
@@ -265,6 +344,15 @@ impl ImplicitParam {
             _ => None,
         }
     }
+}
+
+/// A particle state's tangent ([`super::kernel::ParticleState::components`] order) that moves
+/// only its history, by `dh`.
+fn state_tangent<const D: usize>(dh: &MaterialState<f64>) -> Vec<f64> {
+    let mut t = vec![0.0; state_len(D)];
+    let h0 = D + D * D;
+    t[h0..h0 + HISTORY_LEN].copy_from_slice(&dh.components());
+    t
 }
 
 /// The Kirchhoff stress `τ₀` each particle of material `k` carries at rest in `particles`:
@@ -295,6 +383,7 @@ mod tests {
         for p in [
             ImplicitParam::Material(1, MaterialField::YieldStress),
             ImplicitParam::Material(0, MaterialField::Density),
+            ImplicitParam::K0(3),
             ImplicitParam::Gravity(1),
             ImplicitParam::PointLoad(2, 0),
             ImplicitParam::Displacement(0, 1),

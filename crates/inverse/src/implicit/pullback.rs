@@ -280,6 +280,12 @@ impl<const D: usize> Linearisation<D> {
         self.external_share(cot) * self.gravity_factor
     }
 
+    /// `Σ_i N_i c_i`, the derivative of `ψₚ` by the particle's balancing force (it acts in
+    /// full).
+    pub fn balance_share(&self, cot: &Cotangent<'_, D>) -> Vector<f64, D> {
+        self.external_share(cot)
+    }
+
     /// `Σ_i N_i c_i`.
     fn external_share(&self, cot: &Cotangent<'_, D>) -> Vector<f64, D> {
         (self.nodes.iter())

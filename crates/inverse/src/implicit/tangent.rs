@@ -71,6 +71,8 @@ pub fn model_tangents<const D: usize>(
     for (p, t) in param.initial_tangent(config, initial) {
         sdot[p] = t;
     }
+    // A K0 moves the balancing forces too.
+    let balance_rate = param.balance_tangent(config, initial)?;
     let mut linear = LinearSolver::new(config.newton.linear);
     let mut mass_solver = LinearSolver::new(LinearSolverKind::Cholesky);
     let vi = velocity_index(D);
@@ -103,6 +105,11 @@ pub fn model_tangents<const D: usize>(
                             loads.point[a].eps = 1.0
                         }
                         _ => {}
+                    }
+                    if let Some(rate) = balance_rate.get(p) {
+                        for a in 0..D {
+                            loads.balance[a].eps = rate[a];
+                        }
                     }
                     let du = |f: usize, a: usize| {
                         let eps = match system.dofs.get(f, a) {

@@ -23,6 +23,10 @@ const CANTILEVER: &str = include_str!("../../../../verification/scenes/implicit_
 const CANTILEVER_NEWMARK: &str =
     include_str!("../../../../verification/scenes/implicit_cantilever_newmark.toml");
 
+/// The scene of `verification/scenes/implicit_clay_footing.toml` (described there).
+const CLAY_FOOTING: &str =
+    include_str!("../../../../verification/scenes/implicit_clay_footing.toml");
+
 /// The scene of `verification/scenes/implicit_footing.toml` (described there).
 const FOOTING: &str = include_str!("../../../../verification/scenes/implicit_footing.toml");
 
@@ -256,6 +260,11 @@ fn footing_adjoint_matches_dual_and_differences() {
 /// that no step is cut. Gradients with respect to φ, c, ψ and E through the plastic history
 /// of four load steps, against the dual derivative, central differences and the Taylor test.
 fn frictional_footing(model: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    scene(&frictional_footing_text(model))
+}
+
+/// The text of [`frictional_footing`]'s scene.
+fn frictional_footing_text(model: &str) -> String {
     let material = format!(
         "[[materials]]\nname = \"clay\"\nmodel = \"{model}\"\ndensity = 1800.0\n\
          youngs_modulus = 5.0e6\npoisson_ratio = 0.3\nfriction_angle = 30.0\n\
@@ -273,7 +282,23 @@ fn frictional_footing(model: &str) -> (ImplicitConfig<2>, Particles<f64, 2>) {
         text.contains(model),
         "the footing's material was not replaced"
     );
-    scene(&text)
+    text
+}
+
+/// The footing's vertical reaction after each of its 4 load steps, "measured" as
+/// `first − 5 kN/m` per step (σ = 1 kN/m).
+fn footing_reactions(first: f64) -> Vec<Observation> {
+    (1..=4)
+        .map(|step| Observation {
+            step,
+            quantity: Quantity::Reaction {
+                constraint: 0,
+                component: 1,
+            },
+            value: first - 5e3 * (step - 1) as f64,
+            sigma: 1e3,
+        })
+        .collect()
 }
 
 fn frictional_footing_check(model: &str, fd_step: f64, taylor: bool) {
@@ -290,17 +315,7 @@ fn frictional_footing_check(model: &str, fd_step: f64, taylor: bool) {
         initial.len()
     );
     assert!(yielded > 10, "{model}: only {yielded} particles yielded");
-    let items: Vec<Observation> = (1..=4)
-        .map(|step| Observation {
-            step,
-            quantity: Quantity::Reaction {
-                constraint: 0,
-                component: 1,
-            },
-            value: -20e3 - 5e3 * step as f64,
-            sigma: 1e3,
-        })
-        .collect();
+    let items = footing_reactions(-25e3);
     let params = [
         ImplicitParam::Material(0, MaterialField::FrictionAngle),
         ImplicitParam::Material(0, MaterialField::Cohesion),
@@ -326,6 +341,122 @@ fn mohr_coulomb_footing_adjoint_matches_dual_and_differences() {
 #[test]
 fn drucker_prager_footing_adjoint_matches_dual_and_differences() {
     frictional_footing_check("drucker_prager", 1e-6, false);
+}
+
+/// The Mohr–Coulomb footing of [`frictional_footing`] on ground at rest under a geostatic
+/// stress of K0 = 0.6 (`balance` = whether the scene balances it on the grid).
+fn prestressed_footing(balance: bool) -> (ImplicitConfig<2>, Particles<f64, 2>) {
+    scene(&prestressed_text(balance))
+}
+
+/// The text of [`prestressed_footing`]'s scene.
+fn prestressed_text(balance: bool) -> String {
+    let text = frictional_footing_text("mohr_coulomb")
+        .replace(
+            "particles_per_cell = 2\n",
+            "particles_per_cell = 2\ninitial_stress = { type = \"geostatic\", k0 = 0.6 }\n",
+        )
+        .replace(
+            "load_steps = 4\n",
+            &format!("load_steps = 4\nbalance_initial_stress = {balance}\n"),
+        );
+    assert!(text.contains("k0 = 0.6") && text.contains("balance_initial_stress"));
+    text
+}
+
+/// The scene `text` with its K0 0.6 set to `k0` by the parameter, and the scene built with
+/// `k0`: their histories' largest difference, the scale `max |bₑ − I|`, and the largest
+/// difference of their balancing forces relative to the largest.
+fn k0_set_and_built(text: &str, k0: f64) -> (f64, f64, f64) {
+    let param = ImplicitParam::K0(0);
+    let (mut config, mut initial) = scene(text);
+    assert!((param.value(&config, &initial).expect("K0") - 0.6).abs() < 1e-9);
+    param.set(&mut config, &mut initial, k0).expect("set");
+    assert!((param.value(&config, &initial).expect("K0") - k0).abs() < 1e-9);
+    let (want_config, want) = scene(&text.replace("k0 = 0.6", &format!("k0 = {k0}")));
+    let history = |h: &loam_core::constitutive::MaterialState<f64>| {
+        nalgebra::Vector4::new(
+            h.tensor[(0, 0)],
+            h.tensor[(1, 1)],
+            h.tensor[(2, 2)],
+            h.hardening,
+        )
+    };
+    let d = (0..initial.len())
+        .map(|p| (history(&initial.state[p]) - history(&want.state[p])).amax())
+        .fold(0.0, f64::max);
+    let scale = (want.state.iter())
+        .map(|h| (h.tensor - nalgebra::Matrix3::identity()).amax())
+        .fold(0.0, f64::max);
+    let largest =
+        |b: &[loam_core::tensor::Vector<f64, 2>]| b.iter().map(|f| f.amax()).fold(0.0, f64::max);
+    let balance = (config.balance.iter().zip(&want_config.balance))
+        .map(|(f, g)| (f - g).amax())
+        .fold(0.0, f64::max)
+        / largest(&want_config.balance);
+    println!(
+        "K0 0.6 → {k0}: history differs by {d:.3e} (scale {scale:.3e}), balance by {balance:.3e}"
+    );
+    (d, scale, balance)
+}
+
+/// K0 as a parameter: setting it moves the particles' initial stress, the history that
+/// carries it and the balancing forces to those of the scene built with the new K0. Modified
+/// Cam-Clay carries its state at `F = I` (`τ_zz = K0 τ_v`, `p_c₀` from the OCR): the same
+/// state to the scene's round-off. The Mohr–Coulomb state at rest is stretched
+/// (`ε_zz = 0`, so `τ_zz = ν(τ_xx + τ_yy)`): the parameter holds `F` and the Kirchhoff
+/// `τ_v = J σ_v` where the scene holds the Cauchy `σ_v`, so `bₑ − I` differs by `O(ε)` of
+/// itself (bound: `max |bₑ − I|²`, ~30× the difference seen); a wrong `τ_zz` would move it
+/// by ~(1 − ν) ΔK0 of itself, 100× more.
+#[test]
+fn setting_k0_gives_the_state_the_scene_builds() {
+    // Absolute: the history's entries are ~5e-2 (elastic strains) and ~1e4 Pa (p_c).
+    let (d, _, balance) = k0_set_and_built(CLAY_FOOTING, 0.55);
+    assert!(
+        d < 1e-9 && balance < 1e-9,
+        "clay: {d:.2e}, balance {balance:.2e}"
+    );
+    let (d, scale, balance) = k0_set_and_built(&prestressed_text(true), 0.5);
+    assert!(d < scale * scale, "Mohr–Coulomb: bₑ differs by {d:.2e}");
+    assert!(
+        balance < 1e-2,
+        "Mohr–Coulomb: balance differs by {balance:.2e}"
+    );
+    // An elastic model carries its K0 in F: refused by name.
+    let hencky = FOOTING
+        .replace("model = \"j2\"", "model = \"hencky\"")
+        .replace("yield_stress = 3.0e4\nhardening = 2.0e5\n", "")
+        .replace(
+            "particles_per_cell = 2\n",
+            "particles_per_cell = 2\ninitial_stress = { type = \"geostatic\", k0 = 0.6 }\n",
+        );
+    let (config, initial) = scene(&hencky);
+    let err = ImplicitParam::K0(0)
+        .value(&config, &initial)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("materials[0].k0") && err.contains("deformation gradient"),
+        "{err}"
+    );
+}
+
+/// `∂L/∂K0` (and `∂L/∂φ` beside it) on the prestressed Mohr–Coulomb footing, unbalanced and
+/// balanced: K0 moves the initial history (and the balancing forces, whose derivative is
+/// the balance of `∂τ₀/∂K0`), against the dual derivative, central differences and the
+/// Taylor test.
+#[test]
+fn k0_gradient_matches_dual_and_differences() {
+    for balance in [false, true] {
+        let (config, initial) = prestressed_footing(balance);
+        let items = footing_reactions(-35e3);
+        let params = [
+            ImplicitParam::K0(0),
+            ImplicitParam::Material(0, MaterialField::FrictionAngle),
+        ];
+        let name = format!("K0, balance {balance}");
+        check_with(&name, config, initial, &params, items, 1e-4, true);
+    }
 }
 
 /// The cantilever under its sudden tip load in Newmark dynamics

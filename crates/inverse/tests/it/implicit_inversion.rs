@@ -197,7 +197,7 @@ fn last_step_ratio(
 ) -> f64 {
     let observations = synthetic(config, initial, quantities, 1.0);
     let (mut c, mut p) = (config.clone(), initial.clone());
-    let value = param.value(config).expect("value");
+    let value = param.value(config, initial).expect("value");
     param.set(&mut c, &mut p, factor * value).expect("set");
     let run = run_recorded(&c, &p, None).expect("run");
     let exact = reverse(&c, &p, &run, &observations, &[param]).expect("adjoint");
