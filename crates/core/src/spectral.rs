@@ -136,20 +136,23 @@ pub fn symmetric_fn<T: Scalar, const D: usize>(
     real.map(T::cst) + qt * hadamard * qt.transpose()
 }
 
-/// An isotropic function of the principal values of a symmetric 3×3 matrix that need not act
-/// on each eigenvalue alone: `g : ℝ³ → ℝ³` with `g(Pλ) = P g(λ)` for every permutation `P`
-/// (a return mapping in principal stress space is one). [`isotropic_map`] applies it.
-pub trait PrincipalMap<T: Scalar> {
-    /// What the map reports besides its values (e.g. the branch a return mapping took).
+/// Isotropic functions of the principal values of a symmetric 3×3 matrix that need not act on
+/// each eigenvalue alone: `g : ℝ³ → (ℝ³)ᴺ` with `g⁽ⁿ⁾(Pλ) = P g⁽ⁿ⁾(λ)` for every permutation
+/// `P`. A return mapping in principal space is one (its outputs the principal stresses and
+/// the new elastic stretches); [`isotropic_maps`] applies it.
+pub trait PrincipalMaps<T: Scalar, const N: usize> {
+    /// What the map reports besides its values (e.g. the branch a return mapping took, or
+    /// invariants computed from the principal values).
     type Tag;
-    /// `g(λ)` in `T` arithmetic (branches on real parts), with the tag of the branch taken.
-    fn principal(&self, lambda: [T; 3]) -> ([T; 3], Self::Tag);
-    /// The Jacobian `∂g_i/∂λ_j` at a real point, used where two eigenvalues coincide.
-    fn jacobian(&self, lambda: [f64; 3]) -> [[f64; 3]; 3];
+    /// The outputs `g⁽ⁿ⁾(λ)` in `T` arithmetic (branches on real parts), with the tag.
+    fn principal(&self, lambda: [T; 3]) -> ([[T; 3]; N], Self::Tag);
+    /// The Jacobians `∂g⁽ⁿ⁾_i/∂λ_j` at a real point, used where two eigenvalues coincide.
+    fn jacobian(&self, lambda: [f64; 3]) -> [[[f64; 3]; 3]; N];
 }
 
-/// `G(A) = Σ_k g_k(λ) n_k n_kᵀ` for a symmetric 3×3 `A = Σ_k λ_k n_k n_kᵀ` of any first-order
-/// scalar type, with exact, finite first derivatives at distinct and repeated eigenvalues.
+/// `G⁽ⁿ⁾(A) = Σ_k g⁽ⁿ⁾_k(λ) n_k n_kᵀ` for a symmetric 3×3 `A = Σ_k λ_k n_k n_kᵀ` of any
+/// first-order scalar type and each output `n` of `g`, with exact, finite first derivatives
+/// at distinct and repeated eigenvalues, from one eigen-decomposition for all outputs.
 ///
 /// As in [`symmetric_fn`], the eigenvectors come from the real part `A₀` and the
 /// perturbation `Ȧ = A − A₀` is carried in the eigenbasis, `Â = Qᵀ Ȧ Q`
@@ -157,14 +160,16 @@ pub trait PrincipalMap<T: Scalar> {
 ///
 /// `Ġ = Q (diag(ġ) + Φ ∘ Â_off) Qᵀ`, `ġ_i = Σ_k ∂g_i/∂λ_k Â_kk`,
 /// `Φ_ij = (g_i − g_j)/(λ_i − λ_j)`, and where `λ_i = λ_j` its limit
-/// `½ (∂g_i/∂λ_i − ∂g_j/∂λ_i + ∂g_j/∂λ_j − ∂g_i/∂λ_j)` from [`PrincipalMap::jacobian`].
+/// `½ (∂g_i/∂λ_i − ∂g_j/∂λ_i + ∂g_j/∂λ_j − ∂g_i/∂λ_j)` from [`PrincipalMaps::jacobian`].
 ///
 /// `ġ` comes from evaluating `g` at `λ_k + Â_kk` in `T` itself, so derivatives with respect
-/// to the map's own parameters (dual parameters inside `g`) are carried too.
-pub fn isotropic_map<T: Scalar, G: PrincipalMap<T>>(
+/// to the map's own parameters (dual parameters inside `g`) are carried too, and so is the
+/// exact first derivative of an invariant (a symmetric function of the principal values)
+/// the tag carries.
+pub fn isotropic_maps<T: Scalar, G: PrincipalMaps<T, N>, const N: usize>(
     a: &SMatrix<T, 3, 3>,
     g: &G,
-) -> (SMatrix<T, 3, 3>, G::Tag) {
+) -> ([SMatrix<T, 3, 3>; N], G::Tag) {
     let a0 = a.map(|x| x.re());
     let (lam, q) = symmetric_eigen(&a0);
     let qt = q.map(T::cst);
@@ -172,7 +177,9 @@ pub fn isotropic_map<T: Scalar, G: PrincipalMap<T>>(
     let rotated = qt.transpose() * adot * qt;
     let lam_t: [T; 3] = std::array::from_fn(|i| T::cst(lam[i]) + rotated[(i, i)]);
     let (values, tag) = g.principal(lam_t);
-    let mut hat = SMatrix::<T, 3, 3>::from_fn(|i, j| if i == j { values[i] } else { T::zero() });
+    let mut hats: [SMatrix<T, 3, 3>; N] = std::array::from_fn(|n| {
+        SMatrix::<T, 3, 3>::from_fn(|i, j| if i == j { values[n][i] } else { T::zero() })
+    });
     if !a.iter().all(|x| x.is_constant()) {
         let scale = lam.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
         let mut jac = None;
@@ -182,17 +189,26 @@ pub fn isotropic_map<T: Scalar, G: PrincipalMap<T>>(
                     continue;
                 }
                 let gap = lam[i] - lam[j];
-                let phi = if gap.abs() > 1e-6 * scale {
-                    (values[i].re() - values[j].re()) / gap
+                let close = gap.abs() <= 1e-6 * scale;
+                let d = if close {
+                    Some(jac.get_or_insert_with(|| g.jacobian(lam)))
                 } else {
-                    let d = jac.get_or_insert_with(|| g.jacobian(lam));
-                    0.5 * (d[i][i] - d[j][i] + d[j][j] - d[i][j])
+                    None
                 };
-                hat[(i, j)] = rotated[(i, j)] * T::cst(phi);
+                for n in 0..N {
+                    let phi = match &d {
+                        None => (values[n][i].re() - values[n][j].re()) / gap,
+                        Some(d) => {
+                            let d = &d[n];
+                            0.5 * (d[i][i] - d[j][i] + d[j][j] - d[i][j])
+                        }
+                    };
+                    hats[n][(i, j)] = rotated[(i, j)] * T::cst(phi);
+                }
             }
         }
     }
-    (qt * hat * qt.transpose(), tag)
+    (hats.map(|h| qt * h * qt.transpose()), tag)
 }
 
 #[cfg(test)]

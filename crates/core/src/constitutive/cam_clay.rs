@@ -44,16 +44,20 @@
 //! derivative parts (a dual `ΔF`, state or parameter) then follow from the implicit-function
 //! theorem: one step `x ← x − (∂R/∂x)⁻¹ R(x, ·)` evaluated in `T` at the converged `x`, with the
 //! exact real Jacobian, gives `ẋ = −(∂R/∂x)⁻¹ ∂R/∂(·)`. The principal stresses are
-//! `τ_i = −p + (2r/3) e_iᵗʳ` (finite at `ε_sᵗʳ = 0`), and the stress tensor is assembled
-//! through [`crate::spectral::isotropic_map`], so the dual tangent is exact also at repeated
-//! principal strains.
+//! `τ_i = −p + (2r/3) e_iᵗʳ` (finite at `ε_sᵗʳ = 0`), the new elastic strains
+//! `εₑ_i = −ε_v/3 + (r/3G) e_iᵗʳ`, and the stress and `bₑ = exp(2εₑ)` are assembled from the
+//! principal values of `bₑᵗʳ` through [`super::trial_return`] (one
+//! eigen-decomposition for the trial strain, the stress and the state), so the dual tangent
+//! is exact also at repeated principal strains.
 
-use super::{Constitutive, Kinematics, MaterialState, Region, hencky_trial};
+use super::trial_return::{PrincipalReturn, trial_return};
+use super::{Constitutive, Kinematics, MaterialState, Region};
 use crate::scalar::Scalar;
-use crate::spectral::{Exp, Log, PrincipalMap, isotropic_map, symmetric_fn};
+use crate::spectral::{Exp, Log, symmetric_fn};
 use crate::tensor::det;
 use nalgebra::{Matrix3, SVector};
 use num_dual::{Derivative, DualSVec64};
+use std::borrow::Borrow;
 
 /// The pressure `p_r` (Pa) at zero elastic volumetric strain: the origin of `ε_v`, no
 /// material constant (module docs).
@@ -100,32 +104,25 @@ pub struct ModifiedCamClay<T> {
     pub preconsolidation: Preconsolidation<T>,
 }
 
-/// The principal return of a [`ModifiedCamClay`] material from the preconsolidation pressure
-/// `p_cⁿ`, as a [`PrincipalMap`] of the trial principal Hencky strains to the principal
-/// Kirchhoff stresses.
-struct PrincipalReturn<'a, T> {
-    model: &'a ModifiedCamClay<T>,
+/// The return of a [`ModifiedCamClay`] material (owned or borrowed) from the
+/// preconsolidation pressure `p_cⁿ`, as a [`PrincipalReturn`].
+struct AtPressure<M, T> {
+    model: M,
     p_c: T,
 }
 
-impl<T: Scalar> PrincipalMap<T> for PrincipalReturn<'_, T> {
-    type Tag = Region;
+impl<T: Scalar, M: Borrow<ModifiedCamClay<T>>> PrincipalReturn<T> for AtPressure<M, T> {
+    type Lanes = AtPressure<ModifiedCamClay<DualSVec64<3>>, DualSVec64<3>>;
 
-    fn principal(&self, eps: [T; 3]) -> ([T; 3], Region) {
-        self.model.principal_return(eps, self.p_c)
+    fn principal_state(&self, eps: [T; 3]) -> ([T; 3], Option<[T; 3]>, Region) {
+        self.model.borrow().principal_return(eps, self.p_c)
     }
 
-    fn jacobian(&self, eps: [f64; 3]) -> [[f64; 3]; 3] {
-        let real = self.model.real().lift::<DualSVec64<3>>();
-        let lanes: [DualSVec64<3>; 3] = std::array::from_fn(|i| {
-            let mut e = SVector::<f64, 3>::zeros();
-            e[i] = 1.0;
-            DualSVec64::new(eps[i], Derivative::some(e))
-        });
-        let (tau, _) = real.principal_return(lanes, DualSVec64::from_re(self.p_c.re()));
-        std::array::from_fn(|i| {
-            std::array::from_fn(|j| tau[i].eps.0.as_ref().map_or(0.0, |e| e[j]))
-        })
+    fn lanes(&self) -> Self::Lanes {
+        AtPressure {
+            model: self.model.borrow().real().lift(),
+            p_c: DualSVec64::from_re(self.p_c.re()),
+        }
     }
 }
 
@@ -207,9 +204,10 @@ impl<T: Scalar> ModifiedCamClay<T> {
     }
 
     /// The return of trial principal strains `εᵗʳ` (any order) from the preconsolidation
-    /// pressure `p_cⁿ` to principal Kirchhoff stresses in the same order, with the region
-    /// taken ([`Region::Shear`] for a plastic step).
-    pub fn principal_return(&self, eps: [T; 3], p_cn: T) -> ([T; 3], Region) {
+    /// pressure `p_cⁿ` to principal Kirchhoff stresses in the same order, with, for a plastic
+    /// step, the principal elastic strains `εₑ = −ε_v/3 + (τ + p)/(2G)`, and the region taken
+    /// ([`Region::Shear`] for a plastic step).
+    pub fn principal_return(&self, eps: [T; 3], p_cn: T) -> ([T; 3], Option<[T; 3]>, Region) {
         let third = T::cst(1.0 / 3.0);
         let eps_v_trial = -(eps[0] + eps[1] + eps[2]);
         let dev: [T; 3] = std::array::from_fn(|i| eps[i] + eps_v_trial * third);
@@ -222,7 +220,7 @@ impl<T: Scalar> ModifiedCamClay<T> {
         let m2 = self.critical_state_slope * self.critical_state_slope;
         let f_trial = r_trial * r_trial * eps_s2 / m2 + p_trial * (p_trial - p_cn);
         if f_trial.re() <= 0.0 {
-            return (stresses(p_trial, r_trial), Region::Elastic);
+            return (stresses(p_trial, r_trial), None, Region::Elastic);
         }
         let trial = (eps_v_trial, eps_s2);
         let x = self
@@ -237,7 +235,10 @@ impl<T: Scalar> ModifiedCamClay<T> {
         let p = self.pressure(eps_v);
         let g = self.shear_modulus(p);
         let ratio = g * T::cst(3.0) / (T::one() + g * (z / p_cn) * T::cst(6.0) / m2);
-        (stresses(p, ratio), Region::Shear)
+        // dev εₑ = dev τ / (2G) = (r / 3G) eᵗʳ.
+        let shear = ratio / (g * T::cst(3.0));
+        let elastic = std::array::from_fn(|i| -eps_v * third + shear * dev[i]);
+        (stresses(p, ratio), Some(elastic), Region::Shear)
     }
 
     /// One step of the return mapping from the relative deformation gradient `ΔF` and the
@@ -248,33 +249,26 @@ impl<T: Scalar> ModifiedCamClay<T> {
         delta_f: &Matrix3<T>,
         state: &MaterialState<T>,
     ) -> (Matrix3<T>, MaterialState<T>, Region) {
-        let half = T::cst(0.5);
-        let (b_trial, eps_trial) = hencky_trial(delta_f, &state.tensor);
-        let map = PrincipalReturn {
+        let at = AtPressure {
             model: self,
             p_c: state.hardening,
         };
-        let (tau, region) = isotropic_map(&eps_trial, &map);
-        let tau = (tau + tau.transpose()) * half;
-        if region == Region::Elastic {
+        let (tau, b_e, tag) = trial_return(&at, delta_f, state);
+        if tag.region == Region::Elastic {
             let elastic = MaterialState {
-                tensor: b_trial,
+                tensor: b_e,
                 ..*state
             };
-            return (tau, elastic, region);
+            return (tau, elastic, tag.region);
         }
-        let eps_e = self.elastic_strain(&tau);
-        let eps_v_trial = -eps_trial.trace();
-        let eps_v = -eps_e.trace();
-        let p_c = state.hardening
-            * ((eps_v_trial - eps_v) / (self.lambda_log() - self.kappa_log())).exp();
+        let p_c =
+            state.hardening * (tag.plastic_volume / (self.lambda_log() - self.kappa_log())).exp();
         let plastic = MaterialState {
-            plastic_strain: state.plastic_strain
-                + (eps_trial - eps_e).norm() * T::cst(2.0 / 3.0).sqrt(),
-            tensor: symmetric_fn(&(eps_e * T::cst(2.0)), &Exp),
+            plastic_strain: state.plastic_strain + tag.plastic * T::cst(2.0 / 3.0).sqrt(),
+            tensor: b_e,
             hardening: p_c,
         };
-        (tau, plastic, region)
+        (tau, plastic, tag.region)
     }
 
     /// The state of a point that carries the Kirchhoff stress `τ₀` with no plastic strain:

@@ -14,6 +14,7 @@ mod linear_elastic;
 mod mohr_coulomb;
 mod neo_hookean;
 mod strength;
+mod trial_return;
 
 pub use cam_clay::{ModifiedCamClay, Preconsolidation, REFERENCE_PRESSURE, Shear};
 pub use drucker_prager::{Cone, DruckerPrager, Elasticity};

@@ -47,19 +47,21 @@
 //! The stress tensor is `τ = Σ τ_i n_i n_iᵀ` on the eigenvectors of `bₑᵗʳ`, `εₑ = C⁻¹:τ`,
 //! `bₑ = exp(2εₑ)`, and the equivalent plastic strain grows by `√(2/3) ‖εᵗʳ − εₑ‖`.
 //!
-//! **Derivatives.** The principal return is applied through
-//! [`crate::spectral::isotropic_map`], which carries a dual perturbation through the
-//! eigenbasis of the real part with the divided differences `(τ_i − τ_j)/(ε_i − ε_j)` (their
-//! limit from the Jacobian of the return where two strains coincide, as in a triaxial test), so
+//! **Derivatives.** The principal return is applied through [`super::trial_return`] (one
+//! eigen-decomposition of `bₑᵗʳ` for the trial strain, `τ` and `bₑ`), which carries a dual
+//! perturbation through the eigenbasis of the real part with the divided differences
+//! `(τ_i − τ_j)/(b_i − b_j)` (their limit from the Jacobian of the return where two stretches
+//! coincide, as in a triaxial test), so
 //! a dual evaluation gives the exact consistent tangent in every region, edges and apex
 //! included, and the derivative with respect to `c`, `φ`, `ψ`, `E`, `ν`.
 
-use super::{Constitutive, Kinematics, Lame, MaterialState, Region, hencky_trial};
+use super::trial_return::{PrincipalReturn, trial_return};
+use super::{Constitutive, Kinematics, Lame, MaterialState, Region};
 use crate::scalar::Scalar;
-use crate::spectral::{Exp, Log, PrincipalMap, isotropic_map, symmetric_fn};
+use crate::spectral::{Log, symmetric_fn};
 use crate::tensor::det;
 use nalgebra::Matrix3;
-use num_dual::{Derivative, DualSVec64};
+use num_dual::DualSVec64;
 
 /// Mohr–Coulomb elastoplasticity (perfectly plastic, non-associated) in Hencky strain space.
 /// Angles in radians. State ([`MaterialState`]): `tensor` is `bₑ`, `plastic_strain` the
@@ -92,28 +94,25 @@ struct Plane<T> {
 /// Planes of [`MohrCoulomb::planes`]: the three cutoffs, then the six Mohr–Coulomb planes.
 const PLANES: usize = 9;
 
-/// The principal return of a [`MohrCoulomb`] material, as a [`PrincipalMap`] of the trial
-/// principal Hencky strains to the principal Kirchhoff stresses.
-struct PrincipalReturn<'a, T>(&'a MohrCoulomb<T>);
+impl<T: Scalar> PrincipalReturn<T> for MohrCoulomb<T> {
+    type Lanes = MohrCoulomb<DualSVec64<3>>;
 
-impl<T: Scalar> PrincipalMap<T> for PrincipalReturn<'_, T> {
-    type Tag = Region;
-
-    fn principal(&self, eps: [T; 3]) -> ([T; 3], Region) {
-        self.0.principal_return(eps)
+    /// [`MohrCoulomb::principal_return`], with the principal elastic strains of a plastic
+    /// step, `εₑ_i = (τ_i − λ/(3λ + 2μ) tr τ) / 2μ` ([`Lame::strain`] in principal axes).
+    fn principal_state(&self, eps: [T; 3]) -> ([T; 3], Option<[T; 3]>, Region) {
+        let (tau, region) = self.principal_return(eps);
+        if region == Region::Elastic {
+            return (tau, None, region);
+        }
+        let Lame { mu, lambda } = self.lame;
+        let two_mu = mu * T::cst(2.0);
+        let volumetric = (tau[0] + tau[1] + tau[2]) * lambda / (lambda * T::cst(3.0) + two_mu);
+        let elastic = tau.map(|t| (t - volumetric) / two_mu);
+        (tau, Some(elastic), region)
     }
 
-    fn jacobian(&self, eps: [f64; 3]) -> [[f64; 3]; 3] {
-        let real = self.0.real().lift::<DualSVec64<3>>();
-        let lanes: [DualSVec64<3>; 3] = std::array::from_fn(|i| {
-            let mut e = nalgebra::SVector::<f64, 3>::zeros();
-            e[i] = 1.0;
-            DualSVec64::new(eps[i], Derivative::some(e))
-        });
-        let (tau, _) = real.principal_return(lanes);
-        std::array::from_fn(|i| {
-            std::array::from_fn(|j| tau[i].eps.0.as_ref().map_or(0.0, |e| e[j]))
-        })
+    fn lanes(&self) -> Self::Lanes {
+        self.real().lift()
     }
 }
 
@@ -333,26 +332,18 @@ impl<T: Scalar> MohrCoulomb<T> {
         delta_f: &Matrix3<T>,
         state: &MaterialState<T>,
     ) -> (Matrix3<T>, MaterialState<T>, Region) {
-        let half = T::cst(0.5);
-        let (b_trial, eps_trial) = hencky_trial(delta_f, &state.tensor);
-        let (tau, region) = isotropic_map(&eps_trial, &PrincipalReturn(self));
-        let tau = (tau + tau.transpose()) * half;
-        if region == Region::Elastic {
-            let elastic = MaterialState {
-                plastic_strain: state.plastic_strain,
-                tensor: b_trial,
-                hardening: state.hardening,
-            };
-            return (tau, elastic, region);
-        }
-        let eps_e = self.lame.strain(&tau);
-        let plastic = MaterialState {
-            plastic_strain: state.plastic_strain
-                + (eps_trial - eps_e).norm() * T::cst(2.0 / 3.0).sqrt(),
-            tensor: symmetric_fn(&(eps_e * T::cst(2.0)), &Exp),
+        let (tau, b_e, tag) = trial_return(self, delta_f, state);
+        let plastic_strain = if tag.region == Region::Elastic {
+            state.plastic_strain
+        } else {
+            state.plastic_strain + tag.plastic * T::cst(2.0 / 3.0).sqrt()
+        };
+        let state = MaterialState {
+            plastic_strain,
+            tensor: b_e,
             hardening: state.hardening,
         };
-        (tau, plastic, region)
+        (tau, state, tag.region)
     }
 
     /// The explicit stress update: `σ = τ / det F` with `τ` from [`MohrCoulomb::return_map`]
