@@ -521,8 +521,8 @@ fn no_such(field: MaterialField, test: usize, material: &Material<f64>) -> Adjoi
     AdjointError::Parameter {
         param: format!("material.{}", field.name()),
         msg: format!(
-            "the material of test {test} (model `{}`) has no such constant",
-            material.model.kind().name()
+            "the material of test {test}: {}",
+            crate::params::no_such_constant(material)
         ),
     }
 }

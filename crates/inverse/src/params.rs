@@ -269,7 +269,7 @@ impl Param {
                 let m = config.materials.get_mut(k).ok_or(unknown)?;
                 set_material(m, field, value).ok_or_else(|| AdjointError::Parameter {
                     param: self.to_string(),
-                    msg: "the material's model has no such constant".into(),
+                    msg: no_such_constant(m),
                 })?;
             }
         }
@@ -377,7 +377,7 @@ fn seed<const D: usize>(
             let (seeded, value) =
                 seed_material(m, field).ok_or_else(|| AdjointError::Parameter {
                     param: param.to_string(),
-                    msg: "the material's model has no such constant".into(),
+                    msg: no_such_constant(m),
                 })?;
             lifted.materials[k] = seeded;
             value
@@ -408,6 +408,20 @@ fn seed_lame(l: &Lame<f64>, young: bool) -> (Lame<Dual64>, f64) {
             lambda: Dual64::new(l.lambda, d.lambda.eps),
         },
         if young { e } else { nu },
+    )
+}
+
+/// Why a constant is not one of `m`'s: its model, and the constants it has (those
+/// [`seed_material`] accepts, in [`MaterialField::ALL`]'s order).
+pub(crate) fn no_such_constant(m: &Material<f64>) -> String {
+    let names: Vec<&str> = (MaterialField::ALL.iter())
+        .filter(|&&f| seed_material(m, f).is_some())
+        .map(|f| f.name())
+        .collect();
+    format!(
+        "model \"{}\" has no such constant; its constants are {}",
+        m.model.kind().name(),
+        names.join(", ")
     )
 }
 
@@ -541,6 +555,18 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A constant the model lacks is refused with the model's name and the constants it has.
+    #[test]
+    fn a_missing_constant_names_the_ones_the_model_has() {
+        let j2 = Material::j2(25e6, 0.3, 1e5, 0.0, 2000.0);
+        let msg = no_such_constant(&j2);
+        assert_eq!(
+            msg,
+            "model \"j2\" has no such constant; its constants are young, poisson, density, \
+             yield_stress, hardening"
+        );
+    }
 
     #[test]
     fn names_read_back_what_display_writes() {

@@ -3,7 +3,7 @@
 use super::kernel::{mass_index, state_len};
 use crate::error::AdjointError;
 use crate::k0::K0State;
-use crate::params::{MaterialField, seed_material, set_material};
+use crate::params::{MaterialField, no_such_constant, seed_material, set_material};
 use loam_core::constitutive::{HISTORY_LEN, MaterialState};
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
@@ -149,7 +149,7 @@ impl ImplicitParam {
                 let m = self.material(config, k)?;
                 seed_material(m, field)
                     .map(|s| s.1)
-                    .ok_or_else(|| self.error("the material's model has no such constant"))
+                    .ok_or_else(|| self.error(no_such_constant(m)))
             }
             Self::K0(k) => self.k0_rates(config, particles, k).map(|r| r.k0),
             Self::Gravity(a) => self.component::<D>(a).map(|a| config.gravity[a]),
@@ -206,8 +206,8 @@ impl ImplicitParam {
                 let held = config
                     .gravity_in_full
                     .then(|| initial_stresses(config, particles, k));
-                set_material(&mut config.materials[k], field, value)
-                    .ok_or_else(|| self.error("the material's model has no such constant"))?;
+                let m = &mut config.materials[k];
+                set_material(m, field, value).ok_or_else(|| self.error(no_such_constant(m)))?;
                 for (p, tau0) in held.into_iter().flatten() {
                     if let Some(h) = config.materials[k].prestressed_state(&tau0) {
                         particles.state[p] = h;
