@@ -530,7 +530,7 @@ fn no_such(field: MaterialField, test: usize, material: &Material<f64>) -> Adjoi
 #[cfg(test)]
 mod tests {
     use super::*;
-    use loam_core::constitutive::{ModifiedCamClay, Preconsolidation, Shear};
+    use loam_core::constitutive::{Lame, ModifiedCamClay, MohrCoulomb, Preconsolidation, Shear};
     use loam_implicit::element::Loading;
 
     /// Linear interpolation of a straight line is exact, and its derivative with respect to
@@ -589,34 +589,27 @@ mod tests {
         }
     }
 
-    /// At the truth the synthetic residuals vanish (the observations are the curve's own
-    /// points); 20 % off, the Gauss–Newton gradient `Jᵀr` from the seeded runs is the
-    /// derivative of the loss: it agrees with the loss evaluated in `Dual64` to round-off
-    /// (1e-12: the two sum the same products in another order) and with a central
-    /// difference of the real loss at `h = 10⁻⁵ θ` to 1e-6 (truncation `O(h²)` ≈ 1e-10,
-    /// the increments' convergence to round-off ≈ 1e-10 after the division by `2h`).
-    #[test]
-    fn the_gradient_of_the_loss_is_its_derivative() {
-        use MaterialField::{CriticalStateSlope, Kappa, Lambda, VoidRatio};
-        let mut problem = ElementProblem {
-            tests: vec![undrained()],
-            params: vec![Lambda, Kappa, CriticalStateSlope, VoidRatio],
-        };
+    /// With synthetic observations from `truth`, the residuals vanish there; 20 % off, the
+    /// Gauss–Newton gradient `Jᵀr` from the seeded runs is the derivative of the loss: it
+    /// agrees with the loss evaluated in `Dual64` to round-off (1e-12: the two sum the same
+    /// products in another order) and with a central difference of the real loss at
+    /// `h = 10⁻⁵ θ` to 1e-6 (truncation `O(h²)` ≈ 1e-10, the increments' convergence to
+    /// round-off ≈ 1e-10 after the division by `2h`).
+    fn assert_the_gradient_is_the_derivative(
+        mut problem: ElementProblem,
+        fitted: &[(Measure, f64)],
+        points: usize,
+    ) {
         let truth = problem.values().unwrap();
-        assert_eq!(truth, vec![0.2, 0.04, 1.0, 1.0]);
-        let fitted = vec![vec![
-            (Measure::DeviatorStress, 1e3),
-            (Measure::MeanStress, 1e3),
-            (Measure::VoidRatio, 1e-3),
-        ]];
-        problem.observe(&truth, 4, &fitted).unwrap();
-        assert_eq!(problem.observations(), 5 * 3);
+        problem.observe(&truth, 4, &[fitted.to_vec()]).unwrap();
+        assert_eq!(problem.observations(), points * fitted.len());
         assert!(problem.loss(&truth).unwrap() < 1e-24);
         let theta: Vec<f64> = truth.iter().map(|t| 1.2 * t).collect();
         let model = problem.gauss_newton(&theta).unwrap();
         for k in 0..theta.len() {
             let dual = problem.dual_derivative(&theta, k).unwrap();
             let g = model.gradient[k];
+            assert!(g != 0.0, "{k}: the loss must depend on the parameter");
             assert!(
                 (g - dual).abs() <= 1e-12 * g.abs(),
                 "{k}: {g:e} vs {dual:e}"
@@ -630,6 +623,76 @@ mod tests {
             let fd = (at(h) - at(-h)) / (2.0 * h);
             assert!((g - fd).abs() <= 1e-6 * g.abs(), "{k}: {g:e} vs {fd:e}");
         }
+    }
+
+    /// Modified Cam-Clay's λ, κ, M and e₀ from an undrained test.
+    #[test]
+    fn the_gradient_of_the_loss_is_its_derivative() {
+        use MaterialField::{CriticalStateSlope, Kappa, Lambda, VoidRatio};
+        let problem = ElementProblem {
+            tests: vec![undrained()],
+            params: vec![Lambda, Kappa, CriticalStateSlope, VoidRatio],
+        };
+        assert_eq!(problem.values().unwrap(), vec![0.2, 0.04, 1.0, 1.0]);
+        let fitted = [
+            (Measure::DeviatorStress, 1e3),
+            (Measure::MeanStress, 1e3),
+            (Measure::VoidRatio, 1e-3),
+        ];
+        assert_the_gradient_is_the_derivative(problem, &fitted, 5);
+    }
+
+    /// Mohr–Coulomb's tension cutoff, with E and ν, from a drained extension test that
+    /// reaches it: from 20 kPa all round, the axial stress turns tensile and is held at
+    /// σ_t = 5 kPa (the cutoff is met at 5 kPa of tension, the shear planes at 16.4 kPa), so
+    /// `q = −σ_t/J − 20 kPa` and the plastic volume change depend on σ_t.
+    #[test]
+    fn the_gradient_through_the_tension_cutoff_is_its_derivative() {
+        use MaterialField::{Poisson, TensionCutoff, Young};
+        let sand = Material {
+            density: 1800.0,
+            model: Model::MohrCoulomb(MohrCoulomb {
+                lame: Lame::from_young_poisson(20e6, 0.3),
+                friction_angle: 30f64.to_radians(),
+                dilation_angle: 0.0,
+                cohesion: 20e3,
+                tension_cutoff: Some(5e3),
+            }),
+        };
+        let extension = LabTest {
+            material: sand,
+            stress: Matrix3::identity() * -20e3,
+            stages: vec![LabStage {
+                loading: Loading::DrainedTriaxial {
+                    axial_strain: -0.01,
+                },
+                increments: 20,
+            }],
+            void_ratio: None,
+            observed: Vec::new(),
+        };
+        let problem = ElementProblem {
+            tests: vec![extension],
+            params: vec![Young, Poisson, TensionCutoff],
+        };
+        assert_eq!(problem.values().unwrap()[2], 5e3);
+        let curve = &problem.curves(&[20e6, 0.3, 5e3]).unwrap()[0];
+        // The cutoff bounds the Kirchhoff stress: the axial Cauchy stress is σ_t/J, and the
+        // radial stress is held at 20 kPa, so q = −σ_t/J − 20 kPa with J = 1 − ε_v.
+        let end = curve.last().unwrap();
+        let q_end = end.value(Measure::DeviatorStress).unwrap();
+        let j = 1.0 - end.value(Measure::VolumetricStrain).unwrap();
+        assert!(j > 1.001, "the sample dilates in tension: J = {j}");
+        let q_cut = -5e3 / j - 20e3;
+        assert!(
+            (q_end - q_cut).abs() < 1e-9 * 25e3,
+            "q at the end {q_end}, −σ_t/J − 20 kPa = {q_cut}"
+        );
+        let fitted = [
+            (Measure::DeviatorStress, 1e3),
+            (Measure::VolumetricStrain, 1e-4),
+        ];
+        assert_the_gradient_is_the_derivative(problem, &fitted, 5);
     }
 
     /// Observations are placed by axial strain: one outside the path, or a path whose axial

@@ -11,8 +11,9 @@
 //! the adjoint of the initial state ([`crate::Gradient`]).
 
 use crate::error::AdjointError;
-use loam_core::Material;
+use loam_core::constitutive::constants::{self, Constant, Gradient};
 use loam_core::constitutive::{Lame, MaterialState, Model, Preconsolidation, Shear};
+use loam_core::{Material, ModelKind};
 use loam_explicit::Config;
 use nalgebra::Matrix3;
 use num_dual::Dual64;
@@ -62,14 +63,18 @@ pub enum MaterialField {
     /// Modified Cam-Clay initial preconsolidation pressure `p_c₀` (Pa): acts only through the
     /// initial state of a prestressed body.
     PreconsolidationPressure,
+    /// Tension cutoff `σ_t` (Pa) of Drucker–Prager (on the mean stress) or Mohr–Coulomb (on
+    /// every principal stress), of a material that has one.
+    TensionCutoff,
 }
 
 impl MaterialField {
-    /// The name used in messages and files (`young`, `poisson`, …).
-    pub fn name(self) -> &'static str {
+    /// The scene key of the constant, which declares it
+    /// ([`loam_core::constitutive::constants`]).
+    pub fn key(self) -> &'static str {
         match self {
-            Self::Young => "young",
-            Self::Poisson => "poisson",
+            Self::Young => "youngs_modulus",
+            Self::Poisson => "poisson_ratio",
             Self::Density => "density",
             Self::BulkModulus => "bulk_modulus",
             Self::SoundSpeed => "sound_speed",
@@ -87,7 +92,36 @@ impl MaterialField {
             Self::ShearModulus => "shear_modulus",
             Self::Ocr => "ocr",
             Self::PreconsolidationPressure => "preconsolidation_pressure",
+            Self::TensionCutoff => "tension_cutoff",
         }
+    }
+
+    /// The constant's declaration: its models, units and physical range.
+    pub fn constant(self) -> &'static Constant {
+        constants::constant(self.key()).expect("every field's key is declared")
+    }
+
+    /// How `loam gradient` names and bounds it.
+    pub fn gradient(self) -> Gradient {
+        self.constant()
+            .gradient
+            .expect("every field's constant is declared a parameter")
+    }
+
+    /// The name used in messages and files (`young`, `poisson`, …), from its declaration.
+    pub fn name(self) -> &'static str {
+        self.gradient().name
+    }
+
+    /// The constant named `name` (as [`MaterialField::name`] writes it).
+    pub fn named(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// Whether an implicit scene can have it: some model that takes it is a solid (the fluid
+    /// is explicit only).
+    pub fn implicit(self) -> bool {
+        (self.constant().models.iter()).any(|&(m, _)| m != ModelKind::Fluid)
     }
 }
 
@@ -128,7 +162,7 @@ impl fmt::Display for Param {
 
 impl MaterialField {
     /// Every constant, in the order of the enum.
-    pub const ALL: [MaterialField; 19] = [
+    pub const ALL: [MaterialField; 20] = [
         Self::Young,
         Self::Poisson,
         Self::Density,
@@ -148,6 +182,7 @@ impl MaterialField {
         Self::ShearModulus,
         Self::Ocr,
         Self::PreconsolidationPressure,
+        Self::TensionCutoff,
     ];
 }
 
@@ -194,8 +229,7 @@ impl FromStr for Param {
         }
         if let Some((k, rest)) = indexed(s, "materials") {
             let field = rest.strip_prefix('.').ok_or_else(expected)?;
-            return (MaterialField::ALL.into_iter())
-                .find(|f| f.name() == field)
+            return MaterialField::named(field)
                 .map(|f| Param::Material(k, f))
                 .ok_or_else(expected);
         }
@@ -433,61 +467,82 @@ pub(crate) fn seed_material(
 ) -> Option<(Material<Dual64>, f64)> {
     use MaterialField as F;
     let mut out: Material<Dual64> = m.lift();
-    let one = |x: &mut Dual64| {
-        x.eps = 1.0;
-        x.re
-    };
     let value = match (field, &mut out.model) {
-        (F::Density, _) => one(&mut out.density),
-        (F::Poisson, Model::ModifiedCamClay(x)) => match &mut x.shear {
-            Shear::Poisson(nu) => one(nu),
-            Shear::Modulus(_) => return None,
-        },
-        (F::ShearModulus, Model::ModifiedCamClay(x)) => match &mut x.shear {
-            Shear::Modulus(g) => one(g),
-            Shear::Poisson(_) => return None,
-        },
-        (F::Lambda, Model::ModifiedCamClay(x)) => one(&mut x.lambda),
-        (F::Kappa, Model::ModifiedCamClay(x)) => one(&mut x.kappa),
-        (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => one(&mut x.critical_state_slope),
-        (F::VoidRatio, Model::ModifiedCamClay(x)) => one(&mut x.void_ratio),
-        (F::Ocr, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
-            Preconsolidation::Ratio(r) => one(r),
-            Preconsolidation::Pressure(_) => return None,
-        },
-        (F::PreconsolidationPressure, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
-            Preconsolidation::Pressure(p) => one(p),
-            Preconsolidation::Ratio(_) => return None,
-        },
-        (F::Young | F::Poisson, model) => {
+        (F::Density, _) => {
+            out.density.eps = 1.0;
+            out.density.re
+        }
+        (F::Young | F::Poisson, model) if has_lame(model) => {
             let mut stored = m.model.clone();
             let (seeded, value) = seed_lame(lame_of(&mut stored)?, field == F::Young);
             *lame_of(model)? = seeded;
             value
         }
-        (F::BulkModulus, Model::Fluid(x)) => one(&mut x.bulk_modulus),
         (F::SoundSpeed, Model::Fluid(x)) => {
             // K = ρ₀ c², dK/dc = 2 ρ₀ c = 2 √(K ρ₀).
             let (k, rho) = (x.bulk_modulus.re, m.density);
             x.bulk_modulus.eps = 2.0 * (k * rho).sqrt();
             (k / rho).sqrt()
         }
-        (F::Gamma, Model::Fluid(x)) => one(&mut x.gamma),
-        (F::Viscosity, Model::Fluid(x)) => one(&mut x.viscosity),
-        (F::FrictionAngle, Model::DruckerPrager(x)) => one(&mut x.friction_angle),
-        (F::DilationAngle, Model::DruckerPrager(x)) => one(&mut x.dilation_angle),
-        (F::Cohesion, Model::DruckerPrager(x)) => one(&mut x.cohesion),
-        (F::FrictionAngle, Model::MohrCoulomb(x)) => one(&mut x.friction_angle),
-        (F::DilationAngle, Model::MohrCoulomb(x)) => one(&mut x.dilation_angle),
-        (F::Cohesion, Model::MohrCoulomb(x)) => one(&mut x.cohesion),
-        (F::YieldStress, Model::J2(x)) => one(&mut x.yield_stress),
-        (F::Hardening, Model::J2(x)) => one(&mut x.hardening),
-        _ => return None,
+        (_, model) => {
+            let x = slot(model, field)?;
+            x.eps = 1.0;
+            x.re
+        }
     };
     Some((out, value))
 }
 
-/// The Lamé constants of a model that has them (every model but the fluid).
+/// The stored value of `field` in `model` where the model holds it as it is (every constant
+/// but the density, `E` and `ν` of a model with Lamé constants, and a fluid's sound speed);
+/// `None` when the model has no such constant.
+fn slot<T>(model: &mut Model<T>, field: MaterialField) -> Option<&mut T> {
+    use MaterialField as F;
+    Some(match (field, model) {
+        (F::Poisson, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Poisson(nu) => nu,
+            Shear::Modulus(_) => return None,
+        },
+        (F::ShearModulus, Model::ModifiedCamClay(x)) => match &mut x.shear {
+            Shear::Modulus(g) => g,
+            Shear::Poisson(_) => return None,
+        },
+        (F::Lambda, Model::ModifiedCamClay(x)) => &mut x.lambda,
+        (F::Kappa, Model::ModifiedCamClay(x)) => &mut x.kappa,
+        (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => &mut x.critical_state_slope,
+        (F::VoidRatio, Model::ModifiedCamClay(x)) => &mut x.void_ratio,
+        (F::Ocr, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Ratio(r) => r,
+            Preconsolidation::Pressure(_) => return None,
+        },
+        (F::PreconsolidationPressure, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
+            Preconsolidation::Pressure(p) => p,
+            Preconsolidation::Ratio(_) => return None,
+        },
+        (F::BulkModulus, Model::Fluid(x)) => &mut x.bulk_modulus,
+        (F::Gamma, Model::Fluid(x)) => &mut x.gamma,
+        (F::Viscosity, Model::Fluid(x)) => &mut x.viscosity,
+        (F::FrictionAngle, Model::DruckerPrager(x)) => &mut x.friction_angle,
+        (F::DilationAngle, Model::DruckerPrager(x)) => &mut x.dilation_angle,
+        (F::Cohesion, Model::DruckerPrager(x)) => &mut x.cohesion,
+        (F::TensionCutoff, Model::DruckerPrager(x)) => x.tension_cutoff.as_mut()?,
+        (F::FrictionAngle, Model::MohrCoulomb(x)) => &mut x.friction_angle,
+        (F::DilationAngle, Model::MohrCoulomb(x)) => &mut x.dilation_angle,
+        (F::Cohesion, Model::MohrCoulomb(x)) => &mut x.cohesion,
+        (F::TensionCutoff, Model::MohrCoulomb(x)) => x.tension_cutoff.as_mut()?,
+        (F::YieldStress, Model::J2(x)) => &mut x.yield_stress,
+        (F::Hardening, Model::J2(x)) => &mut x.hardening,
+        _ => return None,
+    })
+}
+
+/// Whether the model has Lamé constants (every model but the fluid and Modified Cam-Clay,
+/// whose elasticity depends on the pressure).
+fn has_lame<T>(model: &Model<T>) -> bool {
+    !matches!(model, Model::Fluid(_) | Model::ModifiedCamClay(_))
+}
+
+/// The Lamé constants of a model that has them ([`has_lame`]).
 fn lame_of<T>(model: &mut Model<T>) -> Option<&mut Lame<T>> {
     match model {
         Model::LinearElastic(x) => Some(&mut x.lame),
@@ -506,27 +561,7 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
     let density = m.density;
     match (field, &mut m.model) {
         (F::Density, _) => m.density = value,
-        (F::Poisson, Model::ModifiedCamClay(x)) => match &mut x.shear {
-            Shear::Poisson(nu) => *nu = value,
-            Shear::Modulus(_) => return None,
-        },
-        (F::ShearModulus, Model::ModifiedCamClay(x)) => match &mut x.shear {
-            Shear::Modulus(g) => *g = value,
-            Shear::Poisson(_) => return None,
-        },
-        (F::Lambda, Model::ModifiedCamClay(x)) => x.lambda = value,
-        (F::Kappa, Model::ModifiedCamClay(x)) => x.kappa = value,
-        (F::CriticalStateSlope, Model::ModifiedCamClay(x)) => x.critical_state_slope = value,
-        (F::VoidRatio, Model::ModifiedCamClay(x)) => x.void_ratio = value,
-        (F::Ocr, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
-            Preconsolidation::Ratio(r) => *r = value,
-            Preconsolidation::Pressure(_) => return None,
-        },
-        (F::PreconsolidationPressure, Model::ModifiedCamClay(x)) => match &mut x.preconsolidation {
-            Preconsolidation::Pressure(p) => *p = value,
-            Preconsolidation::Ratio(_) => return None,
-        },
-        (F::Young | F::Poisson, model) => {
+        (F::Young | F::Poisson, model) if has_lame(model) => {
             let lame = lame_of(model)?;
             let (e, nu) = young_poisson(lame);
             *lame = if field == F::Young {
@@ -535,19 +570,8 @@ pub(crate) fn set_material(m: &mut Material<f64>, field: MaterialField, value: f
                 Lame::from_young_poisson(e, value)
             };
         }
-        (F::BulkModulus, Model::Fluid(x)) => x.bulk_modulus = value,
         (F::SoundSpeed, Model::Fluid(x)) => x.bulk_modulus = density * value * value,
-        (F::Gamma, Model::Fluid(x)) => x.gamma = value,
-        (F::Viscosity, Model::Fluid(x)) => x.viscosity = value,
-        (F::FrictionAngle, Model::DruckerPrager(x)) => x.friction_angle = value,
-        (F::DilationAngle, Model::DruckerPrager(x)) => x.dilation_angle = value,
-        (F::Cohesion, Model::DruckerPrager(x)) => x.cohesion = value,
-        (F::FrictionAngle, Model::MohrCoulomb(x)) => x.friction_angle = value,
-        (F::DilationAngle, Model::MohrCoulomb(x)) => x.dilation_angle = value,
-        (F::Cohesion, Model::MohrCoulomb(x)) => x.cohesion = value,
-        (F::YieldStress, Model::J2(x)) => x.yield_stress = value,
-        (F::Hardening, Model::J2(x)) => x.hardening = value,
-        _ => return None,
+        (_, model) => *slot(model, field)? = value,
     }
     Some(())
 }

@@ -198,6 +198,64 @@ impl MaterialSpec {
     }
 }
 
+/// The numeric constants of [`MaterialSpec`] by their keys in
+/// [`loam_core::constitutive::constants::CONSTANTS`] (each key is the field's name).
+macro_rules! numeric_constants {
+    ($($key:ident),* $(,)?) => {
+        impl MaterialSpec {
+            /// The value of the numeric constant `key` (`Some(None)`: absent), or `None` when
+            /// `key` names no numeric constant (`cone` and `elasticity` are enumerations).
+            pub fn constant(&self, key: &str) -> Option<Option<f64>> {
+                match key {
+                    $(stringify!($key) => Some(self.$key),)*
+                    _ => None,
+                }
+            }
+
+            /// The slot of the numeric constant `key`, as [`MaterialSpec::constant`].
+            pub fn constant_mut(&mut self, key: &str) -> Option<&mut Option<f64>> {
+                match key {
+                    $(stringify!($key) => Some(&mut self.$key),)*
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+numeric_constants!(
+    youngs_modulus,
+    poisson_ratio,
+    yield_stress,
+    hardening,
+    sound_speed,
+    bulk_modulus,
+    gamma,
+    viscosity,
+    friction_angle,
+    dilation_angle,
+    cohesion,
+    tension_cutoff,
+    lambda,
+    kappa,
+    critical_state_slope,
+    void_ratio,
+    shear_modulus,
+    preconsolidation_pressure,
+    ocr,
+);
+
+impl MaterialSpec {
+    /// Whether the key `key` of [`loam_core::constitutive::constants::CONSTANTS`] is given.
+    pub fn has(&self, key: &str) -> bool {
+        match key {
+            "cone" => self.cone.is_some(),
+            "elasticity" => self.elasticity.is_some(),
+            _ => self.constant(key).flatten().is_some(),
+        }
+    }
+}
+
 /// `[[bodies]]`: a region of one material filled with particles.
 ///
 /// Particles sit on a regular sub-grid of `particles_per_cell` points per axis in every grid

@@ -163,8 +163,7 @@ fn material_field(name: &str) -> Result<MaterialField, String> {
         Some("density") => Err(
             "`material.density` does not act in an element test (no inertia, no gravity)".into(),
         ),
-        Some(field) => (MaterialField::ALL.into_iter())
-            .find(|f| f.name() == field)
+        Some(field) => MaterialField::named(field)
             .ok_or_else(|| format!("unknown constant `{field}`; {expected}")),
         None => Err(format!("unknown parameter `{name}`; {expected}")),
     }

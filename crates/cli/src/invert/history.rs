@@ -2,6 +2,7 @@
 //! checkpoint and the recovered scene.
 
 use super::units::quantity;
+use loam_core::constitutive::constants::partner;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{Control, Evaluation, MaterialField, Optimiser, Param};
 use loam_scene::{InitialStressSpec, MaterialSpec, Scene};
@@ -307,29 +308,21 @@ fn set(s: &mut Scene, p: Param, v: f64) {
     }
 }
 
-/// Sets one constant of a scene material (or of an element test's `[material]`).
+/// Sets one constant of a scene material (or of an element test's `[material]`): the scene
+/// key its declaration names, in the scene's unit (degrees for an angle); the other key of a
+/// pair of which the model takes one (a fluid's sound speed and bulk modulus) is cleared.
 pub fn set_material(m: &mut MaterialSpec, field: MaterialField, v: f64) {
-    use MaterialField as F;
-    match field {
-        F::Young => m.youngs_modulus = Some(v),
-        F::Poisson => m.poisson_ratio = Some(v),
-        F::Density => m.density = v,
-        F::BulkModulus => (m.bulk_modulus, m.sound_speed) = (Some(v), None),
-        F::SoundSpeed => (m.sound_speed, m.bulk_modulus) = (Some(v), None),
-        F::Gamma => m.gamma = Some(v),
-        F::Viscosity => m.viscosity = Some(v),
-        F::FrictionAngle => m.friction_angle = Some(v.to_degrees()),
-        F::DilationAngle => m.dilation_angle = Some(v.to_degrees()),
-        F::Cohesion => m.cohesion = Some(v),
-        F::YieldStress => m.yield_stress = Some(v),
-        F::Hardening => m.hardening = Some(v),
-        F::Lambda => m.lambda = Some(v),
-        F::Kappa => m.kappa = Some(v),
-        F::CriticalStateSlope => m.critical_state_slope = Some(v),
-        F::VoidRatio => m.void_ratio = Some(v),
-        F::ShearModulus => m.shear_modulus = Some(v),
-        F::Ocr => m.ocr = Some(v),
-        F::PreconsolidationPressure => m.preconsolidation_pressure = Some(v),
+    let key = field.key();
+    let v = field.gradient().to_scene(v);
+    if field == MaterialField::Density {
+        m.density = v;
+        return;
+    }
+    *m.constant_mut(key)
+        .expect("a parameter's key is a numeric constant") = Some(v);
+    if let Some(other) = partner(m.model, key) {
+        *m.constant_mut(other)
+            .expect("a pair's keys are numeric constants") = None;
     }
 }
 

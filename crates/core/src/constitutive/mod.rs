@@ -6,6 +6,7 @@
 //! is the same code run with a dual parameter.
 
 mod cam_clay;
+pub mod constants;
 mod drucker_prager;
 mod fluid;
 mod hencky;

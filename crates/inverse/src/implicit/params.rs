@@ -86,27 +86,10 @@ impl FromStr for ImplicitParam {
             if field == "k0" {
                 return Ok(Self::K0(k));
             }
-            return [
-                MaterialField::Young,
-                MaterialField::Poisson,
-                MaterialField::YieldStress,
-                MaterialField::Hardening,
-                MaterialField::FrictionAngle,
-                MaterialField::DilationAngle,
-                MaterialField::Cohesion,
-                MaterialField::Lambda,
-                MaterialField::Kappa,
-                MaterialField::CriticalStateSlope,
-                MaterialField::VoidRatio,
-                MaterialField::ShearModulus,
-                MaterialField::Ocr,
-                MaterialField::PreconsolidationPressure,
-                MaterialField::Density,
-            ]
-            .into_iter()
-            .find(|f| f.name() == field)
-            .map(|f| Self::Material(k, f))
-            .ok_or_else(expected);
+            return MaterialField::named(field)
+                .filter(|f| f.implicit())
+                .map(|f| Self::Material(k, f))
+                .ok_or_else(expected);
         }
         Err(expected())
     }

@@ -330,6 +330,46 @@ fn mohr_coulomb_footing_adjoint_matches_dual_and_differences() {
     frictional_footing_check("mohr_coulomb", 1e-4, true);
 }
 
+/// The Mohr–Coulomb footing with a tension cutoff of 1 kPa (the apex c cot φ is 17.3 kPa):
+/// the soil beside the footing, lifted and stretched as the footing settles, reaches the
+/// cutoff, so the reactions depend on σ_t; its gradient and c's against the dual derivative,
+/// central differences and the Taylor test.
+#[test]
+fn tension_cutoff_gradient_matches_dual_and_differences() {
+    let text = frictional_footing_text("mohr_coulomb").replace(
+        "cohesion = 1.0e4\n",
+        "cohesion = 1.0e4\ntension_cutoff = 1.0e3\n",
+    );
+    assert!(text.contains("tension_cutoff"));
+    let (config, initial) = scene(&text);
+    let params = [
+        ImplicitParam::Material(0, MaterialField::TensionCutoff),
+        ImplicitParam::Material(0, MaterialField::Cohesion),
+    ];
+    let problem = ImplicitProblem {
+        config: config.clone(),
+        initial: initial.clone(),
+        params: params.to_vec(),
+        observations: ImplicitObservations {
+            items: footing_reactions(-25e3),
+        },
+    };
+    let theta = problem.values().expect("values");
+    let gradient = problem.gradient(&theta).expect("adjoint").gradient;
+    // A cutoff no particle reaches would leave ∂L/∂σ_t exactly 0.
+    assert!(
+        gradient[0].abs() > 1e-3 * gradient[1].abs() * theta[1] / theta[0],
+        "the cutoff is not reached: {gradient:?}"
+    );
+    check(
+        "mohr_coulomb with a tension cutoff",
+        config,
+        initial,
+        &params,
+        footing_reactions(-25e3),
+    );
+}
+
 /// The Drucker–Prager footing's loss has kinks close to its parameters: surface particles at
 /// low confinement switch between the cone and the apex within relative changes of 1e-5 of
 /// c or E. Central differences of ∂L/∂c at relative steps 1e-3, 1e-4, 1e-5, 1e-6, 1e-7 gave

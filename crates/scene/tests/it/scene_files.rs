@@ -1448,6 +1448,31 @@ fn documented_scenes_are_valid() {
     Scene::from_toml_str(blocks[0]).unwrap_or_else(|e| panic!("{e}"));
 }
 
+/// Every material constant of the declaration has a row in the scene format's material
+/// table, and every one that is a gradient parameter is named in the inversion format.
+#[test]
+fn every_declared_constant_is_documented() {
+    use loam_core::constitutive::constants::{CONSTANTS, DENSITY};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene = std::fs::read_to_string(root.join("../../docs/scene-format.md")).unwrap();
+    let inversion = std::fs::read_to_string(root.join("../../docs/inversion-format.md")).unwrap();
+    for c in std::iter::once(&DENSITY).chain(CONSTANTS) {
+        let row = format!("| `{}` ", c.key);
+        assert!(
+            scene.lines().any(|l| l.starts_with(&row)),
+            "docs/scene-format.md has no row for `{}`",
+            c.key
+        );
+        if let Some(g) = c.gradient {
+            assert!(
+                inversion.contains(&format!("`{}`", g.name)),
+                "docs/inversion-format.md does not name the parameter `{}`",
+                g.name
+            );
+        }
+    }
+}
+
 /// Builds a scene in its own dimension, as a solver front end would.
 fn build_any(scene: &Scene) -> Result<usize, SceneError> {
     match scene.dim() {
