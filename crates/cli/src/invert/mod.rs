@@ -419,6 +419,9 @@ fn print_checks(
         for j in &row.jumps {
             jumps.push(jump_note(name, j, &row));
         }
+        if let Some(note) = failed_note(name, &row) {
+            jumps.push(note);
+        }
     }
     for note in &jumps {
         println!("{note}");
@@ -461,6 +464,23 @@ fn jump_note(name: &str, j: &Jump, row: &model::CheckRow) -> String {
          and the dual give the slope of the smooth piece at θ); {differences}; {taylor}",
         j.size, j.lo, j.hi
     )
+}
+
+/// What `loam gradient --check` says of the perturbed runs along `name` that failed: where,
+/// and that the checks that needed them are left out.
+fn failed_note(name: &str, row: &model::CheckRow) -> Option<String> {
+    let (first, last) = (row.failed.first()?, row.failed.last()?);
+    let taylor = if row.remainders.iter().all(|r| r.is_finite()) {
+        format!("the Taylor test starts at h = {:.1e}", row.taylor_step)
+    } else {
+        "no Taylor step ran clear of them".to_owned()
+    };
+    Some(format!(
+        "  along {name}: {} perturbed run(s) failed (θ {first:+.3e} … {last:+.3e}: the run does not \
+         converge or goes unstable there on the sub-steps of the run at θ); the checks that \
+         need them are left out; {taylor}",
+        row.failed.len()
+    ))
 }
 
 /// The unknowns `loam gradient` prints, with their index in `θ`: every named parameter, and

@@ -151,15 +151,17 @@ impl<const D: usize> Model<D> {
             ),
             Self::Implicit { problem, .. } => {
                 let schedule = problem.schedule(theta)?;
-                let at = |step| -> Result<_, AdjointError> {
-                    Ok(Some(Difference {
-                        value: implicit_check::central_difference(
-                            problem, theta, &schedule, k, step,
-                        )?,
-                        relative_step: step,
-                    }))
+                // A perturbed run that does not converge on the run's sub-steps gives no
+                // difference at that step.
+                let at = |step| {
+                    implicit_check::central_difference(problem, theta, &schedule, k, step)
+                        .ok()
+                        .map(|value| Difference {
+                            value,
+                            relative_step: step,
+                        })
                 };
-                let differences = Convergence::of(vec![at(1e-4)?, at(1e-5)?]);
+                let differences = Convergence::of(vec![at(1e-4), at(1e-5)]);
                 (
                     Box::new(move |d| problem.loss(&moved(d), Some(&schedule))) as Along<'_>,
                     theta[k].abs(),
@@ -192,16 +194,35 @@ pub fn check_row(
     differences: Convergence,
     dual: f64,
 ) -> Result<CheckRow, AdjointError> {
-    let taylor = |h0: f64, along: &mut Along<'_>| -> Result<[f64; 4], AdjointError> {
+    // A perturbed run that fails (Newton does not converge on the sub-steps of the run at θ,
+    // or the run goes unstable) gives `NaN` and is recorded: the checks that need it are left
+    // out, as across a jump, instead of ending the whole check.
+    let mut failed = Vec::new();
+    let mut along = |d: f64| -> Result<f64, AdjointError> {
+        Ok(along(d).unwrap_or_else(|_| {
+            failed.push(d);
+            f64::NAN
+        }))
+    };
+    let taylor = |h0: f64, along: &mut dyn FnMut(f64) -> Result<f64, AdjointError>| {
         let mut r = [0.0; 4];
         for (i, r) in r.iter_mut().enumerate() {
             let h = h0 / f64::from(1u32 << i);
             *r = (along(h)? - loss - h * adjoint).abs();
         }
-        Ok(r)
+        Ok::<_, AdjointError>(r)
     };
     let mut h0 = 1e-2 * size;
     let mut remainders = taylor(h0, &mut along)?;
+    // Where a run of the Taylor test fails, it starts at the first smaller step of the ladder
+    // whose four runs all succeed.
+    for s in &check::JUMP_LADDER[1..] {
+        if remainders.iter().all(|r| r.is_finite()) {
+            break;
+        }
+        h0 = s * size;
+        remainders = taylor(h0, &mut along)?;
+    }
     let falls = remainders.windows(2).all(|w| w[0] >= 3.0 * w[1]);
     let jumps = if differences.value.is_none() || !falls {
         check::find_jumps(loss, adjoint, size, &mut along)?
@@ -221,7 +242,7 @@ pub fn check_row(
     };
     // Shown: the converged difference; else the estimate at the largest step that kept
     // the branches (and cleared the jumps); else, where no jump was found, a plain central
-    // difference at δ = 10⁻⁴ size; else none.
+    // difference at δ = 10⁻⁴ size (none if one of its runs fails); else none.
     let shown = match (
         differences.value,
         differences.estimates.iter().flatten().next(),
@@ -229,7 +250,7 @@ pub fn check_row(
         (Some(d), _) | (None, Some(&d)) => Some(d.value),
         (None, None) if jumps.is_empty() => {
             let delta = 1e-4 * size;
-            Some((along(delta)? - along(-delta)?) / (2.0 * delta))
+            Some((along(delta)? - along(-delta)?) / (2.0 * delta)).filter(|d| d.is_finite())
         }
         (None, None) => None,
     };
@@ -242,6 +263,7 @@ pub fn check_row(
         remainders,
         taylor_step: h0,
         jumps,
+        failed,
     })
 }
 
@@ -275,6 +297,9 @@ pub struct CheckRow {
     /// The jumps of the loss found near `θ` (the nearest on each side), which the differences
     /// and the Taylor test avoid.
     pub jumps: Vec<Jump>,
+    /// The steps `d` of the Taylor test and the jump search whose runs at `θ + d eₖ` failed,
+    /// in the order tried.
+    pub failed: Vec<f64>,
 }
 
 impl CheckRow {
@@ -304,7 +329,46 @@ mod tests {
             remainders: [0.0; 4],
             taylor_step: 1e-2,
             jumps: Vec::new(),
+            failed: Vec::new(),
         }
+    }
+
+    /// Perturbed runs that fail beyond `θ + 5·10⁻³` (a Newton iteration that no longer
+    /// converges there) leave the check standing: the Taylor test starts at the first step
+    /// of the ladder short of them (10⁻³) and falls 4× per halving on the smooth loss
+    /// `L = sin(θ + d)`, and the failed runs are recorded.
+    #[test]
+    fn failed_perturbed_runs_are_left_out() {
+        let theta = 0.7_f64;
+        let along: Along<'_> = Box::new(move |d: f64| {
+            if d > 5e-3 {
+                Err(AdjointError::Parameter {
+                    param: "x".into(),
+                    msg: "the run failed".into(),
+                })
+            } else {
+                Ok((theta + d).sin())
+            }
+        });
+        let slope = theta.cos();
+        let differences = Convergence::of(vec![
+            Some(Difference {
+                value: slope,
+                relative_step: 1e-4,
+            }),
+            Some(Difference {
+                value: slope,
+                relative_step: 1e-5,
+            }),
+        ]);
+        let row = check_row(theta.sin(), slope, along, 1.0, differences, slope).unwrap();
+        assert_eq!(row.taylor_step, 1e-3);
+        assert!(!row.failed.is_empty() && row.failed.iter().all(|&d| d > 5e-3));
+        for w in row.remainders.windows(2) {
+            assert!((3.5..4.5).contains(&(w[0] / w[1])), "{:?}", row.remainders);
+        }
+        assert!(row.jumps.is_empty());
+        assert_eq!(row.difference, Some(slope));
     }
 
     /// A dual derivative 1.68× a converged difference (the figure of a moving disk's velocity
