@@ -3,7 +3,7 @@
 
 use crate::dofs::{DofMap, NodeDof};
 use crate::kernel::{Frozen, delta_f, particle_stress};
-use crate::linear::{LinearError, LinearSolver, SparseMatrix, SparsePattern};
+use crate::linear::{LinearError, LinearSolver, NearNullspace, SparseMatrix, SparsePattern};
 use loam_core::tensor::{Tensor, Vector, det};
 use loam_core::{Grid, Material, Stencil};
 use nalgebra::Matrix3;
@@ -333,6 +333,17 @@ impl<const D: usize> StepSystem<D> {
     /// `true` when there are no unknowns.
     pub fn is_empty(&self) -> bool {
         self.dofs.is_empty()
+    }
+
+    /// The rigid-body modes of the unknowns at their owner nodes' positions (the
+    /// near-nullspace of the tangent, for the AMG preconditioner).
+    pub fn near_nullspace(&self) -> NearNullspace {
+        let unknowns: Vec<(usize, usize)> =
+            (0..self.len()).map(|d| self.dofs.owner_of(d)).collect();
+        NearNullspace::rigid_body::<D>(&unknowns, |flat| {
+            let x: Vector<f64, D> = self.grid.node_position(self.grid.multi(flat));
+            std::array::from_fn(|a| x[a])
+        })
     }
 
     /// Position in the value array of entry (row unknown, column unknown); both are owners.

@@ -1,12 +1,15 @@
 //! Sparse linear algebra of the Newton solver: a fixed per-step [`SparsePattern`], the
 //! [`SparseMatrix`] refilled on it at every iteration, and a [`LinearSolver`] that solves
 //! `A x = b` or `Aᵀ x = b` with faer's sparse LU or Cholesky (symbolic analysis reused while the
-//! pattern stays the same) or with faer's preconditioned CG / BiCGSTAB (identity, Jacobi or
-//! ILU(0) preconditioner).
+//! pattern stays the same) or with faer's preconditioned CG / BiCGSTAB (identity, Jacobi,
+//! ILU(0) or smoothed-aggregation AMG preconditioner).
 //!
 //! Everything runs sequentially ([`faer::Par::Seq`]): faer's parallel dense kernels split some
 //! reductions by thread count, which would make the results depend on the machine.
 
+pub mod amg;
+#[cfg(test)]
+mod amg_tests;
 mod direct;
 mod krylov;
 mod pattern;
@@ -18,6 +21,7 @@ use std::sync::Arc;
 
 use faer::Par;
 
+pub use amg::NearNullspace;
 pub use pattern::{SparseMatrix, SparsePattern};
 pub use precond::Preconditioner;
 
@@ -67,7 +71,7 @@ pub enum LinearSolverKind {
 impl LinearSolverKind {
     /// Short name used in reports and errors, e.g. `"CG+ILU(0)"`.
     pub fn name(self) -> &'static str {
-        use Preconditioner::{Identity, Ilu0, Jacobi};
+        use Preconditioner::{Amg, Identity, Ilu0, Jacobi};
         match self {
             Self::Lu => "LU",
             Self::Cholesky => "Cholesky",
@@ -83,6 +87,10 @@ impl LinearSolverKind {
                 preconditioner: Ilu0,
                 ..
             } => "CG+ILU(0)",
+            Self::Cg {
+                preconditioner: Amg,
+                ..
+            } => "CG+AMG",
             Self::Bicgstab {
                 preconditioner: Identity,
                 ..
@@ -95,7 +103,25 @@ impl LinearSolverKind {
                 preconditioner: Ilu0,
                 ..
             } => "BiCGSTAB+ILU(0)",
+            Self::Bicgstab {
+                preconditioner: Amg,
+                ..
+            } => "BiCGSTAB+AMG",
         }
+    }
+
+    /// Whether the method uses a near-nullspace ([`LinearSolver::set_near_nullspace`]).
+    pub fn uses_near_nullspace(self) -> bool {
+        matches!(
+            self,
+            Self::Cg {
+                preconditioner: Preconditioner::Amg,
+                ..
+            } | Self::Bicgstab {
+                preconditioner: Preconditioner::Amg,
+                ..
+            }
+        )
     }
 
     /// Whether the method needs a symmetric matrix.
@@ -182,9 +208,10 @@ pub enum LinearError {
     /// A preconditioner divides by zero.
     #[error("{preconditioner} preconditioner: zero pivot in row {row}")]
     ZeroPivot {
-        /// `"Jacobi"` or `"ILU(0)"`.
+        /// `"Jacobi"`, `"ILU(0)"` or `"AMG"`.
         preconditioner: &'static str,
-        /// Row of the zero diagonal entry or pivot.
+        /// Row of the zero diagonal entry or pivot (for the AMG, a row of the level where it
+        /// was met: the finest, a coarse one or the coarsest's dense LU).
         row: usize,
     },
     /// faer failed for a reason unrelated to the matrix values (out of memory, index overflow).
@@ -228,6 +255,7 @@ pub struct LinearSolver {
     kind: LinearSolverKind,
     analysis: Option<Analysis>,
     symbolic_analyses: usize,
+    near_nullspace: Option<Arc<NearNullspace>>,
 }
 
 impl LinearSolver {
@@ -237,7 +265,17 @@ impl LinearSolver {
             kind,
             analysis: None,
             symbolic_analyses: 0,
+            near_nullspace: None,
         }
+    }
+
+    /// Gives the near-nullspace of the next matrices (for the AMG preconditioner: the
+    /// rigid-body modes of the unknowns, [`NearNullspace::rigid_body`]); `None` falls back to
+    /// the constant vector, unknown by unknown. The other methods ignore it.
+    ///
+    /// The solves that follow panic if its size differs from that of their matrix.
+    pub fn set_near_nullspace(&mut self, near_nullspace: Option<NearNullspace>) {
+        self.near_nullspace = near_nullspace.map(Arc::new);
     }
 
     /// The kind of solver.
@@ -308,6 +346,7 @@ impl LinearSolver {
             }
         }
 
+        let near_nullspace = self.near_nullspace.clone();
         let iterations = match self.backend(&a.pattern)? {
             Backend::Lu(lu) => {
                 lu.solve(a, b, x, orientation)?;
@@ -319,11 +358,11 @@ impl LinearSolver {
                 1
             }
             Backend::Cg(state, params) => {
-                state.factorize(a)?;
+                state.factorize(a, near_nullspace.as_deref())?;
                 krylov::solve_cg(state, a, b, x, orientation, *params)?
             }
             Backend::Bicgstab(state, params) => {
-                state.factorize(a)?;
+                state.factorize(a, near_nullspace.as_deref())?;
                 krylov::solve_bicgstab(state, a, b, x, orientation, *params)?
             }
         };

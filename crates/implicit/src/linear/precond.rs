@@ -1,10 +1,11 @@
-//! Preconditioners of the Krylov solvers: identity, Jacobi and ILU(0), with solves by `M` and by
-//! `Mᵀ` (for the transposed systems of the adjoints).
+//! Preconditioners of the Krylov solvers: identity, Jacobi, ILU(0) and smoothed-aggregation
+//! AMG, with solves by `M` and by `Mᵀ` (for the transposed systems of the adjoints).
 
+use super::amg::{Amg, NearNullspace};
 use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
-/// Preconditioner of an iterative solver (in a scene file: `"identity"`, `"jacobi"` or
-/// `"ilu0"`, the default).
+/// Preconditioner of an iterative solver (in a scene file: `"identity"`, `"jacobi"`, `"ilu0"`,
+/// the default, or `"amg"`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preconditioner {
@@ -16,6 +17,11 @@ pub enum Preconditioner {
     /// (needs every diagonal entry in the pattern; fails on a zero pivot).
     #[default]
     Ilu0,
+    /// One V-cycle of smoothed-aggregation algebraic multigrid (see [`super::amg`]), with the
+    /// rigid-body near-nullspace handed over by
+    /// [`LinearSolver::set_near_nullspace`](super::LinearSolver::set_near_nullspace): an
+    /// iteration count nearly independent of the mesh for elasticity-like systems.
+    Amg,
 }
 
 /// Marks a row that is not in the column currently being eliminated.
@@ -39,6 +45,8 @@ pub(super) enum PrecondState {
         /// Row → position in the column being eliminated, or [`UNSET`].
         marker: Vec<usize>,
     },
+    /// The multigrid hierarchy (built by [`PrecondState::factorize`]).
+    Amg(Option<Amg>),
 }
 
 impl PrecondState {
@@ -62,11 +70,17 @@ impl PrecondState {
                 factor: vec![0.0; pattern.nnz()],
                 marker: vec![UNSET; n],
             },
+            Preconditioner::Amg => Self::Amg(None),
         })
     }
 
-    /// Computes the preconditioner of `a` (whose pattern is the one given to [`Self::new`]).
-    pub(super) fn factorize(&mut self, a: &SparseMatrix) -> Result<(), LinearError> {
+    /// Computes the preconditioner of `a` (whose pattern is the one given to [`Self::new`]);
+    /// only the AMG uses `near_nullspace`.
+    pub(super) fn factorize(
+        &mut self,
+        a: &SparseMatrix,
+        near_nullspace: Option<&NearNullspace>,
+    ) -> Result<(), LinearError> {
         match self {
             Self::Identity => Ok(()),
             Self::Jacobi { inv_diag } => {
@@ -86,6 +100,12 @@ impl PrecondState {
                 factor,
                 marker,
             } => ilu0(a, diag, factor, marker),
+            Self::Amg(hierarchy) => {
+                // Free the old hierarchy before building the new one.
+                *hierarchy = None;
+                *hierarchy = Some(Amg::new(a, near_nullspace)?);
+                Ok(())
+            }
         }
     }
 
@@ -103,6 +123,10 @@ impl PrecondState {
                 Orientation::Plain => ilu_solve(pattern, diag, factor, z),
                 Orientation::Transposed => ilu_solve_transpose(pattern, diag, factor, z),
             },
+            Self::Amg(hierarchy) => hierarchy
+                .as_ref()
+                .expect("the hierarchy is built by `factorize`")
+                .apply(orientation, z),
         }
     }
 }

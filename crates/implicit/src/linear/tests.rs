@@ -85,10 +85,11 @@ fn relative_error(x: &[f64], reference: &DVector<f64>) -> f64 {
     (DVector::from_column_slice(x) - reference).norm() / reference.norm()
 }
 
-const PRECONDITIONERS: [Preconditioner; 3] = [
+const PRECONDITIONERS: [Preconditioner; 4] = [
     Preconditioner::Identity,
     Preconditioner::Jacobi,
     Preconditioner::Ilu0,
+    Preconditioner::Amg,
 ];
 
 fn cg(preconditioner: Preconditioner) -> LinearSolverKind {
@@ -402,7 +403,7 @@ fn ilu0_of_a_tridiagonal_matrix_is_exact() {
     ] {
         let mut state =
             PrecondState::new(Preconditioner::Ilu0, &a.pattern).expect("diagonal present");
-        state.factorize(&a).expect("non-zero pivots");
+        state.factorize(&a, None).expect("non-zero pivots");
         let (l, u) = dense_factors(&a, &state);
         assert!((&l * &u - a.to_dense()).abs().max() < 1e-14);
         let mut x = vec![0.0; n];
@@ -419,7 +420,9 @@ fn ilu0_reproduces_the_matrix_on_its_pattern() {
     for a in [poisson(7), convection_diffusion(7)] {
         let mut state =
             PrecondState::new(Preconditioner::Ilu0, &a.pattern).expect("diagonal present");
-        state.factorize(&a).expect("M-matrix: positive pivots");
+        state
+            .factorize(&a, None)
+            .expect("M-matrix: positive pivots");
         let (l, u) = dense_factors(&a, &state);
         let lu = &l * &u;
         let dense = a.to_dense();
@@ -471,6 +474,8 @@ fn results_do_not_depend_on_the_thread_count() {
                 (&spd, LinearSolverKind::Cholesky),
                 (&spd, cg(Preconditioner::Ilu0)),
                 (&a, bicgstab(Preconditioner::Ilu0)),
+                (&spd, cg(Preconditioner::Amg)),
+                (&a, bicgstab(Preconditioner::Amg)),
             ] {
                 let mut x = vec![0.0; 3600];
                 LinearSolver::new(kind)
