@@ -582,10 +582,7 @@ impl<const D: usize> ImplicitSolver<D> {
     ) -> Result<Option<String>, ImplicitError> {
         let system = self.system(particles, from, to)?;
         report.unknowns = system.len();
-        if self.linear.kind().uses_near_nullspace() {
-            self.linear
-                .set_near_nullspace(Some(system.near_nullspace()));
-        }
+        system.prepare(&mut self.linear);
         let (x, newton) = solve(
             &system,
             &self.materials,

@@ -346,6 +346,15 @@ impl<const D: usize> StepSystem<D> {
         })
     }
 
+    /// Hands `linear` the near-nullspace of this step's unknowns when its method uses one (the
+    /// AMG preconditioner), so that every solve of the step (Newton's, and the adjoint's
+    /// transposed ones) coarsens with the rigid-body modes.
+    pub fn prepare(&self, linear: &mut LinearSolver) {
+        if linear.kind().uses_near_nullspace() {
+            linear.set_near_nullspace(Some(self.near_nullspace()));
+        }
+    }
+
     /// Position in the value array of entry (row unknown, column unknown); both are owners.
     #[inline]
     fn slot(&self, row: usize, col: usize) -> usize {

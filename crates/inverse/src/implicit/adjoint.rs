@@ -119,6 +119,7 @@ fn reverse_from<const D: usize>(
         }
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
+        system.prepare(&mut linear);
         let inverted = |particle| {
             AdjointError::Implicit(ImplicitError::InvalidState {
                 step: sub.step,

@@ -80,6 +80,7 @@ pub fn model_tangents<const D: usize>(
     for (i, sub) in run.substeps.iter().enumerate() {
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
+        system.prepare(&mut linear);
         let inverted = |particle| {
             AdjointError::Implicit(ImplicitError::InvalidState {
                 step: sub.step,
