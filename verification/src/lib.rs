@@ -407,6 +407,11 @@ pub fn cases() -> Vec<Case> {
             runner: Runner::Cpu(inverse_implicit::run_footing),
         },
         Case {
+            name: "inverse-footing-cphi",
+            description: "strip footing on Mohr–Coulomb soil under gravity, φ and c from the load–settlement curve (reactions at 8 load steps) by L-BFGS from 20 % off: within 1 % each",
+            runner: Runner::Cpu(inverse_implicit::run_footing_cphi),
+        },
+        Case {
             name: "inverse-triaxial-mcc",
             description: "Modified Cam-Clay λ, κ, M fitted to a drained (q, ε_v) and an undrained (q, p′) triaxial curve (synthetic truth λ = 0.2, κ = 0.04, M = 1) by Levenberg–Marquardt with forward-mode derivatives through the element driver, from 25 % off: within 1 % each",
             runner: Runner::Cpu(inverse_element::run),

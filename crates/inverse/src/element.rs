@@ -408,20 +408,7 @@ impl ElementProblem {
     /// As [`ElementProblem::residuals`].
     pub fn gauss_newton(&self, theta: &[f64]) -> Result<GaussNewtonModel, AdjointError> {
         let (r, columns) = self.jacobian(theta)?;
-        let n = columns.len();
-        let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
-        let mut matrix = vec![0.0; n * n];
-        for k in 0..n {
-            for l in 0..=k {
-                matrix[k * n + l] = dot(&columns[k], &columns[l]);
-                matrix[l * n + k] = matrix[k * n + l];
-            }
-        }
-        Ok(GaussNewtonModel {
-            loss: half_sum_of_squares(&r),
-            gradient: columns.iter().map(|c| dot(c, &r)).collect(),
-            matrix,
-        })
+        Ok(GaussNewtonModel::new(0.5, &r, &columns))
     }
 
     /// [`ElementProblem::gauss_newton`] at an optimiser's trial point: a test that cannot be
@@ -433,14 +420,7 @@ impl ElementProblem {
     /// As [`ElementProblem::gauss_newton`], but for a test that stops.
     pub fn trial_gauss_newton(&self, theta: &[f64]) -> Result<GaussNewtonModel, AdjointError> {
         match self.gauss_newton(theta) {
-            Err(AdjointError::Element { .. }) => {
-                let n = theta.len();
-                Ok(GaussNewtonModel {
-                    loss: f64::INFINITY,
-                    gradient: vec![0.0; n],
-                    matrix: vec![0.0; n * n],
-                })
-            }
+            Err(AdjointError::Element { .. }) => Ok(GaussNewtonModel::unbounded(theta.len())),
             other => other,
         }
     }

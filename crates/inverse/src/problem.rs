@@ -119,6 +119,40 @@ pub struct GaussNewtonModel {
     pub matrix: Vec<f64>,
 }
 
+impl GaussNewtonModel {
+    /// The model of `L = c Σᵢ rᵢ²` from the residuals `r` and the columns `J_{·k} = ∂r/∂θ_k`.
+    pub fn new(c: f64, residuals: &[f64], columns: &[Vec<f64>]) -> Self {
+        let n = columns.len();
+        let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
+        let mut matrix = vec![0.0; n * n];
+        for k in 0..n {
+            for l in 0..=k {
+                matrix[k * n + l] = 2.0 * c * dot(&columns[k], &columns[l]);
+                matrix[l * n + k] = matrix[k * n + l];
+            }
+        }
+        Self {
+            loss: c * dot(residuals, residuals),
+            gradient: columns
+                .iter()
+                .map(|col| 2.0 * c * dot(col, residuals))
+                .collect(),
+            matrix,
+        }
+    }
+
+    /// The model at a trial point of `n` unknowns where the run cannot be completed: `L = ∞`,
+    /// a zero gradient and a zero matrix, so that an optimiser shortens (or damps) its step
+    /// instead of ending the inversion.
+    pub fn unbounded(n: usize) -> Self {
+        Self {
+            loss: f64::INFINITY,
+            gradient: vec![0.0; n],
+            matrix: vec![0.0; n * n],
+        }
+    }
+}
+
 /// A loss over an explicit run as a function of its unknowns `θ`.
 #[derive(Clone, Debug)]
 pub struct Problem<const D: usize, O> {
@@ -375,19 +409,7 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
             }
             columns.push(r.iter().map(|r| r.eps).collect::<Vec<f64>>());
         }
-        let dot = |a: &[f64], b: &[f64]| -> f64 { a.iter().zip(b).map(|(a, b)| a * b).sum() };
-        let mut matrix = vec![0.0; n * n];
-        for k in 0..n {
-            for l in 0..=k {
-                matrix[k * n + l] = 2.0 * dot(&columns[k], &columns[l]);
-                matrix[l * n + k] = matrix[k * n + l];
-            }
-        }
-        Ok(GaussNewtonModel {
-            loss: dot(&residuals, &residuals),
-            gradient: columns.iter().map(|c| 2.0 * dot(c, &residuals)).collect(),
-            matrix,
-        })
+        Ok(GaussNewtonModel::new(1.0, &residuals, &columns))
     }
 
     /// The configuration and particles at `theta` lifted to `Dual64` with unknown `k` seeded:

@@ -235,6 +235,11 @@ fn inverse_footing() {
 }
 
 #[test]
+fn inverse_footing_cphi() {
+    check("inverse-footing-cphi");
+}
+
+#[test]
 fn inverse_triaxial_mcc() {
     check("inverse-triaxial-mcc");
 }
