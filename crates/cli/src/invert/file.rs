@@ -1020,10 +1020,12 @@ pub fn variable(p: &ParameterSpec, issue: &mut dyn FnMut(&str, String)) -> Varia
         } else if let Some((lo, hi)) = bounds
             && !(lo..=hi).contains(&v)
         {
+            let (v, lo, hi) = (readable(v), readable(lo), readable(hi));
             issue(field, format!("{v} is outside the bounds [{lo}, {hi}]"));
         } else if let Some((lo, hi, what)) = quantity(&p.name).range
             && !(lo..=hi).contains(&v)
         {
+            let (v, lo, hi) = (readable(v), readable(lo), readable(hi));
             issue(
                 field,
                 format!("{v} is outside [{lo}, {hi}], the physical range of {what}"),
@@ -1220,5 +1222,30 @@ pub fn check_optimiser(
                 format!("expected a number ≥ 0, got {v}"),
             );
         }
+    }
+}
+
+/// `v` as a person reads it in a message: as written for 0 and magnitudes in [10⁻⁴, 10⁷),
+/// else in scientific notation (`1.5e300`, not 301 digits).
+fn readable(v: f64) -> String {
+    if v == 0.0 || (1e-4..1e7).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::readable;
+
+    /// A placeholder such as 1.5e300 reads as such, ordinary values as written.
+    #[test]
+    fn messages_show_numbers_readably() {
+        assert_eq!(readable(1.5e300), "1.5e300");
+        assert_eq!(readable(-2e-9), "-2e-9");
+        assert_eq!(readable(1500.0), "1500");
+        assert_eq!(readable(0.25), "0.25");
+        assert_eq!(readable(0.0), "0");
     }
 }

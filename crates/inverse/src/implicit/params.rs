@@ -52,11 +52,15 @@ impl FromStr for ImplicitParam {
     /// Reads the form `Display` writes.
     fn from_str(s: &str) -> Result<Self, String> {
         let expected = || {
+            let constants: Vec<&str> = (MaterialField::ALL.into_iter())
+                .filter(|f| f.implicit())
+                .map(MaterialField::name)
+                .collect();
             format!(
                 "unknown parameter `{s}`; expected `materials[k].<constant>` (a constant of the \
-                 material's model, e.g. young, poisson, friction_angle, lambda, ocr, density), \
-                 `materials[k].k0`, `gravity[a]`, `point_loads[k].force[a]` or \
-                 `constraints[k].displacement[a]`"
+                 material's model: {}), `materials[k].k0`, `gravity[a]`, \
+                 `point_loads[k].force[a]` or `constraints[k].displacement[a]`",
+                constants.join(", ")
             )
         };
         let indexed = |t: &str, name: &str| -> Option<(usize, String)> {
