@@ -39,7 +39,8 @@ use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_text};
 use loam_core::Particles;
 use loam_implicit::ImplicitConfig;
 use loam_inverse::implicit::{
-    ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, run_recorded,
+    Identifiability, ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity,
+    run_recorded,
 };
 use loam_inverse::{AdjointError, MaterialField, Transform, Variable};
 use std::fmt::Write as _;
@@ -272,50 +273,86 @@ pub fn run_cantilever(size: Size, dir: &Path) -> Result<CaseReport, VerifyError>
     })
 }
 
+/// A footing's two parameters fitted to its load after every load step: the problem, what
+/// L-BFGS recovered from `factors` times the truth, and the Gauss–Newton analysis at the
+/// truth with the correlation of the two.
+struct FootingFit {
+    problem: ImplicitProblem<2>,
+    found: Found,
+    analysis: Identifiability,
+    correlation: f64,
+}
+
+impl FootingFit {
+    /// Fits `params` of the footing `scene` (its constraint 0 pushed down), observed through
+    /// the footing load after each of `steps` load steps (σ = 100 N/m), on the mesh of `size`.
+    fn run(
+        case: &str,
+        scene: loam_scene::Scene,
+        size: Size,
+        steps: usize,
+        params: Vec<ImplicitParam>,
+        factors: &[f64],
+    ) -> Result<Self, VerifyError> {
+        let load = Quantity::Reaction {
+            constraint: 0,
+            component: 1,
+        }
+        .after_each(1..=steps);
+        let problem = synthetic(case, setup(scene, size, steps), params, &load, 100.0)?;
+        let found = invert(case, &problem, factors)?;
+        let truth = problem.values().map_err(failed(case))?;
+        let analysis = problem.identifiability(&truth).map_err(failed(case))?;
+        let correlation = (analysis.correlation.as_ref()).map_or(f64::NAN, |c| c[(0, 1)]);
+        Ok(Self {
+            problem,
+            found,
+            analysis,
+            correlation,
+        })
+    }
+
+    /// What the fit of the parameters named `names` found, as the case's report writes it.
+    fn summary(&self, names: &str) -> String {
+        let (f, g) = (&self.found, &self.analysis);
+        format!(
+            "{} particles, {} load steps; footing load after every step (σ = 100 N/m)\n\n\
+             recovered {names}: relative errors {:.3e}, {:.3e} after {} L-BFGS iterations \
+             ({:.2} s)\n\
+             Gauss–Newton: eigenvalues {:.4e}, {:.4e}; condition {:.4e}; corr({names}) {:.6}\n",
+            self.problem.initial.len(),
+            self.problem.config.load_steps,
+            f.errors[0],
+            f.errors[1],
+            f.iterations,
+            f.wall,
+            g.eigenvalues[0],
+            g.eigenvalues[1],
+            g.condition,
+            self.correlation,
+        )
+    }
+}
+
 /// Runs `inverse-footing`.
 pub fn run_footing(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
     const CASE: &str = "inverse-footing";
     let scene = loam_scene::Scene::from_toml_str(FOOTING)
         .unwrap_or_else(|e| panic!("examples/inverse/footing_clay.toml: {e}"));
     let steps = if size == Size::Full { 16 } else { 8 };
-    let load = Quantity::Reaction {
-        constraint: 0,
-        component: 1,
-    }
-    .after_each(1..=steps);
-    let problem = synthetic(
-        CASE,
-        setup(scene, size, steps),
-        vec![STRENGTH, YOUNG],
-        &load,
-        100.0,
-    )?;
-    let found = invert(CASE, &problem, &[0.7, 1.3])?;
-    let truth = problem.values().map_err(failed(CASE))?;
-    let g = problem.identifiability(&truth).map_err(failed(CASE))?;
-    let corr = g.correlation.as_ref().map_or(f64::NAN, |c| c[(0, 1)]);
-    let ratio = last_step_ratio(CASE, &problem)?;
+    let fit = FootingFit::run(CASE, scene, size, steps, vec![STRENGTH, YOUNG], &[0.7, 1.3])?;
+    let ratio = last_step_ratio(CASE, &fit.problem)?;
     let metrics = vec![
-        Metric::at_most(CASE, "|σ_y/σ_y* − 1|", found.errors[0], 5e-3),
-        Metric::at_most(CASE, "|E/E* − 1|", found.errors[1], 5e-3),
-        Metric::info(CASE, "iterations", found.iterations as f64),
-        Metric::info(CASE, "cond JᵀJ (σ_y, E)", g.condition),
-        Metric::info(CASE, "corr(σ_y, E)", corr),
+        Metric::at_most(CASE, "|σ_y/σ_y* − 1|", fit.found.errors[0], 5e-3),
+        Metric::at_most(CASE, "|E/E* − 1|", fit.found.errors[1], 5e-3),
+        Metric::info(CASE, "iterations", fit.found.iterations as f64),
+        Metric::info(CASE, "cond JᵀJ (σ_y, E)", fit.analysis.condition),
+        Metric::info(CASE, "corr(σ_y, E)", fit.correlation),
         Metric::info(CASE, "last step only / exact dL/dσ_y", ratio),
     ];
     let md = format!(
-        "{} particles, {steps} load steps; footing load after every step (σ = 100 N/m)\n\n\
-         recovered σ_y, E: relative errors {:.3e}, {:.3e} after {} L-BFGS iterations ({:.2} s)\n\
-         Gauss–Newton: eigenvalues {:.4e}, {:.4e}; condition {:.4e}; corr(σ_y, E) {corr:.6}\n\
-         last load step only / exact dL/dσ_y (final load, σ_y 20 % low): {ratio:.4}\n",
-        problem.initial.len(),
-        found.errors[0],
-        found.errors[1],
-        found.iterations,
-        found.wall,
-        g.eigenvalues[0],
-        g.eigenvalues[1],
-        g.condition,
+        "{}last load step only / exact dL/dσ_y (final load, σ_y 20 % low): {ratio:.4}\n",
+        fit.summary("σ_y, E")
     );
     let file = dir.join("inverse_footing.md");
     write_text(&file, &md)?;
@@ -330,49 +367,20 @@ pub fn run_footing_cphi(_size: Size, dir: &Path) -> Result<CaseReport, VerifyErr
     const CASE: &str = "inverse-footing-cphi";
     let scene = loam_scene::Scene::from_toml_str(CPHI_FOOTING)
         .unwrap_or_else(|e| panic!("examples/inverse/footing_cphi_soil.toml: {e}"));
-    let steps = 8;
-    let load = Quantity::Reaction {
-        constraint: 0,
-        component: 1,
-    }
-    .after_each(1..=steps);
     // The example's mesh at both sizes: on the mesh of half the cell size the loss has more
     // kinks (more particles switching between elastic and plastic along the path) and L-BFGS
     // stops after 8 iterations at 6.8 % and 24 % from the same start (`verification.md`).
-    let problem = synthetic(
-        CASE,
-        setup(scene, Size::Reduced, steps),
-        vec![FRICTION, COHESION],
-        &load,
-        100.0,
-    )?;
-    let found = invert(CASE, &problem, &[0.8, 1.2])?;
-    let truth = problem.values().map_err(failed(CASE))?;
-    let g = problem.identifiability(&truth).map_err(failed(CASE))?;
-    let corr = g.correlation.as_ref().map_or(f64::NAN, |c| c[(0, 1)]);
+    let params = vec![FRICTION, COHESION];
+    let fit = FootingFit::run(CASE, scene, Size::Reduced, 8, params, &[0.8, 1.2])?;
     let metrics = vec![
-        Metric::at_most(CASE, "|φ/φ* − 1|", found.errors[0], 1e-2),
-        Metric::at_most(CASE, "|c/c* − 1|", found.errors[1], 1e-2),
-        Metric::info(CASE, "iterations", found.iterations as f64),
-        Metric::info(CASE, "cond JᵀJ (φ, c)", g.condition),
-        Metric::info(CASE, "corr(φ, c)", corr),
+        Metric::at_most(CASE, "|φ/φ* − 1|", fit.found.errors[0], 1e-2),
+        Metric::at_most(CASE, "|c/c* − 1|", fit.found.errors[1], 1e-2),
+        Metric::info(CASE, "iterations", fit.found.iterations as f64),
+        Metric::info(CASE, "cond JᵀJ (φ, c)", fit.analysis.condition),
+        Metric::info(CASE, "corr(φ, c)", fit.correlation),
     ];
-    let md = format!(
-        "{} particles, {steps} load steps; footing load after every step (σ = 100 N/m)\n\n\
-         recovered φ, c from 0.8 φ and 1.2 c: relative errors {:.3e}, {:.3e} after {} \
-         L-BFGS iterations ({:.2} s)\n\
-         Gauss–Newton: eigenvalues {:.4e}, {:.4e}; condition {:.4e}; corr(φ, c) {corr:.6}\n",
-        problem.initial.len(),
-        found.errors[0],
-        found.errors[1],
-        found.iterations,
-        found.wall,
-        g.eigenvalues[0],
-        g.eigenvalues[1],
-        g.condition,
-    );
     let file = dir.join("inverse_footing_cphi.md");
-    write_text(&file, &md)?;
+    write_text(&file, &fit.summary("φ, c"))?;
     Ok(CaseReport {
         metrics,
         files: vec![file],
