@@ -33,6 +33,10 @@ pub struct Particles<T: Scalar, const D: usize> {
     pub material: Vec<u32>,
     /// History variables of the constitutive model.
     pub state: Vec<MaterialState<T>>,
+    /// Pore water pressure `p` (Pa, positive in compression) of a saturated soil in a
+    /// coupled (u–p) run; zero otherwise. `stress` is then the effective stress `σ′` and the
+    /// total stress is `σ′ − α p I`.
+    pub pore_pressure: Vec<T>,
 }
 
 impl<T: Scalar, const D: usize> Default for Particles<T, D> {
@@ -49,6 +53,7 @@ impl<T: Scalar, const D: usize> Default for Particles<T, D> {
             half_width0: Vec::new(),
             material: Vec::new(),
             state: Vec::new(),
+            pore_pressure: Vec::new(),
         }
     }
 }
@@ -75,6 +80,7 @@ impl<T: Scalar, const D: usize> Clone for Particles<T, D> {
             half_width0,
             material,
             state,
+            pore_pressure,
         } = source;
         self.x.clone_from(x);
         self.v.clone_from(v);
@@ -87,6 +93,7 @@ impl<T: Scalar, const D: usize> Clone for Particles<T, D> {
         self.half_width0.clone_from(half_width0);
         self.material.clone_from(material);
         self.state.clone_from(state);
+        self.pore_pressure.clone_from(pore_pressure);
     }
 }
 
@@ -125,6 +132,7 @@ impl<T: Scalar, const D: usize> Particles<T, D> {
         self.half_width0.push(half_width);
         self.material.push(material);
         self.state.push(MaterialState::default());
+        self.pore_pressure.push(T::zero());
     }
 
     /// Total mass `Σ m_p`.
@@ -157,9 +165,9 @@ impl<T: Scalar, const D: usize> Particles<T, D> {
 
 impl<const D: usize> Particles<f64, D> {
     /// The same particles with every field as constants of another scalar type (position,
-    /// velocity, acceleration, `F`, affine matrix, stress, mass, volume, half-width and the
-    /// material state); seed the derivative parts of the result to differentiate with respect
-    /// to the initial state.
+    /// velocity, acceleration, `F`, affine matrix, stress, mass, volume, half-width, material
+    /// state and pore pressure); seed the derivative parts of the result to differentiate
+    /// with respect to the initial state.
     pub fn lift<T: Scalar>(&self) -> Particles<T, D> {
         let vectors = |v: &[Vector<f64, D>]| v.iter().map(|x| x.map(T::cst)).collect();
         let tensors = |v: &[Tensor<f64, D>]| v.iter().map(|x| x.map(T::cst)).collect();
@@ -176,6 +184,7 @@ impl<const D: usize> Particles<f64, D> {
             half_width0: vectors(&self.half_width0),
             material: self.material.clone(),
             state: self.state.iter().map(MaterialState::lift).collect(),
+            pore_pressure: scalars(&self.pore_pressure),
         }
     }
 }

@@ -8,6 +8,12 @@
 //! with `P` negating the constrained components. The mirror image makes the wall a symmetry plane
 //! for wide supports (B-splines, GIMP): without it the displacement field would be pinned a
 //! fraction of a cell outside the wall, an O(h) error.
+//!
+//! A coupled (u–p) step has one more unknown per node, the excess pore pressure (component
+//! `D`; [`DofMap::coupled`]). It has walls of its own: across a drained face the ghost node is
+//! the negative mirror image (the interpolated excess pressure vanishes on the face, whose own
+//! nodes are prescribed to zero); across any other wall the positive one (no flow through it);
+//! across a free face none.
 
 use loam_core::{Boundary, Grid, WallKind};
 
@@ -30,11 +36,55 @@ pub enum NodeDof {
     },
 }
 
-/// The map from grid-node components to unknowns for one load step.
+/// The map from grid-node components to unknowns for one load step: `fields` components per
+/// node, the `D` displacement increments and, in a coupled step, the excess pore pressure.
 #[derive(Clone, Debug)]
 pub struct DofMap<const D: usize> {
-    nodes: Vec<[NodeDof; D]>,
+    /// `fields` entries per node (flat index), component-fastest.
+    nodes: Vec<NodeDof>,
     owners: Vec<(usize, usize)>,
+    fields: usize,
+}
+
+/// Which grid faces drain the pore fluid, `[axis][side]` (side 0 the low face): the excess
+/// pore pressure is zero on them.
+pub type Drained<const D: usize> = [[bool; 2]; D];
+
+/// The node whose pressure unknown a ghost node mirrors and the sign (module docs).
+fn pressure_owner<const D: usize>(
+    grid: &Grid<D>,
+    boundary: &Boundary<D>,
+    drained: &Drained<D>,
+    node: [usize; D],
+) -> ([usize; D], f64) {
+    let mut idx = node;
+    let mut sign = 1.0;
+    for axis in 0..D {
+        for side in 0..2 {
+            let wall = boundary.walls[axis][side];
+            let negate = drained[axis][side];
+            if !negate && (wall.separable || wall.kind == WallKind::Free) {
+                continue;
+            }
+            let face = if side == 0 {
+                grid.pad
+            } else {
+                grid.pad + grid.cells[axis]
+            };
+            let beyond = if side == 0 {
+                idx[axis] < face
+            } else {
+                idx[axis] > face
+            };
+            if beyond {
+                idx[axis] = 2 * face - idx[axis];
+                if negate {
+                    sign = -sign;
+                }
+            }
+        }
+    }
+    (idx, sign)
 }
 
 /// The node whose unknowns a ghost node mirrors, and the sign per component; `None` for the
@@ -79,31 +129,81 @@ fn owner<const D: usize>(
 }
 
 impl<const D: usize> DofMap<D> {
-    /// Numbers the unknowns: `active[n]` says whether node `n` (flat index) is in the support
-    /// of a particle; `prescribed(node, component)` gives this step's increment of a
-    /// constrained component, if any (user constraints), on top of the walls.
+    /// Numbers the unknowns of a step of the solid alone (`D` per node): `active[n]` says
+    /// whether node `n` (flat index) is in the support of a particle; `prescribed(node,
+    /// component)` gives this step's increment of a constrained component, if any (user
+    /// constraints), on top of the walls.
     pub fn new(
         grid: &Grid<D>,
         boundary: &Boundary<D>,
         active: &[bool],
         prescribed: impl Fn([usize; D], usize) -> Option<f64>,
     ) -> Self {
+        Self::build(grid, boundary, None, active, prescribed)
+    }
+
+    /// Numbers the unknowns of a coupled step, `D + 1` per node: as [`DofMap::new`], plus the
+    /// excess pore pressure (component `D`), zero on the `drained` faces and wherever
+    /// `prescribed(node, D)` says (above a water table).
+    pub fn coupled(
+        grid: &Grid<D>,
+        boundary: &Boundary<D>,
+        drained: &Drained<D>,
+        active: &[bool],
+        prescribed: impl Fn([usize; D], usize) -> Option<f64>,
+    ) -> Self {
+        Self::build(grid, boundary, Some(drained), active, prescribed)
+    }
+
+    fn build(
+        grid: &Grid<D>,
+        boundary: &Boundary<D>,
+        drained: Option<&Drained<D>>,
+        active: &[bool],
+        prescribed: impl Fn([usize; D], usize) -> Option<f64>,
+    ) -> Self {
         let n = grid.num_nodes();
+        let fields = if drained.is_some() { D + 1 } else { D };
+        // The owner of every component of node `f` and its sign.
+        let owner_of = |f: usize, c: usize| -> (usize, f64) {
+            let node = grid.multi(f);
+            match drained {
+                Some(dr) if c == D => {
+                    let (o, sign) = pressure_owner(grid, boundary, dr, node);
+                    (grid.flat(o), sign)
+                }
+                _ => {
+                    let (o, sign) = owner(grid, boundary, node);
+                    (grid.flat(o), sign[c])
+                }
+            }
+        };
         // Owners of active nodes are active too (a particle just outside a wall may reach a
         // ghost without reaching its mirror).
-        let mut owned = vec![false; n];
+        let mut owned = vec![false; n * fields];
         for (f, &a) in active.iter().enumerate() {
             if a {
-                let (o, _) = owner(grid, boundary, grid.multi(f));
-                owned[grid.flat(o)] = true;
+                for c in 0..fields {
+                    owned[owner_of(f, c).0 * fields + c] = true;
+                }
             }
         }
-        // Constraints of the owner nodes: walls, then user constraints.
+        // Constraints of the owner nodes: walls (drained faces for the pressure), then user
+        // constraints.
         let constraint = |node: [usize; D], c: usize| -> Option<f64> {
             for axis in 0..D {
                 for side in 0..2 {
+                    if !grid.on_face(node, axis, side) {
+                        continue;
+                    }
+                    if c == D {
+                        if drained.is_some_and(|dr| dr[axis][side]) {
+                            return Some(0.0);
+                        }
+                        continue;
+                    }
                     let wall = boundary.walls[axis][side];
-                    if wall.separable || !grid.on_face(node, axis, side) {
+                    if wall.separable {
                         continue;
                     }
                     match wall.kind {
@@ -115,15 +215,14 @@ impl<const D: usize> DofMap<D> {
             }
             prescribed(node, c)
         };
-        let mut own_dof = vec![[NodeDof::Inactive; D]; n];
+        let mut own_dof = vec![NodeDof::Inactive; n * fields];
         let mut owners = Vec::new();
         for f in 0..n {
-            if !owned[f] {
-                continue;
-            }
-            let node = grid.multi(f);
-            for c in 0..D {
-                own_dof[f][c] = match constraint(node, c) {
+            for c in 0..fields {
+                if !owned[f * fields + c] {
+                    continue;
+                }
+                own_dof[f * fields + c] = match constraint(grid.multi(f), c) {
                     Some(value) => NodeDof::Prescribed { value },
                     None => {
                         owners.push((f, c));
@@ -135,24 +234,27 @@ impl<const D: usize> DofMap<D> {
                 };
             }
         }
-        let mut nodes = vec![[NodeDof::Inactive; D]; n];
+        let mut nodes = vec![NodeDof::Inactive; n * fields];
         for f in 0..n {
-            if !active[f] && !owned[f] {
-                continue;
-            }
-            let (o, sign) = owner(grid, boundary, grid.multi(f));
-            let of = grid.flat(o);
-            for c in 0..D {
-                nodes[f][c] = match own_dof[of][c] {
-                    NodeDof::Free { dof, .. } => NodeDof::Free { dof, sign: sign[c] },
+            for c in 0..fields {
+                if !active[f] && !owned[f * fields + c] {
+                    continue;
+                }
+                let (of, sign) = owner_of(f, c);
+                nodes[f * fields + c] = match own_dof[of * fields + c] {
+                    NodeDof::Free { dof, .. } => NodeDof::Free { dof, sign },
                     NodeDof::Prescribed { value } => NodeDof::Prescribed {
-                        value: sign[c] * value,
+                        value: sign * value,
                     },
                     NodeDof::Inactive => NodeDof::Inactive,
                 };
             }
         }
-        Self { nodes, owners }
+        Self {
+            nodes,
+            owners,
+            fields,
+        }
     }
 
     /// Makes the inactive node `node` (flat index) follow `target`: every component of `node`
@@ -160,9 +262,19 @@ impl<const D: usize> DofMap<D> {
     /// uniform `Δu` stays uniform over the stencils that reach `node`. A node that already
     /// has unknowns is left as it is.
     pub fn follow(&mut self, node: usize, target: usize) {
-        if self.nodes[node].iter().all(|d| *d == NodeDof::Inactive) {
-            self.nodes[node] = self.nodes[target];
+        let k = self.fields;
+        if self.nodes[node * k..(node + 1) * k]
+            .iter()
+            .all(|d| *d == NodeDof::Inactive)
+        {
+            self.nodes
+                .copy_within(target * k..(target + 1) * k, node * k);
         }
+    }
+
+    /// Unknowns per node: `D`, or `D + 1` in a coupled step.
+    pub fn fields(&self) -> usize {
+        self.fields
     }
 
     /// Number of unknowns.
@@ -178,7 +290,7 @@ impl<const D: usize> DofMap<D> {
     /// How component `c` of node `flat` is determined.
     #[inline]
     pub fn get(&self, flat: usize, c: usize) -> NodeDof {
-        self.nodes[flat][c]
+        self.nodes[flat * self.fields + c]
     }
 
     /// The (owner node, component) of unknown `dof`.
@@ -190,7 +302,7 @@ impl<const D: usize> DofMap<D> {
     /// accelerations): `sign · v[dof]` for a free component, zero otherwise.
     #[inline]
     pub fn field(&self, flat: usize, c: usize, v: &[f64]) -> f64 {
-        match self.nodes[flat][c] {
+        match self.nodes[flat * self.fields + c] {
             NodeDof::Free { dof, sign } => sign * v[dof],
             _ => 0.0,
         }
@@ -199,7 +311,7 @@ impl<const D: usize> DofMap<D> {
     /// `Δu` of a node component for the unknown vector `x`.
     #[inline]
     pub fn value(&self, flat: usize, c: usize, x: &[f64]) -> f64 {
-        match self.nodes[flat][c] {
+        match self.nodes[flat * self.fields + c] {
             NodeDof::Free { dof, sign } => sign * x[dof],
             NodeDof::Prescribed { value } => value,
             NodeDof::Inactive => 0.0,

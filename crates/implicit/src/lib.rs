@@ -8,6 +8,8 @@
 //! - [`balance`]: the per-particle force that balances a prestressed body's initial stress
 //!   against gravity on the grid, so a K0 state is kept through the first load step.
 //! - [`dofs`]: unknowns, walls (mirror images), prescribed displacements.
+//! - [`flow`]: the pore fluid of a coupled (u–p) step: the mixture and fluid balances,
+//!   their AD tangents, the pressure stabilisation and the time schedule.
 //! - [`system`]: residual, the per-particle AD tangent and the block-colour-seeded reference
 //!   tangent, particle update.
 //! - [`newton`]: Newton with line search; [`solver`]: load stepping with step cutting.
@@ -19,6 +21,7 @@
 pub mod balance;
 pub mod dofs;
 pub mod element;
+pub mod flow;
 pub mod kernel;
 pub mod linear;
 pub mod newton;

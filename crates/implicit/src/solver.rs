@@ -2,6 +2,7 @@
 //! in half when Newton fails.
 
 use crate::dofs::DofMap;
+use crate::flow::{Flow, FlowFrozen, PoreFluid};
 use crate::kernel::Frozen;
 use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
@@ -50,6 +51,10 @@ pub struct ImplicitConfig<const D: usize> {
     /// of a prestressed body's initial stress against gravity on the grid
     /// ([`crate::balance`]). Empty: none.
     pub balance: Vec<Vector<f64, D>>,
+    /// The pore fluid of a coupled (u–p) run: every step then solves for the excess pore
+    /// pressure too, over the time its schedule gives, with the loads following the
+    /// schedule's load factor. `None`: the solid alone.
+    pub pore_fluid: Option<PoreFluid<D>>,
 }
 
 impl<const D: usize> ImplicitConfig<D> {
@@ -289,6 +294,9 @@ impl<const D: usize> ImplicitSolver<D> {
                 ),
             ));
         }
+        if let Some(fluid) = &config.pore_fluid {
+            check_pore_fluid(&config, fluid)?;
+        }
         Ok(Self {
             materials: Materials::new(config.materials.clone()),
             linear: LinearSolver::new(config.newton.linear),
@@ -367,7 +375,8 @@ impl<const D: usize> ImplicitSolver<D> {
             .iter()
             .map(|&s| s > cfg.min_node_support * full)
             .collect();
-        let dl = to - from;
+        let (from_load, to_load) = (self.load_at(from), self.load_at(to));
+        let dl = to_load - from_load;
         let prescribed = |node: [usize; D], c: usize| {
             let x: Vector<f64, D> = grid.node_position(node);
             let xa: [f64; D] = std::array::from_fn(|a| x[a]);
@@ -377,11 +386,26 @@ impl<const D: usize> ImplicitSolver<D> {
                 .find(|k| k.displacement[c].is_some() && k.contains(&xa, grid.h))
                 .and_then(|k| k.displacement[c].map(|u| u * dl))
         };
-        let mut dofs = DofMap::new(grid, &cfg.boundary, &active, prescribed);
+        let mut dofs = match &cfg.pore_fluid {
+            None => DofMap::new(grid, &cfg.boundary, &active, prescribed),
+            Some(fluid) => {
+                DofMap::coupled(grid, &cfg.boundary, &fluid.drained, &active, |node, c| {
+                    if c < D {
+                        return prescribed(node, c);
+                    }
+                    // No excess pressure above the water table.
+                    let x: Vector<f64, D> = grid.node_position(node);
+                    fluid
+                        .water_table
+                        .is_some_and(|z| x[D - 1] > z + 1e-9 * grid.h)
+                        .then_some(0.0)
+                })
+            }
+        };
         follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
         // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so do
         // gravity on a prestressed body and its balance.
-        let factor = if cfg.dynamics.is_some() { 1.0 } else { to };
+        let factor = if cfg.dynamics.is_some() { 1.0 } else { to_load };
         let g_factor = if cfg.gravity_in_full { 1.0 } else { factor };
         let mut loads = vec![Vector::<f64, D>::zeros(); p.len()];
         for l in &cfg.point_loads {
@@ -391,6 +415,9 @@ impl<const D: usize> ImplicitSolver<D> {
             let balance = cfg.balance.get(i).copied().unwrap_or_else(Vector::zeros);
             p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
         });
+        if let Some(fluid) = &cfg.pore_fluid {
+            system.flow = Some(self.flow(fluid, p, &system, from, to));
+        }
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;
             system
@@ -401,6 +428,80 @@ impl<const D: usize> ImplicitSolver<D> {
                 })?;
         }
         Ok(system)
+    }
+
+    /// The load factor at run progress `s` (the schedule's for a coupled run).
+    fn load_at(&self, s: f64) -> f64 {
+        match &self.config.pore_fluid {
+            Some(fluid) => fluid.schedule.at(s).1,
+            None => s,
+        }
+    }
+
+    /// Time reached (s): the schedule's at the progress made; zero for a run of the solid
+    /// alone.
+    pub fn time(&self) -> f64 {
+        self.config
+            .pore_fluid
+            .as_ref()
+            .map_or(0.0, |f| f.schedule.at(self.load_factor).0)
+    }
+
+    /// The pore fluid of the (sub-)step from progress `from` to `to` (module docs of
+    /// [`crate::flow`]): the time step, the scale `G_ref/h` with `G_ref` the volume-weighted
+    /// mean shear modulus of the particles, and per particle the start-of-step excess and
+    /// hydrostatic pressures and the stabilisation weight `Vⁿ/G`; the stabilisation's patches
+    /// group the particles by stencil, in a deterministic order.
+    fn flow(
+        &self,
+        fluid: &PoreFluid<D>,
+        p: &Particles<f64, D>,
+        system: &StepSystem<D>,
+        from: f64,
+        to: f64,
+    ) -> Flow {
+        let dt = fluid.schedule.at(to).0 - fluid.schedule.at(from).0;
+        let shear: Vec<f64> = (0..p.len())
+            .map(|i| {
+                self.config.materials[p.material[i] as usize]
+                    .shear_modulus_in(&p.state[i])
+                    .max(f64::MIN_POSITIVE)
+            })
+            .collect();
+        let volume: Vec<f64> = (0..p.len())
+            .map(|i| p.volume0[i] * loam_core::tensor::det(&p.f[i]))
+            .collect();
+        let total: f64 = volume.iter().sum();
+        let g_ref = shear.iter().zip(&volume).map(|(g, v)| g * v).sum::<f64>() / total;
+        let particles = (0..p.len())
+            .map(|i| {
+                let hydrostatic = fluid.hydrostatic(&p.x[i]);
+                FlowFrozen {
+                    excess: p.pore_pressure[i] - hydrostatic,
+                    hydrostatic,
+                    weight: volume[i] / shear[i],
+                }
+            })
+            .collect();
+        let patches = if fluid.stabilisation {
+            let mut by_stencil = std::collections::BTreeMap::<Vec<isize>, Vec<usize>>::new();
+            for (i, fr) in system.frozen.iter().enumerate() {
+                by_stencil
+                    .entry(fr.stencil.base.to_vec())
+                    .or_default()
+                    .push(i);
+            }
+            by_stencil.into_values().collect()
+        } else {
+            Vec::new()
+        };
+        Flow {
+            dt,
+            scale: g_ref / self.config.grid.h,
+            hydraulic: fluid.hydraulic.clone(),
+            particles,
+            patches,
+        }
     }
 
     /// Reaction of every user constraint: the internal force on the prescribed components of
@@ -615,8 +716,61 @@ impl<const D: usize> ImplicitSolver<D> {
             particles.f[i] = u.f;
             particles.stress[i] = u.stress;
             particles.state[i] = u.state;
+            if let Some(fluid) = &self.config.pore_fluid {
+                particles.pore_pressure[i] =
+                    fluid.hydrostatic(&particles.x[i]) + u.excess_pore_pressure;
+            }
         }
         self.load_factor = to;
         Ok(None)
     }
+}
+
+/// Checks a coupled run's pore fluid against the rest of its configuration.
+fn check_pore_fluid<const D: usize>(
+    config: &ImplicitConfig<D>,
+    fluid: &PoreFluid<D>,
+) -> Result<(), ImplicitError> {
+    let bad = |field: &str, msg: String| {
+        Err(ImplicitError::Config {
+            field: field.into(),
+            msg,
+        })
+    };
+    if fluid.hydraulic.len() != config.materials.len() {
+        return bad(
+            "pore_fluid.hydraulic",
+            format!(
+                "{} entries for {} materials",
+                fluid.hydraulic.len(),
+                config.materials.len()
+            ),
+        );
+    }
+    if config.dynamics.is_some() {
+        return bad(
+            "dynamics",
+            "a coupled (u–p) run is quasi-static; Newmark dynamics is not available with a pore fluid".into(),
+        );
+    }
+    let schedule = &fluid.schedule;
+    if schedule.time.len() != config.load_steps + 1 || schedule.load.len() != schedule.time.len() {
+        return bad(
+            "pore_fluid.schedule",
+            format!(
+                "{} times and {} load factors for {} load steps (one more than the steps each)",
+                schedule.time.len(),
+                schedule.load.len(),
+                config.load_steps
+            ),
+        );
+    }
+    let ordered = schedule.time.windows(2).all(|w| w[1] >= w[0]);
+    if schedule.time[0] != 0.0 || !ordered || schedule.time.iter().any(|t| !t.is_finite()) {
+        return bad(
+            "pore_fluid.schedule.time",
+            "must start at 0 and never decrease".into(),
+        );
+    }
+    Ok(())
 }

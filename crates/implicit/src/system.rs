@@ -2,6 +2,7 @@
 //! unknowns, its sparse tangent `K = ∂R/∂Δu`, and the particle update once it converged.
 
 use crate::dofs::{DofMap, NodeDof};
+use crate::flow::Flow;
 use crate::kernel::{Frozen, delta_f, particle_stress};
 use crate::linear::{LinearError, LinearSolver, NearNullspace, SparseMatrix, SparsePattern};
 use loam_core::tensor::{Tensor, Vector, det};
@@ -50,6 +51,10 @@ pub struct Materials {
     pub dual4: Vec<Material<DualSVec64<4>>>,
     /// For the per-particle tangent in 3D: all 9 entries of `ΔF` seeded in one pass.
     pub dual9: Vec<Material<DualSVec64<9>>>,
+    /// For the per-particle tangent of a coupled step in 2D: `ΔF`, `p̂` and `∇p̂` (7 lanes).
+    pub dual7: Vec<Material<DualSVec64<7>>>,
+    /// The same in 3D (13 lanes).
+    pub dual13: Vec<Material<DualSVec64<13>>>,
 }
 
 impl Materials {
@@ -61,6 +66,8 @@ impl Materials {
             dual3: real.iter().map(|m| m.lift()).collect(),
             dual4: real.iter().map(|m| m.lift()).collect(),
             dual9: real.iter().map(|m| m.lift()).collect(),
+            dual7: real.iter().map(|m| m.lift()).collect(),
+            dual13: real.iter().map(|m| m.lift()).collect(),
             real,
         }
     }
@@ -204,6 +211,9 @@ impl Inertia {
 pub struct StepSystem<const D: usize> {
     /// Newmark inertia for dynamic steps (`None`: quasi-static).
     pub inertia: Option<Inertia>,
+    /// The pore fluid of a coupled (u–p) step (`None`: the solid alone); the unknown map
+    /// then has `D + 1` components per node.
+    pub flow: Option<Flow>,
     /// Frozen particle data.
     pub frozen: Vec<Frozen<D>>,
     /// Unknown numbering.
@@ -240,6 +250,7 @@ impl<const D: usize> StepSystem<D> {
         let b = frozen.first().map_or(2, |f| f.stencil.b);
         let reach = 2 * b - 1;
         let n = dofs.len();
+        let fields = dofs.fields();
         // Pattern: owner nodes within b − 1 of each other along every axis couple.
         let nodes = grid.nodes();
         let offsets = reach.pow(D as u32);
@@ -268,7 +279,7 @@ impl<const D: usize> StepSystem<D> {
                 let (node, _) = dofs.owner_of(col);
                 for k in 0..offsets {
                     if let Some(m) = neighbour(node, k) {
-                        for c in 0..D {
+                        for c in 0..fields {
                             if let Some(row) = owner_dof(m, c) {
                                 f(col, k, c, row);
                             }
@@ -277,13 +288,13 @@ impl<const D: usize> StepSystem<D> {
                 }
             }
         };
-        let mut entries = Vec::with_capacity(n * offsets * D);
+        let mut entries = Vec::with_capacity(n * offsets * fields);
         couplings(&mut |col, _, _, row| entries.push((row, col)));
         let pattern = Arc::new(SparsePattern::new(n, entries));
-        let mut slots = vec![NO_SLOT; n * offsets * D];
+        let mut slots = vec![NO_SLOT; n * offsets * fields];
         couplings(&mut |col, k, c, row| {
             let pos = pattern.position(row, col).expect("entry was inserted");
-            slots[(col * offsets + k) * D + c] = pos as u32;
+            slots[(col * offsets + k) * fields + c] = pos as u32;
         });
         let mut f_ext = vec![0.0; n];
         for (p, fr) in frozen.iter().enumerate() {
@@ -312,6 +323,7 @@ impl<const D: usize> StepSystem<D> {
         let key_centre = key([b - 1; D]);
         Self {
             inertia: None,
+            flow: None,
             frozen,
             dofs,
             pattern,
@@ -350,25 +362,25 @@ impl<const D: usize> StepSystem<D> {
     /// AMG preconditioner), so that every solve of the step (Newton's, and the adjoint's
     /// transposed ones) coarsens with the rigid-body modes.
     pub fn prepare(&self, linear: &mut LinearSolver) {
-        if linear.kind().uses_near_nullspace() {
+        if linear.kind().uses_near_nullspace() && self.flow.is_none() {
             linear.set_near_nullspace(Some(self.near_nullspace()));
         }
     }
 
     /// Position in the value array of entry (row unknown, column unknown); both are owners.
     #[inline]
-    fn slot(&self, row: usize, col: usize) -> usize {
+    pub(crate) fn slot(&self, row: usize, col: usize) -> usize {
         let (kr, rc) = self.owner_key[row];
         let (kc, _) = self.owner_key[col];
         let k = (kr - kc + self.key_centre) as usize;
-        let s = self.slots[(col * self.offsets + k) * D + rc];
+        let s = self.slots[(col * self.offsets + k) * self.dofs.fields() + rc];
         debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
         s as usize
     }
 
     /// `ΔF` of particle `p` for the unknowns `x`.
     #[inline]
-    fn delta_f_real(&self, p: usize, x: &[f64]) -> Tensor<f64, D> {
+    pub(crate) fn delta_f_real(&self, p: usize, x: &[f64]) -> Tensor<f64, D> {
         delta_f(&self.frozen[p].stencil, |flat, c| {
             self.dofs.value(flat, c, x)
         })
@@ -377,7 +389,7 @@ impl<const D: usize> StepSystem<D> {
     /// Evaluates `compute(p)` for every particle, in parallel chunks of [`CHUNK`], and hands
     /// the results to `consume(p, result)` serially in particle order (so every sum it makes
     /// is deterministic). A `None` result is a trial state that inverts particle `p`.
-    fn chunked<R: Send>(
+    pub(crate) fn chunked<R: Send>(
         &self,
         compute: impl Fn(usize) -> Option<R> + Sync,
         mut consume: impl FnMut(usize, R),
@@ -400,6 +412,9 @@ impl<const D: usize> StepSystem<D> {
     /// Internal force on the unknowns `f_int(x)`; `Err` names a particle the trial state
     /// inverts.
     pub fn internal_force(&self, x: &[f64], materials: &Materials) -> Result<Vec<f64>, Inverted> {
+        if self.flow.is_some() {
+            return self.coupled_force(x, materials);
+        }
         let mut f = vec![0.0; self.len()];
         self.chunked(
             |p| {
@@ -445,6 +460,9 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Result<Vec<Vector<f64, D>>, Inverted> {
+        if self.flow.is_some() {
+            return self.coupled_nodal_force(x, materials);
+        }
         let mut f = vec![Vector::<f64, D>::zeros(); self.grid.num_nodes()];
         for (p, fr) in self.frozen.iter().enumerate() {
             let (s, _, _) =
@@ -556,6 +574,9 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
+        if self.flow.is_some() {
+            return self.coupled_tangent_local(x, materials);
+        }
         self.tangent_from(|p| self.material_tangent(p, x, materials))
     }
 
@@ -664,6 +685,9 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
+        if self.flow.is_some() {
+            return self.coupled_tangent_colour(x, materials);
+        }
         match D {
             2 => self.tangent_colour_lanes::<2>(x, &materials.dual2),
             3 => self.tangent_colour_lanes::<3>(x, &materials.dual3),
@@ -677,8 +701,7 @@ impl<const D: usize> StepSystem<D> {
         mats: &[Material<DualSVec64<L>>],
     ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
-        let colours = self.b.pow(D as u32);
-        for colour in 0..colours {
+        for colour in 0..self.colours() {
             self.chunked(
                 |p| {
                     let fr = &self.frozen[p];
@@ -724,9 +747,19 @@ impl<const D: usize> StepSystem<D> {
         Ok(k)
     }
 
+    /// Number of node colours, `b^D`.
+    pub(crate) fn colours(&self) -> usize {
+        self.b.pow(D as u32)
+    }
+
+    /// The background grid of the step.
+    pub fn grid(&self) -> &Grid<D> {
+        &self.grid
+    }
+
     /// Colour `(i mod b, j mod b, k mod b)` of the owner node of unknown `dof`.
     #[inline]
-    fn colour(&self, dof: usize) -> usize {
+    pub(crate) fn colour(&self, dof: usize) -> usize {
         let idx = self.grid.multi(self.dofs.owner_of(dof).0);
         let mut c = 0;
         for a in (0..D).rev() {
@@ -735,8 +768,8 @@ impl<const D: usize> StepSystem<D> {
         c
     }
 
-    /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J`, the
-    /// displacement `Σ_i N_i Δu_i` and, for a dynamic step, the particle velocity increment
+    /// The converged particle update: `F = ΔF Fⁿ`, history, Cauchy stress `σ = τ / J` (the
+    /// effective stress of a coupled step) and excess pore pressure, the displacement `Σ_i N_i Δu_i` and, for a dynamic step, the particle velocity increment
     /// `Σ_i N_i Δv_i` and acceleration `Σ_i N_i aₙ₊₁,i` from the step's [`GridMotion`]
     /// (see [`Inertia`]).
     pub fn particle_updates(
@@ -750,8 +783,19 @@ impl<const D: usize> StepSystem<D> {
             .map(|p| {
                 let fr = &self.frozen[p];
                 let g = self.delta_f_real(p, x);
-                let (_, tau, state) = particle_stress(&materials.real[fr.material], fr, &g)
-                    .ok_or(Inverted { particle: p })?;
+                let (tau, state, excess) = match &self.flow {
+                    Some(_) => {
+                        let c = self
+                            .coupled_real(p, x, materials)
+                            .ok_or(Inverted { particle: p })?;
+                        (c.tau, c.state, c.excess)
+                    }
+                    None => {
+                        let (_, tau, state) = particle_stress(&materials.real[fr.material], fr, &g)
+                            .ok_or(Inverted { particle: p })?;
+                        (tau, state, 0.0)
+                    }
+                };
                 let f = g * fr.f_n;
                 let j = det(&f);
                 let mut u = Vector::<f64, D>::zeros();
@@ -772,6 +816,7 @@ impl<const D: usize> StepSystem<D> {
                     f,
                     stress: tau / j,
                     state,
+                    excess_pore_pressure: excess,
                 })
             })
             .collect()
@@ -793,4 +838,7 @@ pub struct ParticleUpdate<const D: usize> {
     pub stress: Matrix3<f64>,
     /// New history.
     pub state: loam_core::MaterialState<f64>,
+    /// Excess pore pressure `p_e` at the end of a coupled step (Pa, compression positive;
+    /// zero otherwise).
+    pub excess_pore_pressure: f64,
 }

@@ -64,11 +64,12 @@ impl Footprint {
             half_width0,
             material,
             state,
+            pore_pressure,
         } = initial;
         let state = bytes::<Vector<f64, D>>(x.len() + v.len() + a.len() + half_width0.len())
             + bytes::<loam_core::tensor::Tensor<f64, D>>(f.len() + c.len())
             + bytes::<nalgebra::Matrix3<f64>>(stress.len())
-            + bytes::<f64>(mass.len() + volume0.len())
+            + bytes::<f64>(mass.len() + volume0.len() + pore_pressure.len())
             + bytes::<u32>(material.len())
             + bytes::<loam_core::constitutive::MaterialState<f64>>(state.len());
         let velocities = if config.transfer.needs_old_grid_velocity() {

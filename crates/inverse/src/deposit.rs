@@ -194,6 +194,7 @@ mod tests {
                 p.half_width0.push(Vector::repeat(spacing / 2.0));
                 p.material.push(0);
                 p.state.push(Default::default());
+                p.pore_pressure.push(0.0);
             }
         }
         p

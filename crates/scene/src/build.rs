@@ -261,6 +261,7 @@ impl<const D: usize> Built<D> {
             gravity_in_full: self.prestressed,
             min_node_support: loam_implicit::ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
             balance: Vec::new(),
+            pore_fluid: None,
         };
         if plan.balance_initial_stress
             && let Ok(balance) = loam_implicit::balance_initial_stress(&config, &self.particles)

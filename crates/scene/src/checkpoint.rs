@@ -8,7 +8,7 @@
 //! ```text
 //! offset  size  field
 //!  0       8    magic "LOAMCKPT"
-//!  8       4    format version (u32, currently 2)
+//!  8       4    format version (u32, currently 3)
 //! 12       4    dimension D (u32, 2 or 3)
 //! 16       4    bytes per scalar (u32, 8: f64)
 //! 20       4    length S of the scene path in bytes (u32)
@@ -20,7 +20,8 @@
 //! 56 + S  ...   the particle fields, field after field, each for particles 0..N:
 //!               x (N·D f64), v (N·D), a (N·D), F (N·D², column-major), C (N·D²),
 //!               stress (N·9), mass (N), volume0 (N), half_width0 (N·D), material (N u32),
-//!               plastic strain (N f64), state tensor (N·9), hardening variable (N)
+//!               plastic strain (N f64), state tensor (N·9), hardening variable (N),
+//!               pore pressure (N)
 //! end − 8  8    checksum (u64, FNV-1a 64 of every byte before it)
 //! ```
 //!
@@ -44,7 +45,7 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: [u8; 8] = *b"LOAMCKPT";
 
 /// The format version this crate writes and reads.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// Bytes of the fixed part of the header (before the scene path).
 const HEADER_BYTES: usize = 56;
@@ -242,9 +243,9 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The number of `f64` values a particle takes in the file: x, v, a (`D` each), F and C
 /// (`D²` each), the stress (9), mass and reference volume, the half-widths (`D`), the plastic
-/// strain, the state tensor (9) and the hardening variable.
+/// strain, the state tensor (9), the hardening variable and the pore pressure.
 fn scalars_per_particle(d: usize) -> usize {
-    4 * d + 2 * d * d + 22
+    4 * d + 2 * d * d + 23
 }
 
 /// The file length a header announces, `None` on overflow (a damaged count).
@@ -306,6 +307,7 @@ pub fn write_checkpoint<const D: usize>(
         &mut p.state.iter().flat_map(|s| s.tensor.iter().copied()),
     );
     put(&mut out, &mut p.state.iter().map(|s| s.hardening));
+    put(&mut out, &mut p.pore_pressure.iter().copied());
     let checksum = fnv1a(&out);
     out.extend_from_slice(&checksum.to_le_bytes());
     write_file_atomically(path, &out).map_err(|source| CheckpointError::Io {
@@ -377,6 +379,7 @@ pub fn read_checkpoint<const D: usize>(
     let plastic = r.scalars(n);
     let tensors = r.tensors::<3>(n);
     let hardening = r.scalars(n);
+    let pore_pressure = r.scalars(n);
     let state = (plastic.into_iter().zip(tensors).zip(hardening))
         .map(|((plastic_strain, tensor), hardening)| MaterialState {
             plastic_strain,
@@ -396,6 +399,7 @@ pub fn read_checkpoint<const D: usize>(
         half_width0,
         material,
         state,
+        pore_pressure,
     };
     Ok((header, particles))
 }

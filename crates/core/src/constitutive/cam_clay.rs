@@ -414,6 +414,27 @@ impl ModifiedCamClay<f64> {
     }
 }
 
+/// The elastic strain `εₑ = ½ ln bₑ` of a point in `state`, its volumetric part
+/// `ε_v = −tr εₑ` (compression positive) and the mean effective stress `p = p_r exp(ε_v/κ̃)`.
+fn elastic_point<T: Scalar>(
+    real: &ModifiedCamClay<f64>,
+    state: &MaterialState<T>,
+) -> (Matrix3<f64>, f64, f64) {
+    let eps = symmetric_fn(&state.tensor.map(|x| x.re()), &Log) * 0.5;
+    let eps_v = -eps.trace();
+    (eps, eps_v, real.pressure(eps_v))
+}
+
+impl<T: Scalar> ModifiedCamClay<T> {
+    /// The elastic shear modulus `G(p)` of a point in `state` (real part), at its mean
+    /// effective stress `p = p_r exp(ε_v/κ̃)`.
+    pub fn shear_modulus_in(&self, state: &MaterialState<T>) -> f64 {
+        let real = self.real();
+        let (_, _, p) = elastic_point(&real, state);
+        real.shear_modulus(p)
+    }
+}
+
 impl<T: Scalar> Constitutive<T> for ModifiedCamClay<T> {
     /// `σ = τ / det F` with `τ` from [`ModifiedCamClay::return_map`]; commits the new state.
     fn update(&self, kin: &Kinematics<'_, T>, state: &mut MaterialState<T>) -> Matrix3<T> {
@@ -436,10 +457,8 @@ impl<T: Scalar> Constitutive<T> for ModifiedCamClay<T> {
     /// carry.
     fn p_wave_modulus_in(&self, state: &MaterialState<T>) -> f64 {
         let real = self.real();
-        let eps = symmetric_fn(&state.tensor.map(|x| x.re()), &Log) * 0.5;
-        let eps_v = -eps.trace();
+        let (eps, eps_v, p) = elastic_point(&real, state);
         let distortion = (eps + Matrix3::identity() * (eps_v / 3.0)).norm();
-        let p = real.pressure(eps_v);
         let coupling = match real.shear {
             Shear::Modulus(_) => 0.0,
             Shear::Poisson(_) => real.shear_modulus(p) / real.kappa_log(),

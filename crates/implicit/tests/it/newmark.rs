@@ -48,6 +48,7 @@ fn block(
         gravity_in_full: false,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
         balance: Vec::new(),
+        pore_fluid: None,
     };
     (config, particles)
 }

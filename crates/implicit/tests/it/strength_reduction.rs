@@ -52,6 +52,7 @@ fn cut(h: f64) -> (ImplicitConfig<2>, Particles<f64, 2>) {
         gravity_in_full: false,
         min_node_support: ImplicitConfig::<2>::DEFAULT_MIN_NODE_SUPPORT,
         balance: Vec::new(),
+        pore_fluid: None,
     };
     (config, particles)
 }

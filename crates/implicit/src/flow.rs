@@ -1,0 +1,640 @@
+//! The pore fluid of a coupled (u–p) step: saturated soil as a mixture of a skeleton and
+//! water, with the excess pore pressure as one more unknown per node.
+//!
+//! **Sign convention.** The pore pressure `p` is positive in compression (a water pressure);
+//! the skeleton's stress `σ′` (the effective stress, what the constitutive model returns) is
+//! tension-positive like every stress in loam, and the total stress is `σ = σ′ − α p I`. The
+//! pore pressure is the hydrostatic pressure of a water table plus an excess,
+//! `p = p_h(x) + p_e`, with `p_h = γ_w (z_w − z)` below the water table at height `z_w` (the
+//! last axis is up) and zero above it or without one. The unknowns are the nodal excess
+//! pressures; the water at rest under a flat water table carries its own weight, so the
+//! Darcy flux is driven by the excess alone, `q = −κ ∇p_e` with the mobility `κ = k/γ_w`
+//! (`k` the hydraulic conductivity).
+//!
+//! **Equations** (updated Lagrangian from the start of the step, backward Euler over `Δt`). Per
+//! particle, with `ΔF` and `ΔJ = det ΔF` from the displacement increments, `Jⁿ = det Fⁿ`,
+//! `Vⁿ = Jⁿ V⁰`, `p̂ = Σ_i N_i p_i` and `∇ⁿp̂ = Σ_i ∇ⁿN_i p_i` at the start-of-step position:
+//!
+//! ```text
+//! mixture:  f_i = Σ_p V⁰ (τ′ − α Jⁿ ΔJ p I) ΔF⁻ᵀ ∇ⁿN_i                        (= f_ext,i)
+//! fluid:    g_i = Σ_p Vⁿ [α (ΔJ − 1) + S (p − pⁿ)] N_i
+//!                 + Σ_p Δt Vⁿ ΔJ κ ∇ⁿN_i · (ΔFᵀΔF)⁻¹ ∇ⁿp_e                     (= 0)
+//! ```
+//!
+//! The mixture balance is the solid path's with the total stress. The fluid balance is the
+//! volume of water the skeleton's change of volume `α ΔV` and the water's compression
+//! `S Δp V` (storage `S = 1/M`, zero for incompressible constituents) expel, against the
+//! water that flows out, `Δt ∫ ∇N_i · κ ∇p_e dv` in the end-of-step configuration
+//! (`∇N = ΔF⁻ᵀ ∇ⁿN`, `dv = ΔJ dvⁿ`); faces without a drained condition are impermeable
+//! (the natural condition). The fluid rows are scaled by `G_ref/h` and the pressure unknowns
+//! by its inverse ([`Flow::scale`]), so that the two blocks of the residual are forces and
+//! the two blocks of the unknowns lengths, and Newton's tolerances hold for both.
+//!
+//! **Stabilisation.** Equal-order interpolation of `u` and `p` does not satisfy the inf–sup
+//! condition: near the undrained limit (`Δt κ → 0`, `S → 0`) the pressure oscillates from
+//! node to node. The polynomial pressure projection (Bochev–Dohrmann; White & Borja for
+//! u–p) adds to the fluid rows
+//!
+//! ```text
+//! Σ_patches Σ_p (Vⁿ_p / G_p) (Δp_p − Π Δp) N_i,    Π Δp = Σ_p w_p Δp_p / Σ_p w_p,  w_p = Vⁿ_p / G_p,
+//! ```
+//!
+//! the pressure increment minus its projection onto constants over a patch, scaled by the
+//! skeleton's shear modulus `G_p`: it vanishes on pressures that are constant over each patch
+//! and penalises the rest, a term of the order of the discretisation error of a smooth
+//! pressure. A patch is the set of particles that share one stencil (the same `b^D` nodes),
+//! so the term couples only nodes the tangent already couples.
+
+use crate::dofs::NodeDof;
+use crate::kernel::{Frozen, particle_stress};
+use crate::linear::SparseMatrix;
+use crate::system::{Inverted, Materials, StepSystem};
+use loam_core::tensor::{Tensor, Vector, det, inverse};
+use loam_core::{Material, Scalar};
+use nalgebra::Matrix3;
+use num_dual::DualSVec64;
+
+/// The hydraulic properties of a porous material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hydraulic {
+    /// Mobility `κ = k/γ_w` (m²/(Pa·s)): the hydraulic conductivity `k` (m/s) over the unit
+    /// weight of water `γ_w` (N/m³).
+    pub mobility: f64,
+    /// Biot coefficient `α` (1 for incompressible grains).
+    pub biot: f64,
+    /// Storage `S = 1/M = n/K_w + (α − n)/K_s` (1/Pa); zero for incompressible water and
+    /// grains.
+    pub storage: f64,
+}
+
+/// The pore fluid of one particle, frozen over a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlowFrozen {
+    /// Excess pore pressure at the start of the step, `p_eⁿ` (Pa).
+    pub excess: f64,
+    /// Hydrostatic pressure at the start-of-step position, `p_h(xⁿ)` (Pa).
+    pub hydrostatic: f64,
+    /// Stabilisation weight `w_p = Vⁿ_p / G_p` (m³/Pa; m²/Pa in 2D).
+    pub weight: f64,
+}
+
+/// The pore fluid of a coupled step (module docs).
+#[derive(Clone, Debug)]
+pub struct Flow {
+    /// Time step `Δt` (s); zero for an undrained step.
+    pub dt: f64,
+    /// `G_ref/h` (Pa/m): the pore pressure is `scale` times its unknown, and the fluid rows
+    /// are scaled by it.
+    pub scale: f64,
+    /// Per material.
+    pub hydraulic: Vec<Hydraulic>,
+    /// Per particle.
+    pub particles: Vec<FlowFrozen>,
+    /// The stabilisation's patches (particle indices, each sharing one stencil); empty when
+    /// the stabilisation is off.
+    pub patches: Vec<Vec<usize>>,
+}
+
+/// What the coupled kernel gives for one particle: the coefficients of its nodal forces and
+/// fluid volumes, `f_i = momentum ∇ⁿN_i`, `g_i = volume N_i + flux · ∇ⁿN_i` (both scaled as
+/// the rows are), and its end-of-step stress and history.
+#[derive(Clone, Debug)]
+pub struct Coupled<T: Scalar, const D: usize> {
+    /// `V⁰ (τ′ − α J p I) ΔF⁻ᵀ`.
+    pub momentum: Tensor<T, D>,
+    /// `scale · Vⁿ [α (ΔJ − 1) + S Δp]`.
+    pub volume: T,
+    /// `scale · Δt Vⁿ ΔJ κ (ΔFᵀΔF)⁻¹ ∇ⁿp_e`.
+    pub flux: Vector<T, D>,
+    /// Effective Kirchhoff stress `τ′`.
+    pub tau: Matrix3<T>,
+    /// History at the end of the step.
+    pub state: loam_core::MaterialState<T>,
+    /// Excess pore pressure `p_e` (Pa).
+    pub excess: T,
+}
+
+/// The coupled kernel of one particle (module docs) for the trial `ΔF`, the interpolated
+/// pressure unknown `p̂` and its gradient `∇ⁿp̂`; `None` if `ΔF` inverts the particle.
+#[allow(clippy::too_many_arguments)]
+pub fn coupled_update<T: Scalar, const D: usize>(
+    material: &Material<T>,
+    frozen: &Frozen<D>,
+    hydraulic: &Hydraulic,
+    fluid: &FlowFrozen,
+    dt: f64,
+    scale: f64,
+    delta_f: &Tensor<T, D>,
+    p_hat: T,
+    grad_p_hat: &Vector<T, D>,
+) -> Option<Coupled<T, D>> {
+    let (s, tau, state) = particle_stress(material, frozen, delta_f)?;
+    let dj = det(delta_f);
+    let jn = det(&frozen.f_n);
+    let vn = frozen.volume0 * jn;
+    let excess = p_hat * T::cst(scale);
+    let p = excess + T::cst(fluid.hydrostatic);
+    let dfinv = inverse(delta_f)?;
+    let alpha = T::cst(hydraulic.biot);
+    let momentum = s - dfinv.transpose() * (alpha * p * dj * T::cst(frozen.volume0 * jn));
+    let volume = (alpha * (dj - T::one())
+        + T::cst(hydraulic.storage) * (excess - T::cst(fluid.excess)))
+        * T::cst(scale * vn);
+    let flux = dfinv
+        * (dfinv.transpose() * grad_p_hat)
+        * (dj * T::cst(scale * scale * dt * vn * hydraulic.mobility));
+    Some(Coupled {
+        momentum,
+        volume,
+        flux,
+        tau,
+        state,
+        excess,
+    })
+}
+
+/// Lanes of the coupled per-particle tangent: `D²` entries of `ΔF`, `p̂` and `D` entries of
+/// `∇ⁿp̂` (7 in 2D, 13 in 3D).
+pub const fn coupled_lanes(d: usize) -> usize {
+    d * d + 1 + d
+}
+
+/// The derivative of the coupled kernel's outputs (`momentum` row-major, `volume`, `flux`)
+/// with respect to its inputs (`ΔF` row-major, `p̂`, `∇ⁿp̂`), `L × L` row-major.
+pub type CoupledTangent = Vec<f64>;
+
+impl<const D: usize> StepSystem<D> {
+    /// The pore fluid of this step, if it is coupled.
+    fn fluid(&self) -> &Flow {
+        self.flow.as_ref().expect("a coupled step")
+    }
+
+    /// `ΔF`, `p̂` and `∇ⁿp̂` of particle `p` for the unknowns `x` (real).
+    fn coupled_inputs(&self, p: usize, x: &[f64]) -> (Tensor<f64, D>, f64, Vector<f64, D>) {
+        let mut p_hat = 0.0;
+        let mut grad = Vector::<f64, D>::zeros();
+        self.frozen[p].stencil.for_each(|n| {
+            let v = self.dofs.value(n.flat, D, x);
+            p_hat += n.weight * v;
+            grad += n.gradient * v;
+        });
+        (self.delta_f_real(p, x), p_hat, grad)
+    }
+
+    /// The coupled kernel of particle `p` at the real unknowns `x`.
+    pub(crate) fn coupled_real(
+        &self,
+        p: usize,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Option<Coupled<f64, D>> {
+        let flow = self.fluid();
+        let fr = &self.frozen[p];
+        let (g, p_hat, grad) = self.coupled_inputs(p, x);
+        coupled_update(
+            &materials.real[fr.material],
+            fr,
+            &flow.hydraulic[fr.material],
+            &flow.particles[p],
+            flow.dt,
+            flow.scale,
+            &g,
+            p_hat,
+            &grad,
+        )
+    }
+
+    /// Scatters one particle's coupled forces into `f` on the unknowns.
+    fn scatter_coupled(&self, p: usize, c: &Coupled<f64, D>, f: &mut [f64]) {
+        self.frozen[p].stencil.for_each(|node| {
+            let fi = c.momentum * node.gradient;
+            for a in 0..D {
+                if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, a) {
+                    f[dof] += sign * fi[a];
+                }
+            }
+            if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, D) {
+                f[dof] += sign * (c.volume * node.weight + c.flux.dot(&node.gradient));
+            }
+        });
+    }
+
+    /// The coupled internal force (mixture and fluid rows, stabilisation included) on the
+    /// unknowns.
+    pub(crate) fn coupled_force(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<Vec<f64>, Inverted> {
+        let mut f = vec![0.0; self.len()];
+        self.chunked(
+            |p| self.coupled_real(p, x, materials),
+            |p, c| self.scatter_coupled(p, &c, &mut f),
+        )?;
+        self.add_stabilisation(x, &mut f);
+        Ok(f)
+    }
+
+    /// The mixture's nodal force on every grid node (reactions at prescribed nodes).
+    pub(crate) fn coupled_nodal_force(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<Vec<Vector<f64, D>>, Inverted> {
+        let mut f = vec![Vector::<f64, D>::zeros(); self.grid().num_nodes()];
+        for (p, fr) in self.frozen.iter().enumerate() {
+            let c = self
+                .coupled_real(p, x, materials)
+                .ok_or(Inverted { particle: p })?;
+            fr.stencil
+                .for_each(|node| f[node.flat] += c.momentum * node.gradient);
+        }
+        Ok(f)
+    }
+
+    /// `Δp_p = scale p̂_p − p_eⁿ_p` of every particle of a patch.
+    fn pressure_increments(&self, patch: &[usize], x: &[f64]) -> Vec<f64> {
+        let flow = self.fluid();
+        patch
+            .iter()
+            .map(|&p| {
+                let mut p_hat = 0.0;
+                self.frozen[p]
+                    .stencil
+                    .for_each(|n| p_hat += n.weight * self.dofs.value(n.flat, D, x));
+                flow.scale * p_hat - flow.particles[p].excess
+            })
+            .collect()
+    }
+
+    /// Adds the stabilisation `scale Σ_p w_p (Δp_p − Π Δp) N_i` to the fluid rows of `f`.
+    fn add_stabilisation(&self, x: &[f64], f: &mut [f64]) {
+        let flow = self.fluid();
+        for patch in &flow.patches {
+            let dp = self.pressure_increments(patch, x);
+            let w: Vec<f64> = patch.iter().map(|&p| flow.particles[p].weight).collect();
+            let total: f64 = w.iter().sum();
+            let mean = w.iter().zip(&dp).map(|(w, d)| w * d).sum::<f64>() / total;
+            for ((&p, w), d) in patch.iter().zip(&w).zip(&dp) {
+                let r = flow.scale * w * (d - mean);
+                self.frozen[p].stencil.for_each(|n| {
+                    if let NodeDof::Free { dof, sign } = self.dofs.get(n.flat, D) {
+                        f[dof] += sign * r * n.weight;
+                    }
+                });
+            }
+        }
+    }
+
+    /// The stabilisation's tangent, `scale² (Σ_p w_p N_ip N_jp − a_i a_j / Σ_p w_p)` with
+    /// `a_i = Σ_p w_p N_ip` per patch, added to `k`.
+    fn add_stabilisation_tangent(&self, k: &mut SparseMatrix) {
+        let flow = self.fluid();
+        let s2 = flow.scale * flow.scale;
+        for patch in &flow.patches {
+            let st = &self.frozen[patch[0]].stencil;
+            let mut nodes = Vec::with_capacity(st.len());
+            st.for_each(|n| nodes.push(n.flat));
+            let mut a = vec![0.0; nodes.len()];
+            let mut total = 0.0;
+            let mut weights = vec![0.0; nodes.len()];
+            for &p in patch {
+                let w = flow.particles[p].weight;
+                total += w;
+                let mut k_ = 0;
+                self.frozen[p].stencil.for_each(|n| {
+                    weights[k_] = n.weight;
+                    a[k_] += w * n.weight;
+                    k_ += 1;
+                });
+                self.add_pressure_block(&nodes, &weights, &weights, s2 * w, k);
+            }
+            self.add_pressure_block(&nodes, &a, &a, -s2 / total, k);
+        }
+    }
+
+    /// `k_{ij} += c u_i v_j` on the pressure unknowns of `nodes`.
+    fn add_pressure_block(
+        &self,
+        nodes: &[usize],
+        u: &[f64],
+        v: &[f64],
+        c: f64,
+        k: &mut SparseMatrix,
+    ) {
+        for (&fi, ui) in nodes.iter().zip(u) {
+            let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, D) else {
+                continue;
+            };
+            for (&fj, vj) in nodes.iter().zip(v) {
+                if let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, D) {
+                    k.values[self.slot(row, col)] += c * sr * sc * ui * vj;
+                }
+            }
+        }
+    }
+
+    /// The coupled tangent by per-particle forward-mode AD: the kernel's `L × L` derivative
+    /// ([`coupled_lanes`]) in one pass with every input seeded, chained with the shape
+    /// functions (`∂ΔF_cd/∂u_jc = ∂_d N_j`, `∂p̂/∂p_j = N_j`, `∂(∇ⁿp̂)_d/∂p_j = ∂_d N_j`, and
+    /// the same weights on the rows), plus the stabilisation.
+    pub(crate) fn coupled_tangent_local(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<SparseMatrix, Inverted> {
+        let mut k = SparseMatrix::zeros(self.pattern.clone());
+        match D {
+            2 => self.chunked(
+                |p| self.coupled_local::<7>(p, x, &materials.dual7),
+                |p, a| self.scatter_coupled_local(p, &a, &mut k),
+            )?,
+            3 => self.chunked(
+                |p| self.coupled_local::<13>(p, x, &materials.dual13),
+                |p, a| self.scatter_coupled_local(p, &a, &mut k),
+            )?,
+            _ => unreachable!("D is 2 or 3"),
+        }
+        self.add_stabilisation_tangent(&mut k);
+        Ok(k)
+    }
+
+    /// The kernel's derivative for particle `p` with all `L` inputs seeded.
+    fn coupled_local<const L: usize>(
+        &self,
+        p: usize,
+        x: &[f64],
+        mats: &[Material<DualSVec64<L>>],
+    ) -> Option<CoupledTangent> {
+        debug_assert_eq!(L, coupled_lanes(D));
+        let flow = self.fluid();
+        let fr = &self.frozen[p];
+        let (g, p_hat, grad) = self.coupled_inputs(p, x);
+        let seed = |v: f64, lane: usize| {
+            let mut e = nalgebra::SVector::<f64, L>::zeros();
+            e[lane] = 1.0;
+            DualSVec64::<L>::new(v, num_dual::Derivative::some(e))
+        };
+        let gd = Tensor::<DualSVec64<L>, D>::from_fn(|i, j| seed(g[(i, j)], i * D + j));
+        let pd = seed(p_hat, D * D);
+        let gradd = Vector::<DualSVec64<L>, D>::from_fn(|d, _| seed(grad[d], D * D + 1 + d));
+        let c = coupled_update(
+            &mats[fr.material],
+            fr,
+            &flow.hydraulic[fr.material],
+            &flow.particles[p],
+            flow.dt,
+            flow.scale,
+            &gd,
+            pd,
+            &gradd,
+        )?;
+        let lanes = |v: &DualSVec64<L>| -> [f64; L] {
+            std::array::from_fn(|l| v.eps.0.as_ref().map_or(0.0, |e| e[l]))
+        };
+        let mut out = Vec::with_capacity(L * L);
+        for a in 0..D {
+            for b in 0..D {
+                out.extend(lanes(&c.momentum[(a, b)]));
+            }
+        }
+        out.extend(lanes(&c.volume));
+        for d in 0..D {
+            out.extend(lanes(&c.flux[d]));
+        }
+        Some(out)
+    }
+
+    /// The coupled tangent by block-colour seeding (the reference, as
+    /// [`StepSystem::tangent_colour`] for the solid): per node colour, the `D + 1` unknowns of
+    /// every owner node of that colour are seeded in a `D + 1`-lane dual, every particle is
+    /// evaluated once, and the dual parts of its rows go to the columns of the one seeded node
+    /// in its stencil; plus the stabilisation.
+    pub(crate) fn coupled_tangent_colour(
+        &self,
+        x: &[f64],
+        materials: &Materials,
+    ) -> Result<SparseMatrix, Inverted> {
+        let mut k = SparseMatrix::zeros(self.pattern.clone());
+        match D {
+            2 => self.coupled_colour_lanes::<3>(x, &materials.dual3, &mut k)?,
+            3 => self.coupled_colour_lanes::<4>(x, &materials.dual4, &mut k)?,
+            _ => unreachable!("D is 2 or 3"),
+        }
+        self.add_stabilisation_tangent(&mut k);
+        Ok(k)
+    }
+
+    fn coupled_colour_lanes<const L: usize>(
+        &self,
+        x: &[f64],
+        mats: &[Material<DualSVec64<L>>],
+        k: &mut SparseMatrix,
+    ) -> Result<(), Inverted> {
+        let flow = self.fluid();
+        for colour in 0..self.colours() {
+            self.chunked(
+                |p| {
+                    let fr = &self.frozen[p];
+                    // Per component, the seeded unknown in the stencil (its column).
+                    let mut seeded = [None; 4];
+                    let mut value = |flat: usize, c: usize| {
+                        let v = self.dofs.value(flat, c, x);
+                        match self.dofs.get(flat, c) {
+                            NodeDof::Free { dof, sign } if self.colour(dof) == colour => {
+                                seeded[c] = Some(dof);
+                                let mut e = nalgebra::SVector::<f64, L>::zeros();
+                                e[c] = sign;
+                                DualSVec64::<L>::new(v, num_dual::Derivative::some(e))
+                            }
+                            _ => DualSVec64::<L>::from_re(v),
+                        }
+                    };
+                    let mut g = Tensor::<DualSVec64<L>, D>::identity();
+                    let mut p_hat = DualSVec64::<L>::from_re(0.0);
+                    let mut grad = Vector::<DualSVec64<L>, D>::zeros();
+                    fr.stencil.for_each(|n| {
+                        for a in 0..D {
+                            let u = value(n.flat, a);
+                            for b in 0..D {
+                                g[(a, b)] += u * n.gradient[b];
+                            }
+                        }
+                        let pv = value(n.flat, D);
+                        p_hat += pv * n.weight;
+                        grad += n.gradient.map(DualSVec64::<L>::from_re) * pv;
+                    });
+                    let c = coupled_update(
+                        &mats[fr.material],
+                        fr,
+                        &flow.hydraulic[fr.material],
+                        &flow.particles[p],
+                        flow.dt,
+                        flow.scale,
+                        &g,
+                        p_hat,
+                        &grad,
+                    )?;
+                    Some((seeded, c))
+                },
+                |p, (seeded, c)| {
+                    if seeded.iter().all(Option::is_none) {
+                        return;
+                    }
+                    self.frozen[p].stencil.for_each(|node| {
+                        let gi = node.gradient.map(DualSVec64::<L>::from_re);
+                        let fi = c.momentum * gi;
+                        let gi_fluid = c.volume * node.weight + c.flux.dot(&gi);
+                        for r in 0..=D {
+                            let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(node.flat, r)
+                            else {
+                                continue;
+                            };
+                            let v = if r < D { &fi[r] } else { &gi_fluid };
+                            let Some(eps) = v.eps.0.as_ref() else {
+                                continue;
+                            };
+                            for (col_c, col) in seeded.iter().enumerate().take(D + 1) {
+                                if let Some(col) = *col {
+                                    k.values[self.slot(row, col)] += sr * eps[col_c];
+                                }
+                            }
+                        }
+                    });
+                },
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Adds one particle's `K_{(i,r),(j,c)} = Σ_{o,z} B_i(r)_o A_{oz} B_j(c)_z` (the kernel's
+    /// derivative `A` between the shape-function weights `B` of the row and column unknowns).
+    fn scatter_coupled_local(&self, p: usize, a: &CoupledTangent, k: &mut SparseMatrix) {
+        let l = coupled_lanes(D);
+        let st = &self.frozen[p].stencil;
+        let mut nodes = Vec::with_capacity(st.len());
+        st.for_each(|n| nodes.push((n.flat, n.weight, n.gradient)));
+        // The weights of component `c` of a node over the kernel's inputs (or outputs).
+        let weights = |c: usize, w: f64, g: &Vector<f64, D>| -> Vec<(usize, f64)> {
+            if c < D {
+                (0..D).map(|d| (c * D + d, g[d])).collect()
+            } else {
+                std::iter::once((D * D, w))
+                    .chain((0..D).map(|d| (D * D + 1 + d, g[d])))
+                    .collect()
+            }
+        };
+        let fields = D + 1;
+        for &(fj, wj, gj) in &nodes {
+            for c in 0..fields {
+                let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, c) else {
+                    continue;
+                };
+                // A B_j(c): one column of outputs.
+                let mut v = vec![0.0; l];
+                for (z, bz) in weights(c, wj, &gj) {
+                    for (o, vo) in v.iter_mut().enumerate() {
+                        *vo += a[o * l + z] * bz;
+                    }
+                }
+                for &(fi, wi, gi) in &nodes {
+                    for r in 0..fields {
+                        if let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, r) {
+                            let kv: f64 = weights(r, wi, &gi).iter().map(|&(o, b)| b * v[o]).sum();
+                            k.values[self.slot(row, col)] += sr * sc * kv;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The pore fluid of a coupled run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoreFluid<const D: usize> {
+    /// Per material of the run's table.
+    pub hydraulic: Vec<Hydraulic>,
+    /// Unit weight of water `γ_w` (N/m³).
+    pub unit_weight: f64,
+    /// Height of the water table on the last axis (m); `None`: no hydrostatic pressure.
+    pub water_table: Option<f64>,
+    /// The grid faces that drain.
+    pub drained: crate::dofs::Drained<D>,
+    /// Whether the pressure projection stabilisation is on (module docs).
+    pub stabilisation: bool,
+    /// Time (s) and load factor at the end of each load step.
+    pub schedule: Schedule,
+}
+
+impl<const D: usize> PoreFluid<D> {
+    /// The hydrostatic pressure `p_h = γ_w (z_w − z)` below the water table, zero above it
+    /// or without one (Pa).
+    pub fn hydrostatic(&self, x: &Vector<f64, D>) -> f64 {
+        self.water_table
+            .map_or(0.0, |z| self.unit_weight * (z - x[D - 1]).max(0.0))
+    }
+}
+
+/// Time and load factor along a coupled run: `time[k]` and `load[k]` at the end of load step
+/// `k` (`time[0] = 0`, `load[0] = 0` at the start), linear in between.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Schedule {
+    /// Time at the end of each step (s), non-decreasing from 0.
+    pub time: Vec<f64>,
+    /// Load factor at the end of each step.
+    pub load: Vec<f64>,
+}
+
+impl Schedule {
+    /// The first `loading` steps (at least one) ramp the load from 0 to 1 in zero time
+    /// (undrained loading), then the load is held over time steps `dt₀, dt₀ r, dt₀ r², …`
+    /// until `end` (the last step shortened to end there).
+    pub fn geometric(loading: usize, first: f64, growth: f64, end: f64) -> Self {
+        let loading = loading.max(1);
+        let mut time = vec![0.0; loading + 1];
+        let mut load: Vec<f64> = (0..=loading).map(|k| k as f64 / loading as f64).collect();
+        let mut dt = first;
+        let mut t = 0.0;
+        while t < end * (1.0 - 1e-12) {
+            t = (t + dt).min(end);
+            time.push(t);
+            load.push(1.0);
+            dt *= growth;
+        }
+        Self { time, load }
+    }
+
+    /// Splits the step that spans time `t` so that a step ends at `t` (for output at given
+    /// times); the load factor there is interpolated. No-op when a step already ends within
+    /// `1e-9 t` of it or `t` is outside the schedule.
+    pub fn land_on(&mut self, t: f64) {
+        let tol = 1e-9 * t.abs();
+        if self.time.iter().any(|&s| (s - t).abs() <= tol) {
+            return;
+        }
+        if let Some(k) = self.time.iter().position(|&s| s > t)
+            && k > 0
+        {
+            let w = (t - self.time[k - 1]) / (self.time[k] - self.time[k - 1]);
+            let load = self.load[k - 1] + w * (self.load[k] - self.load[k - 1]);
+            self.time.insert(k, t);
+            self.load.insert(k, load);
+        }
+    }
+
+    /// Number of load steps.
+    pub fn steps(&self) -> usize {
+        self.time.len() - 1
+    }
+
+    /// `(time, load factor)` at run progress `s ∈ [0, 1]` (`s · steps` load steps done).
+    pub fn at(&self, s: f64) -> (f64, f64) {
+        let n = self.steps();
+        let x = (s * n as f64).clamp(0.0, n as f64);
+        let k = (x.floor() as usize).min(n.saturating_sub(1));
+        let w = x - k as f64;
+        let lerp = |v: &[f64]| v[k] + w * (v[k + 1] - v[k]);
+        (lerp(&self.time), lerp(&self.load))
+    }
+}
