@@ -37,6 +37,7 @@ pub mod runout;
 pub mod scenes;
 pub mod slope_fos;
 pub mod tangent_fd;
+pub mod terzaghi;
 pub mod triaxial;
 pub mod triaxial_mcc;
 
@@ -320,6 +321,11 @@ pub fn cases() -> Vec<Case> {
             name: "k0-layer",
             description: "soil layer at rest: σ′_h/σ′_v = ν/(1 − ν) after gravity switch-on; a K0 = 0.5 state kept through the first load step",
             runner: Runner::Cpu(k0_layer::run),
+        },
+        Case {
+            name: "terzaghi",
+            description: "one-dimensional consolidation by the coupled u–p solver (GeoWarp's column, steps of 100 s, 25 s and growing) vs Terzaghi's series: pore pressures and settlement",
+            runner: Runner::Cpu(terzaghi::run),
         },
         Case {
             name: "triaxial-dp",

@@ -41,8 +41,17 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>, max_steps: StepLimi
             return Outcome::BadInput;
         }
     };
+    let consolidation = preflight::consolidation_steps(&scene);
     let extent = match (scene.solver.end_time, scene.solver.load_steps) {
         (Some(t), _) => format!("end time {t} s"),
+        (None, Some(n)) if consolidation > 0.0 => {
+            let k = scene.solver.consolidation.expect("a consolidation");
+            format!(
+                "{n} undrained load step(s), then {consolidation} consolidation steps to {} {}",
+                k.end_time,
+                k.time_unit.name()
+            )
+        }
         (None, Some(n)) => format!("{n} load steps"),
         (None, None) => String::new(),
     };

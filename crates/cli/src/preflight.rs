@@ -217,21 +217,38 @@ fn frames(scene: &Scene) -> f64 {
     let frames = scene.output.frames as f64;
     let steps = match (s.kind, s.time_step, s.end_time, s.load_steps) {
         (SolverKind::Explicit, Some(TimeStep::Fixed { dt }), Some(t), _) => (t / dt).round(),
-        (SolverKind::Implicit, _, _, Some(n)) => n as f64,
+        (SolverKind::Implicit, _, _, Some(n)) => n as f64 + consolidation_steps(scene),
         _ => f64::INFINITY,
     };
     frames.min(steps)
 }
 
-/// Refuses an implicit run of more load steps than `limit`, naming `solver.load_steps`
-/// (an explicit run's steps are checked on its initial state, [`explicit`]).
+/// The time steps of a coupled run's consolidation (`[solver.consolidation]`; zero without).
+pub fn consolidation_steps(scene: &Scene) -> f64 {
+    scene
+        .solver
+        .consolidation
+        .filter(|_| scene.pore_fluid.is_some())
+        .map_or(0.0, |k| k.steps())
+}
+
+/// Refuses an implicit run of more steps than `limit`, naming `solver.load_steps` (or
+/// `solver.consolidation.time_step` when the consolidation's steps pass it); an explicit
+/// run's steps are checked on its initial state, [`explicit`].
 pub fn implicit_steps(scene: &Scene, limit: StepLimit) -> Result<(), String> {
     match (scene.solver.kind, scene.solver.load_steps) {
-        (SolverKind::Implicit, Some(n)) => limit.check(
-            n as f64,
-            "solver.load_steps",
-            "load steps of the implicit run",
-        ),
+        (SolverKind::Implicit, Some(n)) => {
+            limit.check(
+                n as f64,
+                "solver.load_steps",
+                "load steps of the implicit run",
+            )?;
+            limit.check(
+                n as f64 + consolidation_steps(scene),
+                "solver.consolidation.time_step",
+                "steps of the coupled run (loading and consolidation)",
+            )
+        }
         _ => Ok(()),
     }
 }

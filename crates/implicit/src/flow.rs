@@ -42,8 +42,11 @@
 //! the pressure increment minus its projection onto constants over a patch, scaled by the
 //! skeleton's shear modulus `G_p`: it vanishes on pressures that are constant over each patch
 //! and penalises the rest, a term of the order of the discretisation error of a smooth
-//! pressure. A patch is the set of particles that share one stencil (the same `b^D` nodes),
-//! so the term couples only nodes the tangent already couples.
+//! pressure. A patch is the set of particles in one grid cell. (Grouping the particles that
+//! share a stencil instead would keep the term inside the solid's sparsity pattern, but with
+//! quadratic B-splines the nodal checkerboard `(−1)^i` is constant over each such group, so
+//! the projection would not see the very mode it must remove; the cell patches vary it and
+//! need the pressure pattern one node wider, `StepSystem::new`.)
 
 use crate::dofs::NodeDof;
 use crate::kernel::{Frozen, particle_stress};
@@ -287,29 +290,32 @@ impl<const D: usize> StepSystem<D> {
     }
 
     /// The stabilisation's tangent, `scale² (Σ_p w_p N_ip N_jp − a_i a_j / Σ_p w_p)` with
-    /// `a_i = Σ_p w_p N_ip` per patch, added to `k`.
+    /// `a_i = Σ_p w_p N_ip` per patch (over the union of its particles' stencils), added to
+    /// `k`.
     fn add_stabilisation_tangent(&self, k: &mut SparseMatrix) {
         let flow = self.fluid();
         let s2 = flow.scale * flow.scale;
         for patch in &flow.patches {
-            let st = &self.frozen[patch[0]].stencil;
-            let mut nodes = Vec::with_capacity(st.len());
-            st.for_each(|n| nodes.push(n.flat));
-            let mut a = vec![0.0; nodes.len()];
+            let mut a: Vec<(usize, f64)> = Vec::new();
             let mut total = 0.0;
-            let mut weights = vec![0.0; nodes.len()];
             for &p in patch {
                 let w = flow.particles[p].weight;
                 total += w;
-                let mut k_ = 0;
-                self.frozen[p].stencil.for_each(|n| {
-                    weights[k_] = n.weight;
-                    a[k_] += w * n.weight;
-                    k_ += 1;
+                let st = &self.frozen[p].stencil;
+                let (mut nodes, mut weights) =
+                    (Vec::with_capacity(st.len()), Vec::with_capacity(st.len()));
+                st.for_each(|n| {
+                    nodes.push(n.flat);
+                    weights.push(n.weight);
+                    match a.iter_mut().find(|(f, _)| *f == n.flat) {
+                        Some((_, v)) => *v += w * n.weight,
+                        None => a.push((n.flat, w * n.weight)),
+                    }
                 });
                 self.add_pressure_block(&nodes, &weights, &weights, s2 * w, k);
             }
-            self.add_pressure_block(&nodes, &a, &a, -s2 / total, k);
+            let (nodes, values): (Vec<usize>, Vec<f64>) = a.into_iter().unzip();
+            self.add_pressure_block(&nodes, &values, &values, -s2 / total, k);
         }
     }
 

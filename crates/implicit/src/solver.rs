@@ -317,6 +317,12 @@ impl<const D: usize> ImplicitSolver<D> {
         self.load_factor
     }
 
+    /// The load factor the loads have reached: [`ImplicitSolver::load_factor`] for a run of
+    /// the solid alone, the schedule's load factor at that progress for a coupled run.
+    pub fn applied_load(&self) -> f64 {
+        self.load_at(self.load_factor)
+    }
+
     /// Load steps completed.
     pub fn steps(&self) -> usize {
         self.steps
@@ -416,7 +422,7 @@ impl<const D: usize> ImplicitSolver<D> {
             p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
         });
         if let Some(fluid) = &cfg.pore_fluid {
-            system.flow = Some(self.flow(fluid, p, &system, from, to));
+            system.flow = Some(self.flow(fluid, p, from, to));
         }
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;
@@ -451,15 +457,8 @@ impl<const D: usize> ImplicitSolver<D> {
     /// [`crate::flow`]): the time step, the scale `G_ref/h` with `G_ref` the volume-weighted
     /// mean shear modulus of the particles, and per particle the start-of-step excess and
     /// hydrostatic pressures and the stabilisation weight `Vⁿ/G`; the stabilisation's patches
-    /// group the particles by stencil, in a deterministic order.
-    fn flow(
-        &self,
-        fluid: &PoreFluid<D>,
-        p: &Particles<f64, D>,
-        system: &StepSystem<D>,
-        from: f64,
-        to: f64,
-    ) -> Flow {
+    /// group the particles by grid cell, in a deterministic order.
+    fn flow(&self, fluid: &PoreFluid<D>, p: &Particles<f64, D>, from: f64, to: f64) -> Flow {
         let dt = fluid.schedule.at(to).0 - fluid.schedule.at(from).0;
         let shear: Vec<f64> = (0..p.len())
             .map(|i| {
@@ -484,14 +483,16 @@ impl<const D: usize> ImplicitSolver<D> {
             })
             .collect();
         let patches = if fluid.stabilisation {
-            let mut by_stencil = std::collections::BTreeMap::<Vec<isize>, Vec<usize>>::new();
-            for (i, fr) in system.frozen.iter().enumerate() {
-                by_stencil
-                    .entry(fr.stencil.base.to_vec())
-                    .or_default()
-                    .push(i);
+            let grid = &self.config.grid;
+            let origin = grid.origin();
+            let mut by_cell = std::collections::BTreeMap::<Vec<i64>, Vec<usize>>::new();
+            for (i, x) in p.x.iter().enumerate() {
+                let cell = (0..D)
+                    .map(|a| ((x[a] - origin[a]) / grid.h).floor() as i64)
+                    .collect();
+                by_cell.entry(cell).or_default().push(i);
             }
-            by_stencil.into_values().collect()
+            by_cell.into_values().collect()
         } else {
             Vec::new()
         };

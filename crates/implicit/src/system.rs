@@ -227,7 +227,8 @@ pub struct StepSystem<const D: usize> {
     /// Per unknown: the key `Σ_a i_a reach^a` of its owner node's multi-index and its
     /// component; the neighbour offset of two unknowns is the difference of their keys.
     owner_key: Vec<(isize, usize)>,
-    /// `Σ_a (b − 1) reach^a`, the key offset of a zero neighbour offset.
+    /// `Σ_a half · reach^a` (`half` = b − 1, or b in a coupled step), the key offset of a
+    /// zero neighbour offset.
     key_centre: isize,
     /// Neighbour offsets per node, `reach^D`.
     offsets: usize,
@@ -248,18 +249,31 @@ impl<const D: usize> StepSystem<D> {
         particle_force: impl Fn(usize) -> Vector<f64, D>,
     ) -> Self {
         let b = frozen.first().map_or(2, |f| f.stencil.b);
-        let reach = 2 * b - 1;
         let n = dofs.len();
         let fields = dofs.fields();
-        // Pattern: owner nodes within b − 1 of each other along every axis couple.
+        // Pattern: owner nodes within b − 1 of each other along every axis couple. In a
+        // coupled step the pressures of nodes b apart couple too: the stabilisation's
+        // projection over a grid cell (`crate::flow`) joins the particles of one cell, whose
+        // stencils may start one node apart.
+        let half = if fields > D { b } else { b - 1 };
+        let reach = 2 * half + 1;
         let nodes = grid.nodes();
         let offsets = reach.pow(D as u32);
+        // Whether neighbour offset `k` is in the outer ring that only pressures reach.
+        let outer = |k: usize| {
+            let mut r = k;
+            (0..D).any(|_| {
+                let o = (r % reach) as isize - half as isize;
+                r /= reach;
+                o.unsigned_abs() > b - 1
+            })
+        };
         let neighbour = |flat: usize, k: usize| -> Option<usize> {
             let idx = grid.multi(flat);
             let mut r = k;
             let mut out = [0usize; D];
             for a in 0..D {
-                let o = (r % reach) as isize - (b as isize - 1);
+                let o = (r % reach) as isize - half as isize;
                 r /= reach;
                 let j = idx[a] as isize + o;
                 if j < 0 || j as usize >= nodes[a] {
@@ -276,10 +290,14 @@ impl<const D: usize> StepSystem<D> {
         // Every (column unknown, neighbour offset, row component, row unknown) coupling.
         let couplings = |f: &mut dyn FnMut(usize, usize, usize, usize)| {
             for col in 0..n {
-                let (node, _) = dofs.owner_of(col);
+                let (node, col_c) = dofs.owner_of(col);
                 for k in 0..offsets {
+                    let ring = outer(k);
+                    if ring && col_c < D {
+                        continue;
+                    }
                     if let Some(m) = neighbour(node, k) {
-                        for c in 0..fields {
+                        for c in (0..fields).filter(|&c| !ring || c == D) {
                             if let Some(row) = owner_dof(m, c) {
                                 f(col, k, c, row);
                             }
@@ -320,7 +338,7 @@ impl<const D: usize> StepSystem<D> {
                 (key(grid.multi(node)), c)
             })
             .collect();
-        let key_centre = key([b - 1; D]);
+        let key_centre = key([half; D]);
         Self {
             inertia: None,
             flow: None,

@@ -2,10 +2,11 @@
 
 use crate::error::{Issue, SceneError};
 use crate::initial::BodyContext;
-use crate::output::Field;
+use crate::output::{Field, WaterTable};
 use crate::schema::{
-    DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL, Device, LinearKind,
-    LinearSpec, MaterialSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
+    ConsolidationSpec, DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL,
+    Device, LinearKind, LinearSpec, MaterialSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
+    TimeUnit,
 };
 use loam_core::constitutive::{
     DruckerPrager, Elasticity, Lame, Model, ModifiedCamClay, MohrCoulomb, Preconsolidation, Shear,
@@ -15,6 +16,7 @@ use loam_core::{
     Shape, TimeStep, Transfer,
 };
 use loam_implicit::NewtonSettings;
+use loam_implicit::flow::{Hydraulic, PoreFluid, Schedule};
 use loam_implicit::linear::LinearSolverKind;
 use loam_implicit::strength_reduction::SearchSettings;
 use nalgebra::SVector;
@@ -57,6 +59,9 @@ pub struct Built<const D: usize> {
     /// (`initial_stress`): a quasi-static implicit run then applies gravity in full from its
     /// first load step, where that stress balances it, instead of ramping it.
     pub prestressed: bool,
+    /// The pore fluid of a coupled (u–p) implicit run (`[pore_fluid]`), with its schedule of
+    /// time and load factor; `None` otherwise.
+    pub pore_fluid: Option<PoreFluid<D>>,
 }
 
 /// The solver to run and its settings, defaults filled in.
@@ -110,6 +115,9 @@ pub struct ImplicitPlan {
     /// Whether the bodies' initial stress is balanced against gravity on the grid
     /// (`solver.balance_initial_stress`, [`loam_implicit::balance`]).
     pub balance_initial_stress: bool,
+    /// The consolidation's time steps after the loading (`[solver.consolidation]`; coupled
+    /// runs only).
+    pub consolidation: Option<ConsolidationSpec>,
 }
 
 impl LinearSpec {
@@ -168,6 +176,7 @@ impl SolverSpec {
                 load_steps: self.load_steps?,
                 newmark_dt: self.newmark_dt,
                 balance_initial_stress: self.balance_initial_stress.unwrap_or(false),
+                consolidation: self.consolidation,
                 newton: self
                     .newton
                     .unwrap_or_default()
@@ -195,7 +204,8 @@ impl<const D: usize> Built<D> {
     /// Explicit with an adaptive step: the simulated times `end_time · k / frames`,
     /// `k = 0..=frames` (the step before each is shortened to end on it). Explicit with a
     /// fixed step Δt: `step · Δt` for the [frame steps](Built::frame_steps). Implicit: the
-    /// load factors `step / load_steps` (a pseudo-time from 0 to 1) of the frame steps.
+    /// load factors `step / load_steps` (a pseudo-time from 0 to 1) of the frame steps; with a
+    /// pore fluid, their times in the consolidation's `time_unit`.
     pub fn frame_times(&self) -> Vec<f64> {
         match self.plan {
             SolverPlan::Explicit(ExplicitPlan {
@@ -210,11 +220,16 @@ impl<const D: usize> Built<D> {
                 let n = self.output.frames.max(1);
                 (0..=n).map(|k| p.end_time * k as f64 / n as f64).collect()
             }
-            SolverPlan::Implicit(p) => self
-                .frame_steps()
-                .into_iter()
-                .map(|s| s as f64 / p.load_steps as f64)
-                .collect(),
+            SolverPlan::Implicit(p) => {
+                let unit = self.time_unit().seconds();
+                self.frame_steps()
+                    .into_iter()
+                    .map(|s| match &self.pore_fluid {
+                        Some(fluid) => fluid.schedule.time[s] / unit,
+                        None => s as f64 / p.load_steps as f64,
+                    })
+                    .collect()
+            }
         }
     }
 
@@ -255,13 +270,13 @@ impl<const D: usize> Built<D> {
             gravity: self.gravity,
             constraints: self.constraints.clone(),
             point_loads: self.point_loads.clone(),
-            load_steps: plan.load_steps,
+            load_steps: self.implicit_steps(),
             newton: plan.newton,
             dynamics: plan.newmark_dt,
             gravity_in_full: self.prestressed,
             min_node_support: loam_implicit::ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
             balance: Vec::new(),
-            pore_fluid: None,
+            pore_fluid: self.pore_fluid.clone(),
         };
         if plan.balance_initial_stress
             && let Ok(balance) = loam_implicit::balance_initial_stress(&config, &self.particles)
@@ -286,7 +301,38 @@ impl<const D: usize> Built<D> {
             SolverPlan::Explicit(p) => p
                 .fixed_steps()
                 .map_or_else(Vec::new, |n| spread(n, frames, Rounding::Up)),
-            SolverPlan::Implicit(p) => spread(p.load_steps, frames, Rounding::Nearest),
+            SolverPlan::Implicit(_) => spread(self.implicit_steps(), frames, Rounding::Nearest),
+        }
+    }
+
+    /// The water table of a coupled run, for the excess pore pressure of its output.
+    pub fn water_table(&self) -> Option<WaterTable> {
+        let fluid = self.pore_fluid.as_ref()?;
+        Some(WaterTable {
+            height: fluid.water_table?,
+            unit_weight: fluid.unit_weight,
+        })
+    }
+
+    /// The number of steps of an implicit run: `solver.load_steps`, plus the consolidation's
+    /// time steps with a pore fluid (0 for an explicit scene).
+    pub fn implicit_steps(&self) -> usize {
+        match (&self.plan, &self.pore_fluid) {
+            (SolverPlan::Explicit(_), _) => 0,
+            (_, Some(fluid)) => fluid.schedule.steps(),
+            (SolverPlan::Implicit(p), None) => p.load_steps,
+        }
+    }
+
+    /// The unit of the times a coupled run reads and writes (`solver.consolidation.time_unit`;
+    /// seconds otherwise).
+    pub fn time_unit(&self) -> TimeUnit {
+        match self.plan {
+            SolverPlan::Implicit(ImplicitPlan {
+                consolidation: Some(k),
+                ..
+            }) => k.time_unit,
+            _ => TimeUnit::S,
         }
     }
 }
@@ -415,6 +461,62 @@ impl Scene {
             output: self.output_plan(),
             contact: self.contact::<D>(),
             prestressed: self.bodies.iter().any(|b| b.initial_stress.is_some()),
+            pore_fluid: self.pore_fluid_plan::<D>(&plan),
+        })
+    }
+
+    /// The pore fluid of a coupled scene: per material the mobility `k/γ_w`, Biot's
+    /// coefficient (default 1) and the storage `n/K_w` (zero for incompressible water); the
+    /// drained faces; and the schedule, `solver.load_steps` undrained steps at `t = 0` and then
+    /// the consolidation's time steps.
+    fn pore_fluid_plan<const D: usize>(&self, plan: &SolverPlan) -> Option<PoreFluid<D>> {
+        let spec = self.pore_fluid.as_ref()?;
+        let SolverPlan::Implicit(p) = plan else {
+            return None;
+        };
+        let hydraulic = self
+            .materials
+            .iter()
+            .map(|m| Hydraulic {
+                mobility: m.hydraulic_conductivity.unwrap_or(0.0) / spec.unit_weight,
+                biot: m.biot_coefficient.unwrap_or(1.0),
+                storage: match (spec.bulk_modulus, m.porosity) {
+                    (Some(k), Some(n)) => n / k,
+                    _ => 0.0,
+                },
+            })
+            .collect();
+        let mut drained = [[false; 2]; D];
+        for face in &spec.drained {
+            let (axis, side) = face.axis_side();
+            if axis < D {
+                drained[axis][side] = true;
+            }
+        }
+        let schedule = match p.consolidation {
+            Some(k) => {
+                let unit = k.time_unit.seconds();
+                Schedule::geometric(
+                    p.load_steps,
+                    k.time_step * unit,
+                    k.growth,
+                    k.end_time * unit,
+                )
+            }
+            None => Schedule {
+                time: vec![0.0; p.load_steps + 1],
+                load: (0..=p.load_steps)
+                    .map(|k| k as f64 / p.load_steps.max(1) as f64)
+                    .collect(),
+            },
+        };
+        Some(PoreFluid {
+            hydraulic,
+            unit_weight: spec.unit_weight,
+            water_table: spec.water_table,
+            drained,
+            stabilisation: spec.stabilisation,
+            schedule,
         })
     }
 
@@ -505,6 +607,7 @@ impl Scene {
                 .iter()
                 .copied()
                 .filter(|&f| f != Field::Affine || self.affine_transfer())
+                .filter(|&f| !f.coupled_only() || self.pore_fluid.is_some())
                 .collect(),
         }
     }

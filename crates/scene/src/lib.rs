@@ -80,8 +80,9 @@ pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
 pub use load::parse_file;
 pub use schema::{
-    AxisName, BodyShape, BodySpec, BoundarySpec, ConstraintSpec, DEFAULT_FLUID_GAMMA, Device, Face,
-    FosSpec, FrictionSpec, GridSpec, InitialStressSpec, LinearKind, LinearSpec, LoadSpec,
-    MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec, OutputSpec, PointLoadSpec, RotationSpec,
-    Scene, SolverKind, SolverSpec,
+    AxisName, BodyShape, BodySpec, BoundarySpec, ConsolidationSpec, ConstraintSpec,
+    DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InitialStressSpec,
+    LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec,
+    OutputSpec, PointLoadSpec, PoreFluidSpec, RotationSpec, Scene, SolverKind, SolverSpec,
+    TimeUnit,
 };

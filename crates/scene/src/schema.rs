@@ -44,6 +44,10 @@ pub struct Scene {
     /// Rigid obstacles (explicit solver only; default: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub obstacles: Vec<ObstacleSpec>,
+    /// Pore water of a saturated soil: makes an implicit run coupled (u–p), with the excess
+    /// pore pressure as an unknown (default: none, the soil is dry or drained).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pore_fluid: Option<PoreFluidSpec>,
     /// The solver: explicit dynamics or implicit quasi-static load steps.
     pub solver: SolverSpec,
     /// What to write and where (default: every field, 20 frames, `out/<scene file stem>`).
@@ -181,6 +185,18 @@ pub struct MaterialSpec {
     /// consolidated), instead of `preconsolidation_pressure`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ocr: Option<f64>,
+    /// With a `[pore_fluid]`: Darcy's hydraulic conductivity `k` (m/s), positive (required
+    /// there, for every material a body uses).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hydraulic_conductivity: Option<f64>,
+    /// With a `[pore_fluid]`: Biot's coefficient `α` in (0, 1] (default 1, incompressible
+    /// grains).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub biot_coefficient: Option<f64>,
+    /// With a `[pore_fluid]`: the porosity `n` in (0, 1), for the storage `n/K_w` of a
+    /// compressible pore fluid (required when `pore_fluid.bulk_modulus` is given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub porosity: Option<f64>,
 }
 
 /// Default Tait exponent of model `fluid` (water).
@@ -243,6 +259,9 @@ numeric_constants!(
     shear_modulus,
     preconsolidation_pressure,
     ocr,
+    hydraulic_conductivity,
+    biot_coefficient,
+    porosity,
 );
 
 impl MaterialSpec {
@@ -439,6 +458,125 @@ impl BoundarySpec {
     }
 }
 
+/// `[pore_fluid]`: the pore water of a saturated soil, for a coupled (u–p) implicit run.
+///
+/// Pore pressures are positive in compression (a water pressure, Pa) and the `stress` of the
+/// particles is then the effective stress `σ′` (tension positive, as every stress in loam);
+/// the total stress is `σ′ − α p I`. The pore pressure is the hydrostatic pressure below the
+/// `water_table` plus an excess, which drains through the `drained` faces (every other face
+/// and the soil's free surface are impermeable). Each material a body uses needs a
+/// `hydraulic_conductivity`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoreFluidSpec {
+    /// Unit weight of water `γ_w` (N/m³), positive (default 9810).
+    #[serde(default = "default_unit_weight")]
+    pub unit_weight: f64,
+    /// Bulk modulus of the water `K_w` (Pa), positive (default: incompressible); with it,
+    /// each material needs a `porosity` (the storage is `n/K_w`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bulk_modulus: Option<f64>,
+    /// Height of the water table on the last axis (m; `y` in 2D, `z` in 3D), inside the grid:
+    /// hydrostatic pore pressure `γ_w (z_w − z)` below it, none above it (default: no
+    /// hydrostatic pressure, the pore pressure is all excess).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub water_table: Option<f64>,
+    /// The faces of the grid's box that drain: the excess pore pressure is zero on them
+    /// (default none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub drained: Vec<Face>,
+    /// The polynomial pressure projection that removes the pressure's node-to-node
+    /// oscillation near the undrained limit (default `true`).
+    #[serde(default = "default_stabilisation")]
+    pub stabilisation: bool,
+}
+
+fn default_unit_weight() -> f64 {
+    9810.0
+}
+
+fn default_stabilisation() -> bool {
+    true
+}
+
+/// A unit of time for the consolidation schedule and the output of a coupled run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeUnit {
+    /// Seconds.
+    #[default]
+    S,
+    /// Minutes.
+    Min,
+    /// Hours.
+    H,
+    /// Days.
+    Day,
+    /// Years of 365.25 days.
+    Year,
+}
+
+impl TimeUnit {
+    /// Seconds in one unit.
+    pub fn seconds(self) -> f64 {
+        match self {
+            TimeUnit::S => 1.0,
+            TimeUnit::Min => 60.0,
+            TimeUnit::H => 3600.0,
+            TimeUnit::Day => 86400.0,
+            TimeUnit::Year => 365.25 * 86400.0,
+        }
+    }
+
+    /// The name as written in a scene file (`"day"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeUnit::S => "s",
+            TimeUnit::Min => "min",
+            TimeUnit::H => "h",
+            TimeUnit::Day => "day",
+            TimeUnit::Year => "year",
+        }
+    }
+}
+
+/// `[solver.consolidation]`: the time steps of a coupled run after its loading. The loads
+/// reach their totals over `solver.load_steps` undrained steps at `t = 0`; the steps after
+/// them hold the loads over the times `dt₀, dt₀ r, dt₀ r², …` until `end_time`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConsolidationSpec {
+    /// The first time step `dt₀`, positive, in `time_unit`.
+    pub time_step: f64,
+    /// The factor `r ≥ 1` each step grows by (default 1, equal steps).
+    #[serde(default = "default_growth")]
+    pub growth: f64,
+    /// When the run stops, positive, in `time_unit`.
+    pub end_time: f64,
+    /// The unit of `time_step`, `end_time` and of the times the run writes (default `"s"`).
+    #[serde(default)]
+    pub time_unit: TimeUnit,
+}
+
+fn default_growth() -> f64 {
+    1.0
+}
+
+impl ConsolidationSpec {
+    /// The number of time steps to `end_time`: `⌈ln(1 + (r − 1) T/dt₀) / ln r⌉` for a growth
+    /// `r > 1`, `⌈T/dt₀⌉` for equal steps (the last step is shortened to end at `T`).
+    pub fn steps(&self) -> f64 {
+        let ratio = self.end_time / self.time_step;
+        let steps = if self.growth > 1.0 {
+            (1.0 + (self.growth - 1.0) * ratio).ln() / self.growth.ln()
+        } else {
+            ratio
+        };
+        // A step count that lands on `end_time` to round-off is not one more.
+        (steps - 1e-9).ceil()
+    }
+}
+
 /// `[loads]`: body forces.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -541,6 +679,10 @@ pub struct SolverSpec {
     /// a slope it would hold up a real imbalance.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub balance_initial_stress: Option<bool>,
+    /// Implicit with a `[pore_fluid]`: the consolidation's time steps,
+    /// `[solver.consolidation]` (default: none, the run is the undrained loading alone).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub consolidation: Option<ConsolidationSpec>,
     /// Implicit: Newton settings, `[solver.newton]` (default [`NewtonSpec::default`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub newton: Option<NewtonSpec>,

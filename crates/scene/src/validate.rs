@@ -18,6 +18,7 @@ use std::collections::HashSet;
 
 mod contact;
 mod material_keys;
+mod pore_fluid;
 
 /// Tolerance, relative to the domain size, for a body's bounding box to stick out of the
 /// domain and for the domain to be a whole number of cells.
@@ -58,8 +59,15 @@ impl Scene {
     /// [`Scene::placement_issues`].
     fn generation_issues<const D: usize>(&self) -> Vec<Issue> {
         let mut count = 0usize;
-        let mut issues = self.seed::<D>(|_, _| count += 1);
+        let mut nearest = [f64::INFINITY; 6];
+        let (lo, hi) = (&self.grid.lo, &self.grid.hi);
+        let mut issues = self.seed::<D>(|_, x| {
+            count += 1;
+            let d = pore_fluid::face_distances(&x, lo, hi);
+            nearest.iter_mut().zip(d).for_each(|(n, d)| *n = n.min(d));
+        });
         issues.extend(self.placement_issues::<D>(count));
+        issues.extend(self.drained_face_issues(&nearest));
         issues
     }
 
@@ -135,6 +143,7 @@ impl Scene {
         self.check_friction(&mut c, dim);
         self.check_obstacles(&mut c, dim);
         self.check_solver(&mut c);
+        self.check_pore_fluid(&mut c, dim);
         self.check_output(&mut c);
         if let Some(fos) = &self.fos {
             check_fos_values(&mut c, fos);
@@ -166,6 +175,14 @@ impl Scene {
             c.issue(
                 "solver.newmark_dt",
                 "the factor of safety is searched over quasi-static runs; remove it",
+            );
+        }
+        if self.pore_fluid.is_some() {
+            c.issue(
+                "pore_fluid",
+                "the factor of safety is searched over runs of the soil's skeleton (drained, \
+                 or undrained through an undrained strength); a coupled run is not searched \
+                 yet",
             );
         }
         let gravity = self
@@ -659,6 +676,7 @@ impl Scene {
                     ("balance_initial_stress", s.balance_initial_stress.is_some()),
                     ("newton", s.newton.is_some()),
                     ("linear", s.linear.is_some()),
+                    ("consolidation", s.consolidation.is_some()),
                 ] {
                     if given {
                         c.issue(

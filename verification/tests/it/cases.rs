@@ -160,6 +160,11 @@ fn k0_layer() {
 }
 
 #[test]
+fn terzaghi() {
+    check("terzaghi");
+}
+
+#[test]
 fn triaxial_dp() {
     check("triaxial-dp");
 }

@@ -2,8 +2,10 @@
 
 use super::{Options, Stop, Target, interrupt};
 use crate::Outcome;
+use loam_core::Particles;
+use loam_core::tensor::det;
 use loam_implicit::ImplicitSolver;
-use loam_scene::output::LoadStepSummary;
+use loam_scene::output::{LoadStepSummary, WaterTable};
 use loam_scene::{Built, ImplicitPlan};
 use std::time::Instant;
 
@@ -16,6 +18,9 @@ pub fn run<const D: usize>(
 ) -> Outcome {
     let quiet = options.quiet;
     let frame_steps = built.frame_steps();
+    let coupled = built.pore_fluid.is_some();
+    let unit = built.time_unit();
+    let water = built.water_table();
     let config = built
         .implicit_config()
         .expect("an implicit plan has an implicit configuration");
@@ -34,14 +39,31 @@ pub fn run<const D: usize>(
         Err(outcome) => return outcome,
     };
     let mut particles = built.particles;
-    // Frames and the summary use simulated time in dynamics, the load factor otherwise.
+    // Frames and the summary use simulated time in dynamics and in a coupled run (there in
+    // the consolidation's unit), the load factor otherwise.
     let time_scale = plan
         .newmark_dt
         .map_or(1.0, |dt| dt * plan.load_steps as f64);
-    rec.summary.end_time = time_scale;
+    let clock = |solver: &ImplicitSolver<D>| match coupled {
+        true => solver.time() / unit.seconds(),
+        false => solver.load_factor() * time_scale,
+    };
+    rec.summary.end_time = match &built.pore_fluid {
+        Some(fluid) => fluid.schedule.time.last().copied().unwrap_or(0.0) / unit.seconds(),
+        None => time_scale,
+    };
+    if coupled {
+        rec.summary.time_unit = Some(unit.name().to_owned());
+    }
+    let mut consolidation = Consolidation::new(water);
     if !quiet {
+        let coupled_columns = if coupled {
+            format!(" {:>11} {:>6}", format!("t ({})", unit.name()), "U")
+        } else {
+            String::new()
+        };
         println!(
-            "{:>5} {:>9} {:>8} {:>5} {:>5} {:>11} {:>7} {:>8}  residual history ‖R‖/ref",
+            "{:>5} {:>9}{coupled_columns} {:>8} {:>5} {:>5} {:>11} {:>7} {:>8}  residual history ‖R‖/ref",
             "step", "load", "unknowns", "its", "cuts", "‖R‖/ref", "lin.its", "time(s)"
         );
     }
@@ -71,6 +93,8 @@ pub fn run<const D: usize>(
             };
             let wall = t.elapsed().as_secs_f64();
             let last = report.solves.last();
+            let degree =
+                coupled.then(|| consolidation.observe(&particles, report.step <= plan.load_steps));
             let rel = last.map_or(0.0, |s| {
                 s.residuals.last().copied().unwrap_or(0.0) / s.reference
             });
@@ -81,7 +105,7 @@ pub fn run<const D: usize>(
                 .sum();
             rec.summary.load_steps.push(LoadStepSummary {
                 step: report.step as u64,
-                load_factor: report.load_factor,
+                load_factor: solver.applied_load(),
                 iterations: report.iterations() as u64,
                 cuts: report.cuts as u64,
                 residual: rel,
@@ -92,6 +116,9 @@ pub fn run<const D: usize>(
                     .iter()
                     .map(|f| f.iter().copied().collect())
                     .collect(),
+                time: coupled.then(|| clock(&solver)),
+                degree_of_consolidation: degree.map(|d| d.0),
+                max_excess_pore_pressure: degree.map(|d| d.1),
             });
             if !quiet {
                 let history: Vec<String> = last
@@ -102,10 +129,14 @@ pub fn run<const D: usize>(
                             .collect()
                     })
                     .unwrap_or_default();
+                let coupled_columns = match degree {
+                    Some((u, _)) => format!(" {:>11.4e} {:>6.4}", clock(&solver), u),
+                    None => String::new(),
+                };
                 println!(
-                    "{:>5} {:>9.4} {:>8} {:>5} {:>5} {:>11.3e} {:>7} {:>8.3}  {}",
+                    "{:>5} {:>9.4}{coupled_columns} {:>8} {:>5} {:>5} {:>11.3e} {:>7} {:>8.3}  {}",
                     report.step,
-                    report.load_factor,
+                    solver.applied_load(),
                     report.unknowns,
                     report.iterations(),
                     report.cuts,
@@ -116,7 +147,7 @@ pub fn run<const D: usize>(
                 );
             }
             if frame_steps.contains(&report.step)
-                && let Err(e) = rec.frame(report.step, report.load_factor * time_scale, &particles)
+                && let Err(e) = rec.frame(report.step, clock(&solver), &particles)
             {
                 stop = Some(e);
             }
@@ -124,22 +155,54 @@ pub fn run<const D: usize>(
     });
     let wall = start.elapsed().as_secs_f64();
     let iterations: u64 = rec.summary.load_steps.iter().map(|s| s.iterations).sum();
-    let reached = match plan.newmark_dt {
-        Some(_) => format!("t = {:.4} s", solver.load_factor() * time_scale),
-        None => format!("load factor {:.4}", solver.load_factor()),
+    let reached = match (coupled, plan.newmark_dt) {
+        (true, _) => format!("t = {:.4e} {}", clock(&solver), unit.name()),
+        (false, Some(_)) => format!("t = {:.4} s", clock(&solver)),
+        (false, None) => format!("load factor {:.4}", solver.load_factor()),
     };
     let done = format!(
         "{} steps to {reached} in {wall:.2} s, {iterations} Newton iterations ({} particles)",
         solver.steps(),
         particles.len()
     );
-    rec.finish(
-        solver.steps(),
-        solver.load_factor() * time_scale,
-        wall,
-        stop,
-        &done,
-    )
+    rec.finish(solver.steps(), clock(&solver), wall, stop, &done)
+}
+
+/// The degree of consolidation of a coupled run, `U = 1 − ∫ p_e dV / ∫ p_e,0 dV` with
+/// `p_e,0` the excess pore pressure at the end of the loading.
+struct Consolidation {
+    water: Option<WaterTable>,
+    /// `∫ p_e dV` at the end of the loading.
+    initial: Option<f64>,
+}
+
+impl Consolidation {
+    fn new(water: Option<WaterTable>) -> Self {
+        Self {
+            water,
+            initial: None,
+        }
+    }
+
+    /// `(U, max p_e)` of the particles after a step; `loading`: the step is one of the loading
+    /// steps, whose `∫ p_e dV` the later ones compare with (`U = 0` during the loading).
+    fn observe<const D: usize>(&mut self, p: &Particles<f64, D>, loading: bool) -> (f64, f64) {
+        let excess = |i: usize| {
+            p.pore_pressure[i] - self.water.map_or(0.0, |w| w.hydrostatic(p.x[i][D - 1]))
+        };
+        let integral: f64 = (0..p.len())
+            .map(|i| excess(i) * p.volume0[i] * det(&p.f[i]))
+            .sum();
+        let largest = (0..p.len()).map(excess).fold(f64::NEG_INFINITY, f64::max);
+        if loading {
+            self.initial = Some(integral);
+        }
+        let u = match self.initial {
+            Some(i0) if i0 != 0.0 && !loading => 1.0 - integral / i0,
+            _ => 0.0,
+        };
+        (u, largest)
+    }
 }
 
 /// Says how large the balance of the initial stress is (`solver.balance_initial_stress`):

@@ -199,7 +199,8 @@ impl Target<'_> {
         checkpoint::clear(&self.dir)
             .and_then(|()| {
                 let writer = FrameWriter::create(&self.dir, &built.output.fields)
-                    .map_err(|e| e.to_string())?;
+                    .map_err(|e| e.to_string())?
+                    .with_water_table(built.water_table());
                 Ok(Recorder::new(self.scene, writer, built))
             })
             .map_err(|e| {
@@ -264,6 +265,7 @@ impl<const D: usize> Recorder<D> {
                 particles: built.particles.len(),
                 steps: 0,
                 end_time: 0.0,
+                time_unit: None,
                 time_reached: 0.0,
                 dt_min: f64::INFINITY,
                 dt_max: 0.0,

@@ -50,6 +50,7 @@ fn check_accepts_the_examples() {
     // data files beside them (a velocity CSV) are checked through the scenes that read them.
     let mut all = files(examples.clone());
     all.extend(files(examples.join("inverse")));
+    all.extend(files(examples.join("consolidation")));
     for path in all {
         let out = loam(&["check", path.to_str().expect("utf-8 path")]);
         assert!(

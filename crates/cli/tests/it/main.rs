@@ -2,6 +2,7 @@
 
 mod cli;
 mod common;
+mod coupled;
 mod fos;
 mod gpu;
 mod initial_state;

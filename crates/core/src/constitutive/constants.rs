@@ -32,6 +32,8 @@ pub enum Range {
     AtLeast(f64),
     /// `lo < x < hi`.
     Open(f64, f64),
+    /// `lo < x ≤ hi`.
+    LeftOpen(f64, f64),
 }
 
 impl Range {
@@ -46,6 +48,7 @@ impl Range {
             Self::NonNegative => (x >= 0.0, "must be zero or positive".to_owned()),
             Self::AtLeast(lo) => (x >= lo, format!("must be at least {lo}")),
             Self::Open(lo, hi) => (x > lo && x < hi, format!("must be in ({lo}, {hi}){unit}")),
+            Self::LeftOpen(lo, hi) => (x > lo && x <= hi, format!("must be in ({lo}, {hi}]{unit}")),
         };
         if ok {
             Ok(())
@@ -180,6 +183,18 @@ const EVERY_MODEL: [(ModelKind, Need); 8] = [
     (K::DruckerPrager, Required),
     (K::MohrCoulomb, Required),
     (K::ModifiedCamClay, Required),
+];
+/// The skeletons of a saturated soil (every model but the fluid), which take the hydraulic
+/// constants of a coupled run (`[pore_fluid]`); the scene's validation requires the hydraulic
+/// conductivity there and refuses the keys without a pore fluid.
+const POROUS: [(ModelKind, Need); 7] = [
+    (K::LinearElastic, Optional),
+    (K::NeoHookean, Optional),
+    (K::Hencky, Optional),
+    (K::J2, Optional),
+    (K::DruckerPrager, Optional),
+    (K::MohrCoulomb, Optional),
+    (K::ModifiedCamClay, Optional),
 ];
 const FRICTIONAL: [(ModelKind, Need); 2] =
     [(K::DruckerPrager, Required), (K::MohrCoulomb, Required)];
@@ -408,6 +423,30 @@ pub const CONSTANTS: &[Constant] = &[
         range: Some(Range::AtLeast(1.0)),
         unit: "",
         gradient: number("ocr", 1.0, 1e3, "an overconsolidation ratio"),
+    },
+    Constant {
+        key: "hydraulic_conductivity",
+        what: "Darcy's hydraulic conductivity k, m/s",
+        models: &POROUS,
+        range: Some(Range::Positive),
+        unit: "",
+        gradient: None,
+    },
+    Constant {
+        key: "biot_coefficient",
+        what: "Biot's coefficient α, in (0, 1]",
+        models: &POROUS,
+        range: Some(Range::LeftOpen(0.0, 1.0)),
+        unit: "",
+        gradient: None,
+    },
+    Constant {
+        key: "porosity",
+        what: "the porosity n, in (0, 1)",
+        models: &POROUS,
+        range: Some(Range::Open(0.0, 1.0)),
+        unit: "",
+        gradient: None,
     },
 ];
 

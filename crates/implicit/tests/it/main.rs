@@ -1,5 +1,5 @@
 //! The integration tests of `implicit`, one binary (one link) for all of them.
 
-mod consolidation;
+mod coupled;
 mod newmark;
 mod strength_reduction;

@@ -72,10 +72,24 @@ impl<const D: usize> ImplicitProblem<D> {
     /// # Errors
     /// A parameter or an observation that does not fit (named by its field).
     pub fn validate(&self) -> Result<(), AdjointError> {
+        self.check_dry()?;
         for p in &self.params {
             p.value(&self.config, &self.initial)?;
         }
         self.observations.validate(&self.config, &self.initial)
+    }
+
+    /// Refuses a coupled (u–p) run: the reverse pass replays the steps of the solid alone.
+    fn check_dry(&self) -> Result<(), AdjointError> {
+        match self.config.pore_fluid {
+            Some(_) => Err(AdjointError::Unsupported {
+                what: "[pore_fluid]".into(),
+                why: "the implicit adjoint replays the steps of the solid alone, not yet the \
+                      coupled u–p steps of a saturated soil"
+                    .into(),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// The parameters' values in the scene.
@@ -97,6 +111,7 @@ impl<const D: usize> ImplicitProblem<D> {
         &self,
         theta: &[f64],
     ) -> Result<(ImplicitConfig<D>, Particles<f64, D>), AdjointError> {
+        self.check_dry()?;
         let mut config = self.config.clone();
         let mut particles = self.initial.clone();
         for (p, &v) in self.params.iter().zip(theta) {

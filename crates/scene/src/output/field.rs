@@ -24,8 +24,15 @@ pub enum Field {
     /// The preconsolidation pressure `p′c` of Modified Cam-Clay (Pa, compression positive;
     /// zero for the other models).
     PreconsolidationPressure,
-    /// Pressure `−tr σ / 3` (Pa).
+    /// Pressure `−tr σ / 3` (Pa): the mean effective stress `p′` in a coupled run.
     Pressure,
+    /// Pore water pressure `p` (Pa, positive in compression) of a coupled (u–p) run; written
+    /// only for those.
+    PorePressure,
+    /// Excess pore pressure `p − γ_w (z_w − z)` over the hydrostatic pressure of the water
+    /// table (Pa, positive in compression; all of `p` without a water table); coupled runs
+    /// only.
+    ExcessPorePressure,
     /// Von Mises stress `√(3/2 s:s)`, `s` the deviatoric stress (Pa).
     VonMises,
     /// Current volume `det F · V₀` (m³; m² per metre of depth in 2D).
@@ -46,7 +53,7 @@ pub enum Field {
 
 impl Field {
     /// Every field, in the order frames list them.
-    pub const ALL: [Field; 13] = [
+    pub const ALL: [Field; 15] = [
         Field::Velocity,
         Field::Displacement,
         Field::Stress,
@@ -54,6 +61,8 @@ impl Field {
         Field::PlasticStrain,
         Field::PreconsolidationPressure,
         Field::Pressure,
+        Field::PorePressure,
+        Field::ExcessPorePressure,
         Field::VonMises,
         Field::Volume,
         Field::Mass,
@@ -61,6 +70,11 @@ impl Field {
         Field::Affine,
         Field::Id,
     ];
+
+    /// Whether the field belongs to a coupled (u–p) run only.
+    pub fn coupled_only(self) -> bool {
+        matches!(self, Field::PorePressure | Field::ExcessPorePressure)
+    }
 
     /// The field's name, in scene files and as the `.vtu` array name.
     pub fn name(self) -> &'static str {
@@ -72,6 +86,8 @@ impl Field {
             Field::PlasticStrain => "plastic_strain",
             Field::PreconsolidationPressure => "preconsolidation_pressure",
             Field::Pressure => "pressure",
+            Field::PorePressure => "pore_pressure",
+            Field::ExcessPorePressure => "excess_pore_pressure",
             Field::VonMises => "von_mises",
             Field::Volume => "volume",
             Field::Mass => "mass",
@@ -87,6 +103,22 @@ impl Field {
 pub fn hencky_strain<const D: usize>(f: &Tensor<f64, D>) -> Matrix3<f64> {
     let f3 = to3(f, 1.0);
     symmetric_fn(&(f3 * f3.transpose()), &Log) * 0.5
+}
+
+/// The water table of a coupled run, for the excess pore pressure of the frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WaterTable {
+    /// Height on the last axis (m).
+    pub height: f64,
+    /// Unit weight of water `γ_w` (N/m³).
+    pub unit_weight: f64,
+}
+
+impl WaterTable {
+    /// The hydrostatic pressure `γ_w (z_w − z)` at height `z`, zero above the table (Pa).
+    pub fn hydrostatic(&self, z: f64) -> f64 {
+        self.unit_weight * (self.height - z).max(0.0)
+    }
 }
 
 /// Pressure `−tr σ / 3` (positive in compression).

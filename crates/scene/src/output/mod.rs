@@ -17,7 +17,7 @@ mod pvd;
 mod summary;
 mod vtu;
 
-pub use field::{Field, hencky_strain, pressure, von_mises};
+pub use field::{Field, WaterTable, hencky_strain, pressure, von_mises};
 pub use pvd::{PvdEntry, read_pvd, write_pvd};
 pub use summary::{
     CheckpointNote, EnergySample, LoadStepSummary, ObstacleForceSample, RunStatus, RunSummary,
@@ -111,6 +111,7 @@ pub struct FrameWriter {
     dir: PathBuf,
     fields: Vec<Field>,
     entries: Vec<PvdEntry>,
+    water: Option<WaterTable>,
 }
 
 impl FrameWriter {
@@ -147,6 +148,7 @@ impl FrameWriter {
             dir,
             fields: fields.to_vec(),
             entries: Vec::new(),
+            water: None,
         })
     }
 
@@ -187,7 +189,14 @@ impl FrameWriter {
             dir,
             fields: fields.to_vec(),
             entries,
+            water: None,
         })
+    }
+
+    /// The water table of a coupled run, for the excess pore pressure of the frames.
+    pub fn with_water_table(mut self, water: Option<WaterTable>) -> Self {
+        self.water = water;
+        self
     }
 
     /// Writes the next frame at simulated time `time` and rewrites the collection; returns
@@ -200,7 +209,7 @@ impl FrameWriter {
     ) -> Result<PathBuf, OutputError> {
         let file = format!("frame_{:04}.vtu", self.entries.len());
         let path = self.dir.join(&file);
-        write_vtu(&path, particles, initial, &self.fields)?;
+        write_vtu(&path, particles, initial, &self.fields, self.water)?;
         self.entries.push(PvdEntry { time, file });
         write_pvd(&self.pvd_path(), &self.entries)?;
         Ok(path)

@@ -56,6 +56,17 @@ pub struct LoadStepSummary {
     /// (N; N per metre run in 2D; a footing pushed down has a negative vertical force).
     #[serde(default)]
     pub constraint_forces: Vec<Vec<f64>>,
+    /// Coupled (u–p) runs: the time at the end of the step, in the summary's `time_unit`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
+    /// Coupled runs: the degree of consolidation `U = 1 − ∫ p_e dV / ∫ p_e,0 dV`, the share
+    /// of the excess pore pressure at the end of the loading (`p_e,0`) that has drained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degree_of_consolidation: Option<f64>,
+    /// Coupled runs: the largest excess pore pressure of the particles (Pa, compression
+    /// positive).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_excess_pore_pressure: Option<f64>,
 }
 
 /// The mean force of every rigid obstacle on the material over the interval that ends at a
@@ -91,8 +102,12 @@ pub struct RunSummary {
     pub particles: usize,
     /// Time steps taken.
     pub steps: u64,
-    /// The scene's end time (s).
+    /// The scene's end time (s; in `time_unit` for a coupled run).
     pub end_time: f64,
+    /// Coupled (u–p) runs: the unit of the times in this summary and the frames
+    /// (`solver.consolidation.time_unit`, e.g. `"day"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_unit: Option<String>,
     /// Simulated time reached (s): `end_time` unless the run stopped early (with a fixed
     /// step Δt, `steps · Δt`, within half a step of `end_time`).
     pub time_reached: f64,

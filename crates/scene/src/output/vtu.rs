@@ -8,7 +8,7 @@
 //! particles, and nothing is written. The file is written to a temporary name and renamed, so
 //! a run killed while writing never leaves a truncated frame.
 
-use super::field::{Field, hencky_strain, pressure, von_mises};
+use super::field::{Field, WaterTable, hencky_strain, pressure, von_mises};
 use super::{OutputError, write_atomically};
 use loam_core::Particles;
 use loam_core::tensor::{det, to3};
@@ -21,13 +21,15 @@ use vtkio::model::{
 
 /// Writes the particles to `path` (a `.vtu` file) with the requested point-data `fields`.
 /// `initial` holds the initial positions (one per particle) for the `displacement` field,
-/// which is left out without them. A non-finite value in the positions or a field is an
-/// error, and nothing is written.
+/// which is left out without them; `water` the water table of a coupled run, for the excess
+/// pore pressure. A non-finite value in the positions or a field is an error, and nothing is
+/// written.
 pub fn write_vtu<const D: usize>(
     path: &Path,
     particles: &Particles<f64, D>,
     initial: Option<&[SVector<f64, D>]>,
     fields: &[Field],
+    water: Option<WaterTable>,
 ) -> Result<(), OutputError> {
     let n = particles.len();
     if let Some(x0) = initial.filter(|x0| x0.len() != n) {
@@ -40,7 +42,7 @@ pub fn write_vtu<const D: usize>(
     check_finite("position", &points, 3, particles)?;
     let point: Vec<Attribute> = fields
         .iter()
-        .filter_map(|&field| point_data(field, particles, initial))
+        .filter_map(|&field| point_data(field, particles, initial, water))
         .collect();
     for attribute in &point {
         if let Attribute::DataArray(DataArray {
@@ -132,6 +134,7 @@ fn point_data<const D: usize>(
     field: Field,
     p: &Particles<f64, D>,
     initial: Option<&[SVector<f64, D>]>,
+    water: Option<WaterTable>,
 ) -> Option<Attribute> {
     let name = field.name();
     let scalars = |values: Vec<f64>| scalar_array(name, IOBuffer::F64(values));
@@ -146,6 +149,12 @@ fn point_data<const D: usize>(
         Field::PlasticStrain => scalars(p.state.iter().map(|s| s.plastic_strain).collect()),
         Field::PreconsolidationPressure => scalars(p.state.iter().map(|s| s.hardening).collect()),
         Field::Pressure => scalars(p.stress.iter().map(pressure).collect()),
+        Field::PorePressure => scalars(p.pore_pressure.clone()),
+        Field::ExcessPorePressure => scalars(
+            (p.pore_pressure.iter().zip(&p.x))
+                .map(|(pw, x)| pw - water.map_or(0.0, |w| w.hydrostatic(x[D - 1])))
+                .collect(),
+        ),
         Field::VonMises => scalars(p.stress.iter().map(von_mises).collect()),
         Field::Volume => scalars(
             p.f.iter()

@@ -3,4 +3,5 @@
 mod checkpoint;
 mod initial_state;
 mod output;
+mod pore_fluid;
 mod scene_files;

@@ -146,13 +146,20 @@ fn a_field_subset_is_honoured_and_displacement_needs_initial_positions() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("one.vtu");
     let p = particles();
-    write_vtu(&path, &p, None, &[Field::Velocity, Field::Displacement]).unwrap();
+    write_vtu(
+        &path,
+        &p,
+        None,
+        &[Field::Velocity, Field::Displacement],
+        None,
+    )
+    .unwrap();
     let piece = piece(Vtk::import(&path).unwrap());
     assert!(array(&piece, "velocity").is_some());
     assert!(array(&piece, "displacement").is_none());
     assert!(array(&piece, "stress").is_none());
 
-    let err = write_vtu(&path, &p, Some(&p.x[..2]), &[Field::Velocity]).unwrap_err();
+    let err = write_vtu(&path, &p, Some(&p.x[..2]), &[Field::Velocity], None).unwrap_err();
     assert!(matches!(
         err,
         OutputError::InitialPositions {
@@ -174,7 +181,7 @@ fn a_3d_frame_keeps_the_z_components() {
         vector![0.5, 0.5, 0.5],
         0,
     );
-    write_vtu(&path, &p, None, &[Field::Velocity, Field::Mass]).unwrap();
+    write_vtu(&path, &p, None, &[Field::Velocity, Field::Mass], None).unwrap();
     let piece = piece(Vtk::import(&path).unwrap());
     assert_eq!(
         piece.points.clone().into_vec::<f64>().unwrap(),
@@ -265,6 +272,7 @@ fn run_summary_is_written_as_json() {
         particles: 2000,
         steps: 4000,
         end_time: 4.0,
+        time_unit: None,
         time_reached: 1.5,
         dt_min: 1e-3,
         dt_max: 1e-3,

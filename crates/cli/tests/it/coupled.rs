@@ -1,0 +1,90 @@
+//! Coupled (u–p) runs from the command line: the Terzaghi example shortened, its table, frames
+//! and summary, and a malformed coupled scene refused with the field named.
+
+use crate::common::{loam, repo, text};
+
+/// The Terzaghi example (examples/consolidation/terzaghi.toml) to t = 1000 s in 10 steps of
+/// 100 s, written into `dir`, with two frames.
+fn short_terzaghi(dir: &std::path::Path) -> std::path::PathBuf {
+    let scene = std::fs::read_to_string(repo("examples/consolidation/terzaghi.toml"))
+        .unwrap()
+        .replace("end_time = 55600.0", "end_time = 1000.0")
+        .replace("frames = 20", "frames = 2")
+        .replace(
+            "dir = \"out/terzaghi\"",
+            &format!("dir = {:?}", dir.join("out").display().to_string()),
+        );
+    let path = dir.join("terzaghi.toml");
+    std::fs::write(&path, scene).unwrap();
+    path
+}
+
+#[test]
+fn a_coupled_run_writes_pore_pressures_and_the_degree_of_consolidation() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = short_terzaghi(dir.path());
+    let out = loam(&["run", path.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("t (s)") && stdout.contains("11 steps to t = 1.0000e3 s"),
+        "{stdout}"
+    );
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("out/summary.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(summary["time_unit"], "s");
+    assert_eq!(summary["end_time"], 1000.0);
+    let steps = summary["load_steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 11);
+    // The undrained loading: U = 0 and the excess pore pressure carries the 1 kPa (with an
+    // overshoot of a few per cent in the boundary layer next to the drained face, whose own
+    // pressure is zero).
+    assert_eq!(steps[0]["time"], 0.0);
+    assert_eq!(steps[0]["degree_of_consolidation"], 0.0);
+    let p0 = steps[0]["max_excess_pore_pressure"].as_f64().unwrap();
+    assert!((p0 / 1e3 - 1.0).abs() < 0.05, "{p0}");
+    // Then U grows with time: Terzaghi's early-time U = 2 √(T_v/π), T_v = c_v t/H² with
+    // c_v = 1.8e-3 m²/s, is 0.151 at 1000 s; backward Euler's ten steps lag it by a few
+    // per cent of itself.
+    let u: Vec<f64> = steps
+        .iter()
+        .map(|s| s["degree_of_consolidation"].as_f64().unwrap())
+        .collect();
+    assert!(u.windows(2).all(|w| w[1] > w[0] || w[0] == 0.0), "{u:?}");
+    let tv = 1.8e-3 * 1000.0 / 100.0;
+    let exact = 2.0 * (tv / std::f64::consts::PI).sqrt();
+    assert!(
+        (u[10] / exact - 1.0).abs() < 0.05,
+        "U = {} against {exact}",
+        u[10]
+    );
+    assert_eq!(steps[10]["time"], 1000.0);
+    // The frames hold the pore pressure fields, at times in seconds.
+    let pvd = std::fs::read_to_string(dir.path().join("out/particles.pvd")).unwrap();
+    assert!(pvd.contains("timestep=\"1000\""), "{pvd}");
+    let frame = std::fs::read_to_string(dir.path().join("out/frame_0002.vtu")).unwrap();
+    for field in ["pore_pressure", "excess_pore_pressure"] {
+        assert!(frame.contains(&format!("Name=\"{field}\"")), "{field}");
+    }
+}
+
+#[test]
+fn a_water_table_above_the_grid_is_refused_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = short_terzaghi(dir.path());
+    let scene = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("[pore_fluid]", "[pore_fluid]\nwater_table = 10.5");
+    std::fs::write(&path, scene).unwrap();
+    for cmd in ["check", "run"] {
+        let out = loam(&[cmd, path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
+        assert!(
+            err.contains("pore_fluid.water_table: 10.5 m is above the grid"),
+            "{err}"
+        );
+    }
+}

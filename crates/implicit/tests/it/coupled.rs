@@ -1,0 +1,181 @@
+//! The coupled (u–p) step's tangent against differences of its residual. (Its physics is
+//! verified against Terzaghi's solution by `loam verify terzaghi`.)
+
+use loam_core::tensor::Vector;
+use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
+use loam_implicit::flow::{Hydraulic, PoreFluid, Schedule};
+use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
+
+/// Deterministic pseudo-random numbers in [−1, 1).
+fn rng(seed: &mut u64) -> f64 {
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    2.0 * ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 1.0
+}
+
+/// A saturated block `[0, 1]^D` (cells of 0.25, 2^D particles per cell, slightly jittered)
+/// on a fixed base with slip side walls, drained at the top, under a water table at 1.5 (so
+/// the hydrostatic pressure enters the total stress); the first material is `material`.
+fn block<const D: usize>(
+    material: Material<f64>,
+    shape: Shape,
+    stabilisation: bool,
+) -> (ImplicitConfig<D>, Particles<f64, D>) {
+    let h = 0.25;
+    let mut cells = [4; D];
+    cells[D - 1] = 5;
+    let grid = Grid::<D>::new([0.0; D], cells, h, shape.ghost_cells());
+    let mut boundary = Boundary::all(Wall::new(WallKind::Slip));
+    boundary.walls[D - 1][0] = Wall::new(WallKind::Fixed);
+    boundary.walls[D - 1][1] = Wall::new(WallKind::Free);
+    let mut drained = [[false; 2]; D];
+    drained[D - 1][1] = true;
+    let mut seed = 7 + D as u64;
+    let mut particles = Particles::<f64, D>::default();
+    let spacing = h / 2.0;
+    let n = 8usize;
+    for k in 0..n.pow(D as u32) {
+        let mut r = k;
+        let x = Vector::<f64, D>::from_fn(|_, _| {
+            let i = r % n;
+            r /= n;
+            (i as f64 + 0.5 + 0.2 * rng(&mut seed)) * spacing
+        });
+        particles.push(x, Vector::zeros(), 1800.0, Vector::repeat(spacing / 2.0), 0);
+        let i = particles.len() - 1;
+        particles.pore_pressure[i] = 9810.0 * (1.5 - x[D - 1]) + 2e3 * rng(&mut seed);
+    }
+    let mut gravity = Vector::<f64, D>::zeros();
+    gravity[D - 1] = -9.81;
+    let schedule = Schedule::geometric(1, 10.0, 1.0, 20.0);
+    let config = ImplicitConfig {
+        grid,
+        shape,
+        boundary,
+        materials: vec![material],
+        gravity,
+        constraints: Vec::new(),
+        point_loads: Vec::new(),
+        load_steps: schedule.steps(),
+        newton: NewtonSettings::default(),
+        dynamics: None,
+        gravity_in_full: true,
+        min_node_support: ImplicitConfig::<D>::DEFAULT_MIN_NODE_SUPPORT,
+        balance: Vec::new(),
+        pore_fluid: Some(PoreFluid {
+            hydraulic: vec![Hydraulic {
+                mobility: 1e-7,
+                biot: 0.9,
+                storage: 1e-9,
+            }],
+            unit_weight: 9810.0,
+            water_table: Some(1.5),
+            drained,
+            stabilisation,
+            schedule,
+        }),
+    };
+    (config, particles)
+}
+
+/// The coupled tangent, per-particle and colour-seeded, against central differences of the
+/// residual at a random trial state (displacement increments of ~1 % strain, pressures of
+/// ~10 kPa) of the second step (Δt = 10 s), with the stabilisation on.
+fn check_coupled_tangent<const D: usize>(material: Material<f64>, shape: Shape) {
+    let (config, particles) = block::<D>(material, shape, true);
+    let solver = ImplicitSolver::new(config, &particles).expect("valid");
+    let progress = 1.0 / solver.config().load_steps as f64;
+    let system = solver
+        .system(&particles, progress, 2.0 * progress)
+        .expect("system");
+    assert!(system.flow.as_ref().is_some_and(|f| f.dt == 10.0));
+    let mats = solver.materials();
+    let mut seed = 99;
+    let x: Vec<f64> = (0..system.len())
+        .map(|d| {
+            let (_, c) = system.dofs.owner_of(d);
+            // Displacements ~1e-3 m over cells of 0.25 m; pressure unknowns (scaled by
+            // G/h) of ~10 kPa.
+            let scale = if c < D {
+                2.5e-3
+            } else {
+                1e4 / system.flow.as_ref().unwrap().scale
+            };
+            scale * rng(&mut seed)
+        })
+        .collect();
+    let plastic = system
+        .particle_updates(&x, None, mats)
+        .expect("updates")
+        .iter()
+        .filter(|u| u.state.plastic_strain > 0.0)
+        .count();
+    let local = system.tangent_local(&x, mats).expect("local");
+    let colour = system.tangent_colour(&x, mats).expect("colour");
+    let n = system.len();
+    let pressure = |d: usize| usize::from(system.dofs.owner_of(d).1 == D);
+    // Per block (mixture/fluid rows × displacement/pressure columns): the largest entry and
+    // the largest differences to the colour-seeded tangent and to central differences.
+    let mut kmax = [[0.0f64; 2]; 2];
+    let mut worst_fd = [[0.0f64; 2]; 2];
+    let mut worst_colour = [[0.0f64; 2]; 2];
+    let at = |k: &loam_implicit::linear::SparseMatrix, i: usize, j: usize| {
+        k.pattern.position(i, j).map_or(0.0, |p| k.values[p])
+    };
+    for j in 0..n {
+        // Central differences: truncation O(ε²) against round-off O(1e-16 |R| / ε). Both
+        // kinds of unknown are lengths (the pressure scaled by h/G), of ~1e-3 m; ε = 1e-8 m
+        // balances the two near 1e-8 of the block's largest entry.
+        let eps = 1e-8;
+        let mut xp = x.clone();
+        xp[j] += eps;
+        let rp = system.residual(&xp, mats).expect("residual");
+        xp[j] -= 2.0 * eps;
+        let rm = system.residual(&xp, mats).expect("residual");
+        for i in 0..n {
+            let (bi, bj) = (pressure(i), pressure(j));
+            let fd = (rp[i] - rm[i]) / (2.0 * eps);
+            let kl = at(&local, i, j);
+            kmax[bi][bj] = kmax[bi][bj].max(kl.abs());
+            worst_fd[bi][bj] = worst_fd[bi][bj].max((kl - fd).abs());
+            worst_colour[bi][bj] = worst_colour[bi][bj].max((kl - at(&colour, i, j)).abs());
+        }
+    }
+    for (bi, row) in ["mixture", "fluid"].iter().enumerate() {
+        for (bj, col) in ["u", "p"].iter().enumerate() {
+            let (fd, co, k) = (worst_fd[bi][bj], worst_colour[bi][bj], kmax[bi][bj]);
+            println!(
+                "{D}D {shape:?} ({n} unknowns, {plastic} plastic particles) {row}/{col}: max |K| {k:.2e}, |K_local − FD| {:.1e}, |K_local − K_colour| {:.1e}",
+                fd / k,
+                co / k
+            );
+            assert!(k > 0.0, "{row}/{col} block is empty");
+            // The two AD tangents are the same derivative summed in another order.
+            assert!(co <= 1e-12 * k, "{row}/{col} colour {co:e} vs {k:e}");
+            // Differences: the truncation and round-off of the step above.
+            assert!(fd <= 1e-6 * k, "{row}/{col} differences {fd:e} vs {k:e}");
+        }
+    }
+}
+
+#[test]
+fn the_coupled_tangent_is_the_derivative_of_the_residual() {
+    use loam_core::constitutive::{Lame, Model, MohrCoulomb};
+    let sand = Material {
+        density: 1800.0,
+        model: Model::MohrCoulomb(MohrCoulomb {
+            lame: Lame::from_young_poisson(20e6, 0.3),
+            friction_angle: 30f64.to_radians(),
+            dilation_angle: 5f64.to_radians(),
+            cohesion: 1e3,
+            tension_cutoff: None,
+        }),
+    };
+    let hencky = Material::elastic(ModelKind::Hencky, 20e6, 0.3, 1800.0);
+    for shape in [Shape::QuadraticBspline, Shape::Linear] {
+        check_coupled_tangent::<2>(hencky.clone(), shape);
+        check_coupled_tangent::<2>(sand.clone(), shape);
+    }
+    check_coupled_tangent::<3>(sand, Shape::QuadraticBspline);
+}

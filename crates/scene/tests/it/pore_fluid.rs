@@ -1,0 +1,172 @@
+//! Coupled (u–p) scenes: `[pore_fluid]`, the hydraulic keys of the materials and
+//! `[solver.consolidation]`, built from the Terzaghi example and refused with the field named.
+
+use loam_scene::{Scene, SolverPlan};
+use std::path::Path;
+
+fn example() -> (std::path::PathBuf, String) {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/consolidation/terzaghi.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    (path, text)
+}
+
+#[test]
+fn the_terzaghi_example_builds_a_coupled_run() {
+    let (path, _) = example();
+    let built = Scene::from_path(&path).unwrap().build::<2>().unwrap();
+    let fluid = built.pore_fluid.as_ref().expect("a coupled scene");
+    // k/γ_w = 9.81e-6 / 9810.
+    assert!((fluid.hydraulic[0].mobility - 1e-9).abs() < 1e-24);
+    assert_eq!(
+        (fluid.hydraulic[0].biot, fluid.hydraulic[0].storage),
+        (1.0, 0.0)
+    );
+    assert_eq!(fluid.drained, [[false, false], [false, true]]);
+    assert_eq!(fluid.water_table, None);
+    // One undrained loading step at t = 0, then 556 steps of 100 s to 55,600 s.
+    let schedule = &fluid.schedule;
+    assert_eq!(schedule.steps(), 557);
+    assert_eq!((schedule.time[1], schedule.load[1]), (0.0, 1.0));
+    assert!((schedule.time[557] - 55_600.0).abs() < 1e-6);
+    assert_eq!(built.implicit_steps(), 557);
+    let config = built.implicit_config().unwrap();
+    assert_eq!(config.load_steps, 557);
+    assert!(config.pore_fluid.is_some());
+    // Frames at the times of the steps they follow, in seconds; the pore-pressure fields are
+    // kept.
+    let times = built.frame_times();
+    assert_eq!(times.len(), 21);
+    assert_eq!(times[0], 0.0);
+    assert!((times[20] - 55_600.0).abs() < 1e-6);
+    assert!(
+        built
+            .output
+            .fields
+            .iter()
+            .any(|f| f.name() == "pore_pressure")
+    );
+    let SolverPlan::Implicit(plan) = built.plan else {
+        panic!("{:?}", built.plan)
+    };
+    assert_eq!(plan.load_steps, 1);
+}
+
+#[test]
+fn times_are_in_the_consolidation_unit() {
+    let (_, text) = example();
+    let text = text
+        .replace(
+            "time_step = 100.0                # s",
+            "time_step = 1.0\ntime_unit = \"h\"\ngrowth = 1.5",
+        )
+        .replace(
+            "end_time = 55600.0               # s: T_v = 1",
+            "end_time = 10.0",
+        );
+    let built = Scene::from_toml_str(&text).unwrap().build::<2>().unwrap();
+    let schedule = &built.pore_fluid.as_ref().unwrap().schedule;
+    // 1 h, 1.5 h, 2.25 h, … until 10 h: 1 + 1.5 + 2.25 + 3.375 = 8.125, then 1.875 to 10.
+    let hours: Vec<f64> = schedule.time.iter().map(|t| t / 3600.0).collect();
+    let want = [0.0, 0.0, 1.0, 2.5, 4.75, 8.125, 10.0];
+    assert_eq!(hours.len(), want.len(), "{hours:?}");
+    for (h, w) in hours.iter().zip(want) {
+        assert!((h - w).abs() < 1e-9, "{hours:?}");
+    }
+    assert_eq!(built.time_unit().name(), "h");
+    assert!((built.frame_times().last().unwrap() - 10.0).abs() < 1e-9);
+}
+
+/// Every rule of a coupled scene names its field.
+#[test]
+fn coupled_rules_name_the_field() {
+    let (_, text) = example();
+    for (from, to, want) in [
+        (
+            "hydraulic_conductivity = 9.81e-6",
+            "hydraulic_conductivity = -1.0",
+            "materials[0].hydraulic_conductivity: must be positive, got -1",
+        ),
+        (
+            "hydraulic_conductivity = 9.81e-6",
+            "",
+            "materials[0].hydraulic_conductivity: required with a [pore_fluid] section",
+        ),
+        (
+            "[pore_fluid]",
+            "[pore_fluid]\nwater_table = 12.0",
+            "pore_fluid.water_table: 12 m is above the grid (grid.hi y = 10 m)",
+        ),
+        (
+            "hi = [0.1, 10.0]\ncell_size",
+            "hi = [0.1, 12.0]\ncell_size",
+            "pore_fluid.drained[0]: no body reaches face y_max (the nearest particle is 2.0250 m \
+             from it, more than a cell)",
+        ),
+        (
+            "drained = [\"y_max\"]",
+            "drained = [\"z_max\"]",
+            "pore_fluid.drained[0]: the grid is 2D; it has no face z_max",
+        ),
+        (
+            "drained = [\"y_max\"]",
+            "drained = [\"y_top\"]",
+            "pore_fluid.drained[0]: unknown variant `y_top`",
+        ),
+        (
+            "[pore_fluid]",
+            "[pore_fluid]\nbulk_modulus = 2.2e9",
+            "materials[0].porosity: required with pore_fluid.bulk_modulus",
+        ),
+        (
+            "hydraulic_conductivity = 9.81e-6",
+            "hydraulic_conductivity = 9.81e-6\nbiot_coefficient = 1.5",
+            "materials[0].biot_coefficient: must be in (0, 1], got 1.5",
+        ),
+        (
+            "end_time = 55600.0",
+            "end_time = 55600.0\ngrowth = 0.5",
+            "solver.consolidation.growth: must be at least 1, got 0.5",
+        ),
+        (
+            "time_step = 100.0",
+            "time_step = 1e-6",
+            "solver.consolidation.time_step: 0.000001 s to reach end_time = 55600 s makes",
+        ),
+        (
+            "end_time = 55600.0",
+            "end_time = 55600.0\ntime_unit = \"week\"",
+            "solver.consolidation.time_unit: unknown variant `week`",
+        ),
+        (
+            "load_steps = 1",
+            "load_steps = 1\nlinear = \"cg\"",
+            "solver.linear: the coupled system is not symmetric positive definite",
+        ),
+        (
+            "[pore_fluid]\ndrained = [\"y_max\"]",
+            "",
+            "materials[0].hydraulic_conductivity: only used with a [pore_fluid] section",
+        ),
+        (
+            "load_steps = 1",
+            "load_steps = 1\nnewmark_dt = 0.1",
+            "solver.newmark_dt: a coupled (u–p) run is quasi-static",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        match Scene::from_toml_str(&text.replacen(from, to, 1)) {
+            Ok(_) => panic!("{to}: loaded without error"),
+            Err(err) => assert!(err.to_string().contains(want), "{to}:\n{err}"),
+        }
+    }
+    // Without [pore_fluid], the consolidation has nothing to drain.
+    let dry = text
+        .replacen("hydraulic_conductivity = 9.81e-6", "", 1)
+        .replacen("[pore_fluid]\ndrained = [\"y_max\"]", "", 1);
+    let err = Scene::from_toml_str(&dry).unwrap_err().to_string();
+    assert!(
+        err.contains("solver.consolidation: only used with a [pore_fluid] section"),
+        "{err}"
+    );
+}

@@ -1,0 +1,352 @@
+//! Terzaghi's one-dimensional consolidation (`terzaghi`): the coupled (u–p) implicit solver
+//! against the series solution, in GeoWarp's configuration.
+//!
+//! A weightless column of height `H = 10 m` (linear elastic, E = 1.5 MPa, ν = 0.25, mobility
+//! `k/γ_w = 1e-9 m²/(Pa·s)`) between slip walls on a fixed, impermeable base, drained at the
+//! top, is loaded there by `q = 1 kPa` in one undrained step at `t = 0` and consolidates. With
+//! the constrained modulus `M_c = E(1−ν)/((1+ν)(1−2ν))`, `c_v = (k/γ_w) M_c` and
+//! `T_v = c_v t / H²`, the excess pore pressure at depth `z` and the settlement of the material
+//! point at depth `d` are
+//!
+//! ```text
+//! p/q   = Σ (2/M) sin(M z/H) exp(−M² T_v),                     M = π(2m + 1)/2
+//! s(d)  = (q/M_c) [(H − d) − Σ (2H/M²) cos(M d/H) exp(−M² T_v)]
+//! ```
+//!
+//! and the degree of consolidation of the column is `U = s(0)/s_∞ = 1 − Σ (2/M²) exp(−M² T_v)`.
+//!
+//! Metrics:
+//! - the undrained loading alone: the incompressible column cannot shorten, so `p = q`; the
+//!   largest `|p/q − 1|` deeper than 2 m (below the boundary layer of the drained top) is at
+//!   most 1e-3 with the pressure stabilisation, and at least 0.1 without it (equal-order
+//!   interpolation lets the pressure alternate from cell to cell: the stabilisation matters).
+//!
+//! At `T_v` = 0.1, 0.2, 0.5 and 1:
+//! - the largest `|p − p_exact|/q` over the particles (exact at each particle's initial
+//!   depth, the small-strain reference of the series; the column shortens by
+//!   `q H/M_c` = 5.6 mm) with GeoWarp's steps of 100 s: at most 3e-3 at
+//!   `T_v = 0.1`; later, backward Euler's lag of the first mode, `exp(M⁴ Δt_v T_v / 2) − 1`
+//!   ≈ 0.55 % × T_v of its amplitude, bounds it at ~1.5e-3 (GeoWarp reports 1e-3, 3e-4 and
+//!   5e-4 at 0.2, 0.4 and 1 with its own figure of merit); with steps of 25 s, at most 1e-3
+//!   everywhere;
+//! - the degree of consolidation from the settlement of the top row of particles against the
+//!   exact settlement of the same material points, within 1 %, with steps of 100 s and with
+//!   48 steps growing geometrically (`Δt_v = 10⁻³ × 1.1^k`) to `T_v = 1`, whose larger
+//!   pressure error is reported: backward Euler's time error.
+//!
+//! Reduced size (the test suite): cells of 0.25 m; the run with steps of 25 s is left out.
+
+use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot};
+use loam_implicit::ImplicitSolver;
+use loam_scene::{ConsolidationSpec, Scene};
+use std::f64::consts::PI;
+use std::path::Path;
+
+const CASE: &str = "terzaghi";
+/// Output times (T_v).
+const TIMES: [f64; 4] = [0.1, 0.2, 0.5, 1.0];
+/// Terms of the series: the last, `exp(−M² T_v)` at T_v = 0.1 and m = 200, is 0.
+const TERMS: usize = 2000;
+
+/// The column of the scene.
+struct Column {
+    height: f64,
+    load: f64,
+    /// Constrained modulus `M_c` (Pa).
+    modulus: f64,
+    /// `c_v` (m²/s).
+    cv: f64,
+}
+
+impl Column {
+    fn of(scene: &Scene) -> Self {
+        let m = &scene.materials[0];
+        let (e, nu) = (
+            m.youngs_modulus.unwrap_or(0.0),
+            m.poisson_ratio.unwrap_or(0.0),
+        );
+        let modulus = e * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        let unit_weight = scene.pore_fluid.as_ref().map_or(9810.0, |f| f.unit_weight);
+        let mobility = m.hydraulic_conductivity.unwrap_or(0.0) / unit_weight;
+        let width = scene.grid.hi[0] - scene.grid.lo[0];
+        Self {
+            height: scene.grid.hi[1] - scene.grid.lo[1],
+            load: -scene.point_loads[0].force[1] / width,
+            modulus,
+            cv: mobility * modulus,
+        }
+    }
+
+    /// `T_v` in seconds.
+    fn time(&self, tv: f64) -> f64 {
+        tv * self.height * self.height / self.cv
+    }
+
+    /// Terzaghi's `p/q` at depth `z` below the top.
+    fn pressure(&self, z: f64, tv: f64) -> f64 {
+        (0..TERMS)
+            .map(|m| {
+                let mm = PI * (2 * m + 1) as f64 / 2.0;
+                2.0 / mm * (mm * z / self.height).sin() * (-mm * mm * tv).exp()
+            })
+            .sum()
+    }
+
+    /// The settlement of the material point at depth `d` (m).
+    fn settlement(&self, d: f64, tv: f64) -> f64 {
+        let h = self.height;
+        let series: f64 = (0..TERMS)
+            .map(|m| {
+                let mm = PI * (2 * m + 1) as f64 / 2.0;
+                2.0 * h / (mm * mm) * (mm * d / h).cos() * (-mm * mm * tv).exp()
+            })
+            .sum();
+        self.load / self.modulus * (h - d - series)
+    }
+}
+
+/// At each output time: `(T_v, max |p − p_exact|/q, relative error of the top row's
+/// settlement)`, and the number of steps the run took.
+struct Run {
+    rows: Vec<(f64, f64, f64)>,
+    steps: usize,
+    /// `(depth, p/q)` of the particles at each output time.
+    profiles: Vec<Vec<(f64, f64)>>,
+}
+
+fn run_with(scene: &Scene, column: &Column, steps: ConsolidationSpec) -> Result<Run, VerifyError> {
+    let mut scene = scene.clone();
+    scene.solver.consolidation = Some(steps);
+    let mut built = scenes::build::<2>(&scene);
+    let fluid = built.pore_fluid.as_mut().expect("a coupled scene");
+    for tv in TIMES {
+        fluid.schedule.land_on(column.time(tv));
+    }
+    let config = built.implicit_config().expect("an implicit scene");
+    let mut particles = built.particles;
+    let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
+    let top_row = y0.iter().fold(f64::NEG_INFINITY, |m, &y| m.max(y));
+    let top: Vec<usize> = (0..y0.len()).filter(|&p| y0[p] == top_row).collect();
+    let fail = |source| VerifyError::Implicit {
+        case: CASE.into(),
+        source,
+    };
+    let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
+    let (mut rows, mut profiles) = (Vec::new(), Vec::new());
+    while !solver.finished() {
+        solver.step(&mut particles).map_err(fail)?;
+        let t = solver.time();
+        let Some(&tv) = TIMES
+            .iter()
+            .find(|&&tv| (column.time(tv) - t).abs() <= 1e-9 * t)
+        else {
+            continue;
+        };
+        let depth = |p: usize| column.height - y0[p];
+        let profile: Vec<(f64, f64)> = (0..particles.len())
+            .map(|p| (depth(p), particles.pore_pressure[p] / column.load))
+            .collect();
+        let error = profile
+            .iter()
+            .map(|&(z, p)| (p - column.pressure(z, tv)).abs())
+            .fold(0.0f64, f64::max);
+        let s = top.iter().map(|&p| y0[p] - particles.x[p][1]).sum::<f64>() / top.len() as f64;
+        let exact = column.settlement(depth(top[0]), tv);
+        rows.push((tv, error, s / exact - 1.0));
+        profiles.push(profile);
+    }
+    Ok(Run {
+        rows,
+        steps: solver.steps(),
+        profiles,
+    })
+}
+
+/// The undrained loading alone (one step at `t = 0`, no consolidation), with the pressure
+/// stabilisation on or off: the largest `|p/q − 1|` over the particles deeper than `2 m`,
+/// beyond the boundary layer of the drained top.
+fn undrained_oscillation(scene: &Scene, stabilisation: bool) -> Result<f64, VerifyError> {
+    let mut scene = scene.clone();
+    scene.solver.consolidation = None;
+    if let Some(fluid) = scene.pore_fluid.as_mut() {
+        fluid.stabilisation = stabilisation;
+    }
+    let column = Column::of(&scene);
+    let built = scenes::build::<2>(&scene);
+    let config = built.implicit_config().expect("an implicit scene");
+    let mut particles = built.particles;
+    let fail = |source| VerifyError::Implicit {
+        case: CASE.into(),
+        source,
+    };
+    let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
+    while !solver.finished() {
+        solver.step(&mut particles).map_err(fail)?;
+    }
+    Ok((0..particles.len())
+        .filter(|&p| particles.x[p][1] < column.height - 2.0)
+        .map(|p| (particles.pore_pressure[p] / column.load - 1.0).abs())
+        .fold(0.0f64, f64::max))
+}
+
+/// Runs the case.
+pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
+    let mut scene = scenes::scene("terzaghi");
+    if size == Size::Reduced {
+        scene.grid.cell_size = 0.25;
+        scene.grid.hi[0] = 0.25;
+        scene.bodies[0].shape = loam_scene::BodyShape::Box {
+            lo: vec![0.0, 0.0],
+            hi: vec![0.25, 10.0],
+        };
+        scene.point_loads[0].at[0] = 0.125;
+        scene.point_loads[0].force[1] *= 2.5;
+    }
+    let column = Column::of(&scene);
+    let base = scene
+        .solver
+        .consolidation
+        .expect("the scene has time steps");
+    let tv_of = |t: f64| t * column.cv / (column.height * column.height);
+    let equal = run_with(&scene, &column, base)?;
+    let growing = run_with(
+        &scene,
+        &column,
+        ConsolidationSpec {
+            time_step: column.time(1e-3),
+            growth: 1.1,
+            end_time: column.time(1.0),
+            ..base
+        },
+    )?;
+    // Undrained, the incompressible column cannot shorten: p = q. Equal-order interpolation
+    // without the stabilisation lets the pressure alternate from cell to cell instead.
+    let mut metrics = vec![
+        Metric::at_most(
+            CASE,
+            "undrained_p_error_stabilised",
+            undrained_oscillation(&scene, true)?,
+            1e-3,
+        ),
+        Metric::at_least(
+            CASE,
+            "undrained_p_error_unstabilised",
+            undrained_oscillation(&scene, false)?,
+            0.1,
+        ),
+    ];
+    let dt_v = tv_of(base.time_step);
+    for &(tv, error, settlement) in &equal.rows {
+        let bound = if tv < 0.15 { 3e-3 } else { 1.5e-3 };
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("p_error_tv{tv}_dtv{dt_v:.1e}"),
+            error,
+            bound,
+        ));
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("settlement_rel_error_tv{tv}_dtv{dt_v:.1e}"),
+            settlement.abs(),
+            1e-2,
+        ));
+    }
+    let mut fine_rows = Vec::new();
+    if size == Size::Full {
+        let fine = run_with(
+            &scene,
+            &column,
+            ConsolidationSpec {
+                time_step: base.time_step / 4.0,
+                ..base
+            },
+        )?;
+        for &(tv, error, _) in &fine.rows {
+            metrics.push(Metric::at_most(
+                CASE,
+                &format!("p_error_tv{tv}_dtv{:.1e}", dt_v / 4.0),
+                error,
+                1e-3,
+            ));
+        }
+        fine_rows = fine.rows;
+    }
+    metrics.push(Metric::at_most(
+        CASE,
+        "growing_steps_to_tv1",
+        growing.steps as f64,
+        60.0,
+    ));
+    for &(tv, error, settlement) in &growing.rows {
+        metrics.push(Metric::at_most(
+            CASE,
+            &format!("settlement_rel_error_tv{tv}_growing"),
+            settlement.abs(),
+            1e-2,
+        ));
+        metrics.push(Metric::info(
+            CASE,
+            &format!("p_error_tv{tv}_growing"),
+            error,
+        ));
+    }
+    let csv = out.join("terzaghi.csv");
+    let mut rows = Vec::new();
+    for (k, &(tv, e, s)) in equal.rows.iter().enumerate() {
+        let g = growing
+            .rows
+            .get(k)
+            .copied()
+            .unwrap_or((tv, f64::NAN, f64::NAN));
+        let f = fine_rows
+            .get(k)
+            .copied()
+            .unwrap_or((tv, f64::NAN, f64::NAN));
+        rows.push(vec![tv, e, s, f.1, g.1, g.2]);
+    }
+    write_csv(
+        &csv,
+        &[
+            "T_v",
+            "p_error_over_q",
+            "settlement_rel_error",
+            "p_error_over_q_quarter_steps",
+            "p_error_over_q_growing_steps",
+            "settlement_rel_error_growing_steps",
+        ],
+        &rows,
+    )?;
+    let png = out.join("terzaghi.png");
+    let mut series = Vec::new();
+    for (k, &tv) in TIMES.iter().enumerate() {
+        let Some(profile) = equal.profiles.get(k) else {
+            continue;
+        };
+        series.push(Series {
+            name: format!("loam, T_v = {tv}"),
+            points: profile.iter().map(|&(z, p)| (p, z)).collect(),
+            markers: true,
+        });
+        series.push(Series {
+            name: format!("Terzaghi, T_v = {tv}"),
+            points: (0..=100)
+                .map(|i| {
+                    let z = column.height * i as f64 / 100.0;
+                    (column.pressure(z, tv), z)
+                })
+                .collect(),
+            markers: false,
+        });
+    }
+    write_plot(
+        &png,
+        "Terzaghi consolidation: excess pore pressure against depth",
+        "p / q",
+        "depth (m)",
+        &series,
+    )?;
+    Ok(CaseReport {
+        metrics,
+        files: vec![csv, png],
+    })
+}
