@@ -324,7 +324,10 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
         };
         series.push(Series {
             name: format!("loam, T_v = {tv}"),
-            points: profile.iter().map(|&(z, p)| (p, z)).collect(),
+            points: profile
+                .iter()
+                .map(|&(z, p)| (p, column.height - z))
+                .collect(),
             markers: true,
         });
         series.push(Series {
@@ -332,7 +335,7 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
             points: (0..=100)
                 .map(|i| {
                     let z = column.height * i as f64 / 100.0;
-                    (column.pressure(z, tv), z)
+                    (column.pressure(z, tv), column.height - z)
                 })
                 .collect(),
             markers: false,
@@ -340,9 +343,9 @@ pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     }
     write_plot(
         &png,
-        "Terzaghi consolidation: excess pore pressure against depth",
+        "Terzaghi consolidation: excess pore pressure in the column (drained at the top)",
         "p / q",
-        "depth (m)",
+        "height above the base (m)",
         &series,
     )?;
     Ok(CaseReport {

@@ -93,9 +93,12 @@ pub struct Flow {
     pub hydraulic: Vec<Hydraulic>,
     /// Per particle.
     pub particles: Vec<FlowFrozen>,
-    /// The stabilisation's patches (particle indices, each sharing one stencil); empty when
-    /// the stabilisation is off.
+    /// The stabilisation's patches (the particles of one grid cell each); empty when the
+    /// stabilisation is off.
     pub patches: Vec<Vec<usize>>,
+    /// The stabilisation's tangent, a constant of the step: assembled by the first tangent
+    /// that needs it.
+    pub stabilisation: std::sync::OnceLock<SparseMatrix>,
 }
 
 /// What the coupled kernel gives for one particle: the coefficients of its nodal forces and
@@ -293,6 +296,20 @@ impl<const D: usize> StepSystem<D> {
     /// `a_i = Σ_p w_p N_ip` per patch (over the union of its particles' stencils), added to
     /// `k`.
     fn add_stabilisation_tangent(&self, k: &mut SparseMatrix) {
+        let m = self.fluid().stabilisation.get_or_init(|| {
+            let mut m = SparseMatrix::zeros(self.pattern.clone());
+            self.assemble_stabilisation(&mut m);
+            m
+        });
+        k.values
+            .iter_mut()
+            .zip(&m.values)
+            .for_each(|(k, m)| *k += m);
+    }
+
+    /// Assembles the stabilisation's tangent into `k` (see
+    /// [`StepSystem::add_stabilisation_tangent`]).
+    fn assemble_stabilisation(&self, k: &mut SparseMatrix) {
         let flow = self.fluid();
         let s2 = flow.scale * flow.scale;
         for patch in &flow.patches {
@@ -517,42 +534,75 @@ impl<const D: usize> StepSystem<D> {
     /// derivative `A` between the shape-function weights `B` of the row and column unknowns).
     fn scatter_coupled_local(&self, p: usize, a: &CoupledTangent, k: &mut SparseMatrix) {
         let l = coupled_lanes(D);
-        let st = &self.frozen[p].stencil;
-        let mut nodes = Vec::with_capacity(st.len());
-        st.for_each(|n| nodes.push((n.flat, n.weight, n.gradient)));
-        // The weights of component `c` of a node over the kernel's inputs (or outputs).
-        let weights = |c: usize, w: f64, g: &Vector<f64, D>| -> Vec<(usize, f64)> {
-            if c < D {
-                (0..D).map(|d| (c * D + d, g[d])).collect()
-            } else {
-                std::iter::once((D * D, w))
-                    .chain((0..D).map(|d| (D * D + 1 + d, g[d])))
-                    .collect()
-            }
-        };
         let fields = D + 1;
-        for &(fj, wj, gj) in &nodes {
+        let st = &self.frozen[p].stencil;
+        // Per stencil node and component: its unknown (with sign) and its weights over the
+        // kernel's inputs, which are also those over its outputs: `∂_d N` on `ΔF_cd` for a
+        // displacement component `c`, `N` on `p̂` and `∂_d N` on `∇p̂_d` for the pressure.
+        let mut entries: Vec<(Option<(usize, f64)>, Weights)> =
+            Vec::with_capacity(st.len() * fields);
+        st.for_each(|n| {
             for c in 0..fields {
-                let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, c) else {
-                    continue;
+                let dof = match self.dofs.get(n.flat, c) {
+                    NodeDof::Free { dof, sign } => Some((dof, sign)),
+                    _ => None,
                 };
-                // A B_j(c): one column of outputs.
-                let mut v = vec![0.0; l];
-                for (z, bz) in weights(c, wj, &gj) {
-                    for (o, vo) in v.iter_mut().enumerate() {
-                        *vo += a[o * l + z] * bz;
-                    }
+                entries.push((dof, Weights::of::<D>(c, n.weight, &n.gradient)));
+            }
+        });
+        let mut v = vec![0.0; l];
+        for (col_dof, bj) in &entries {
+            let Some((col, sc)) = *col_dof else { continue };
+            // A B_j(c): one column of outputs.
+            v.iter_mut().for_each(|x| *x = 0.0);
+            for (&z, &bz) in bj.index[..bj.len].iter().zip(&bj.value) {
+                for (o, vo) in v.iter_mut().enumerate() {
+                    *vo += a[o * l + z] * bz;
                 }
-                for &(fi, wi, gi) in &nodes {
-                    for r in 0..fields {
-                        if let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, r) {
-                            let kv: f64 = weights(r, wi, &gi).iter().map(|&(o, b)| b * v[o]).sum();
-                            k.values[self.slot(row, col)] += sr * sc * kv;
-                        }
-                    }
+            }
+            for (row_dof, bi) in &entries {
+                if let Some((row, sr)) = *row_dof {
+                    let kv: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
+                        .map(|(&o, &b)| b * v[o])
+                        .sum();
+                    k.values[self.slot(row, col)] += sr * sc * kv;
                 }
             }
         }
+    }
+}
+
+/// The weights of one node component over the coupled kernel's inputs or outputs (at most
+/// `D + 1` of them), without allocating.
+#[derive(Clone, Copy)]
+struct Weights {
+    index: [usize; 4],
+    value: [f64; 4],
+    len: usize,
+}
+
+impl Weights {
+    /// Component `c` of a node with shape function `w` and gradient `g`: `ΔF_cd` (or the
+    /// momentum row `c`) with `∂_d N`, or for the pressure `p̂` with `N` and `∇p̂_d` with
+    /// `∂_d N`.
+    fn of<const D: usize>(c: usize, w: f64, g: &Vector<f64, D>) -> Self {
+        let mut out = Self {
+            index: [0; 4],
+            value: [0.0; 4],
+            len: 0,
+        };
+        let mut push = |i: usize, v: f64| {
+            out.index[out.len] = i;
+            out.value[out.len] = v;
+            out.len += 1;
+        };
+        if c < D {
+            (0..D).for_each(|d| push(c * D + d, g[d]));
+        } else {
+            push(D * D, w);
+            (0..D).for_each(|d| push(D * D + 1 + d, g[d]));
+        }
+        out
     }
 }
 

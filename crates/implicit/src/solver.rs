@@ -6,10 +6,11 @@ use crate::flow::{Flow, FlowFrozen, PoreFluid};
 use crate::kernel::Frozen;
 use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
-use crate::system::{Inverted, Materials, ParticleUpdate, StepSystem};
+use crate::system::{Inverted, Materials, ParticleUpdate, StepSystem, Structure};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, NodeConstraint, Particles, PointLoad, Shape, Stencil};
+use std::sync::{Arc, Mutex};
 use thiserror::Error;
 
 /// Everything a quasi-static implicit run needs besides the particles.
@@ -231,6 +232,8 @@ pub struct ImplicitSolver<const D: usize> {
     mass_solver: LinearSolver,
     load_factor: f64,
     steps: usize,
+    /// The sparsity of the last step built, for the next one with the same unknowns.
+    structure: Mutex<Option<Arc<Structure>>>,
 }
 
 impl<const D: usize> ImplicitSolver<D> {
@@ -304,6 +307,7 @@ impl<const D: usize> ImplicitSolver<D> {
             config,
             load_factor: 0.0,
             steps: 0,
+            structure: Mutex::new(None),
         })
     }
 
@@ -417,10 +421,15 @@ impl<const D: usize> ImplicitSolver<D> {
         for l in &cfg.point_loads {
             loads[l.particle] += Vector::<f64, D>::from(l.force) * factor;
         }
-        let mut system = StepSystem::new(grid, frozen, dofs, |i| {
+        let previous = self.structure.lock().map_or(None, |s| s.clone());
+        let force = |i: usize| {
             let balance = cfg.balance.get(i).copied().unwrap_or_else(Vector::zeros);
             p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
-        });
+        };
+        let mut system = StepSystem::reusing(grid, frozen, dofs, force, previous.as_ref());
+        if let Ok(mut cache) = self.structure.lock() {
+            *cache = Some(system.structure().clone());
+        }
         if let Some(fluid) = &cfg.pore_fluid {
             system.flow = Some(self.flow(fluid, p, from, to));
         }
@@ -502,6 +511,7 @@ impl<const D: usize> ImplicitSolver<D> {
             hydraulic: fluid.hydraulic.clone(),
             particles,
             patches,
+            stabilisation: std::sync::OnceLock::new(),
         }
     }
 

@@ -222,6 +222,25 @@ pub struct StepSystem<const D: usize> {
     pub pattern: Arc<SparsePattern>,
     /// External force on the unknowns at the end of the step.
     pub f_ext: Vec<f64>,
+    /// The sparsity pattern and its slot tables, shared with the next step when its unknowns
+    /// are the same.
+    structure: Arc<Structure>,
+    b: usize,
+    grid: Grid<D>,
+}
+
+/// What the tangent's sparsity depends on: the owners of the unknowns (node, component), the
+/// field count and the stencil width. Steps whose particles stay in their cells (every step
+/// of a small-strain consolidation) have the same owners and share one `Structure`, so the
+/// pattern is built and the direct solver's symbolic analysis is done once for all of them.
+#[derive(Debug)]
+pub struct Structure {
+    /// The unknowns' owners, `DofMap::owner_of` in order.
+    owners: Vec<(usize, usize)>,
+    fields: usize,
+    b: usize,
+    /// Tangent sparsity.
+    pattern: Arc<SparsePattern>,
     /// Per unknown (column), the value positions of its rows by neighbour offset.
     slots: Vec<u32>,
     /// Per unknown: the key `Σ_a i_a reach^a` of its owner node's multi-index and its
@@ -232,23 +251,13 @@ pub struct StepSystem<const D: usize> {
     key_centre: isize,
     /// Neighbour offsets per node, `reach^D`.
     offsets: usize,
-    b: usize,
-    grid: Grid<D>,
 }
 
-const NO_SLOT: u32 = u32::MAX;
-
-impl<const D: usize> StepSystem<D> {
-    /// Builds the system: `frozen` particles, the unknown map and the external force
-    /// `f_ext = Σ_p (m_p g + f_p) N_i(x_pⁿ)` (gravity and particle point loads at the end of
-    /// the step, scattered through the map).
-    pub fn new(
-        grid: &Grid<D>,
-        frozen: Vec<Frozen<D>>,
-        dofs: DofMap<D>,
-        particle_force: impl Fn(usize) -> Vector<f64, D>,
-    ) -> Self {
-        let b = frozen.first().map_or(2, |f| f.stencil.b);
+impl Structure {
+    /// The sparsity of a step with unknowns `dofs` and stencils `b` nodes wide: owner nodes
+    /// within `b − 1` of each other along every axis couple (the pressures of a coupled step
+    /// within `b`).
+    fn new<const D: usize>(grid: &Grid<D>, dofs: &DofMap<D>, b: usize) -> Self {
         let n = dofs.len();
         let fields = dofs.fields();
         // Pattern: owner nodes within b − 1 of each other along every axis couple. In a
@@ -314,17 +323,6 @@ impl<const D: usize> StepSystem<D> {
             let pos = pattern.position(row, col).expect("entry was inserted");
             slots[(col * offsets + k) * fields + c] = pos as u32;
         });
-        let mut f_ext = vec![0.0; n];
-        for (p, fr) in frozen.iter().enumerate() {
-            let fp = particle_force(p);
-            fr.stencil.for_each(|node| {
-                for a in 0..D {
-                    if let NodeDof::Free { dof, sign } = dofs.get(node.flat, a) {
-                        f_ext[dof] += sign * node.weight * fp[a];
-                    }
-                }
-            });
-        }
         let key = |idx: [usize; D]| -> isize {
             let mut k = 0isize;
             for a in (0..D).rev() {
@@ -340,19 +338,83 @@ impl<const D: usize> StepSystem<D> {
             .collect();
         let key_centre = key([half; D]);
         Self {
-            inertia: None,
-            flow: None,
-            frozen,
-            dofs,
+            owners: (0..n).map(|d| dofs.owner_of(d)).collect(),
+            fields,
+            b,
             pattern,
-            f_ext,
             slots,
             owner_key,
             key_centre,
             offsets,
+        }
+    }
+
+    /// Whether this is the sparsity of a step with unknowns `dofs` and stencils `b` wide.
+    fn fits<const D: usize>(&self, dofs: &DofMap<D>, b: usize) -> bool {
+        self.b == b
+            && self.fields == dofs.fields()
+            && self.owners.len() == dofs.len()
+            && (0..dofs.len()).all(|d| dofs.owner_of(d) == self.owners[d])
+    }
+}
+
+const NO_SLOT: u32 = u32::MAX;
+
+impl<const D: usize> StepSystem<D> {
+    /// Builds the system: `frozen` particles, the unknown map and the external force
+    /// `f_ext = Σ_p (m_p g + f_p) N_i(x_pⁿ)` (gravity and particle point loads at the end of
+    /// the step, scattered through the map).
+    pub fn new(
+        grid: &Grid<D>,
+        frozen: Vec<Frozen<D>>,
+        dofs: DofMap<D>,
+        particle_force: impl Fn(usize) -> Vector<f64, D>,
+    ) -> Self {
+        Self::reusing(grid, frozen, dofs, particle_force, None)
+    }
+
+    /// [`StepSystem::new`], taking the sparsity `previous` (another step's
+    /// [`StepSystem::structure`]) when this step's unknowns have the same owners.
+    pub fn reusing(
+        grid: &Grid<D>,
+        frozen: Vec<Frozen<D>>,
+        dofs: DofMap<D>,
+        particle_force: impl Fn(usize) -> Vector<f64, D>,
+        previous: Option<&Arc<Structure>>,
+    ) -> Self {
+        let b = frozen.first().map_or(2, |f| f.stencil.b);
+        let structure = match previous {
+            Some(s) if s.fits(&dofs, b) => s.clone(),
+            _ => Arc::new(Structure::new(grid, &dofs, b)),
+        };
+        let n = dofs.len();
+        let mut f_ext = vec![0.0; n];
+        for (p, fr) in frozen.iter().enumerate() {
+            let fp = particle_force(p);
+            fr.stencil.for_each(|node| {
+                for a in 0..D {
+                    if let NodeDof::Free { dof, sign } = dofs.get(node.flat, a) {
+                        f_ext[dof] += sign * node.weight * fp[a];
+                    }
+                }
+            });
+        }
+        Self {
+            inertia: None,
+            flow: None,
+            frozen,
+            dofs,
+            pattern: structure.pattern.clone(),
+            f_ext,
+            structure,
             b,
             grid: grid.clone(),
         }
+    }
+
+    /// The sparsity of this step, for [`StepSystem::reusing`].
+    pub fn structure(&self) -> &Arc<Structure> {
+        &self.structure
     }
 
     /// Number of unknowns.
@@ -388,10 +450,11 @@ impl<const D: usize> StepSystem<D> {
     /// Position in the value array of entry (row unknown, column unknown); both are owners.
     #[inline]
     pub(crate) fn slot(&self, row: usize, col: usize) -> usize {
-        let (kr, rc) = self.owner_key[row];
-        let (kc, _) = self.owner_key[col];
-        let k = (kr - kc + self.key_centre) as usize;
-        let s = self.slots[(col * self.offsets + k) * self.dofs.fields() + rc];
+        let st = &*self.structure;
+        let (kr, rc) = st.owner_key[row];
+        let (kc, _) = st.owner_key[col];
+        let k = (kr - kc + st.key_centre) as usize;
+        let s = st.slots[(col * st.offsets + k) * st.fields + rc];
         debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
         s as usize
     }
