@@ -50,6 +50,25 @@ pub struct DofMap<const D: usize> {
 /// pore pressure is zero on them.
 pub type Drained<const D: usize> = [[bool; 2]; D];
 
+/// Reflects `idx` across face `(axis, side)` of the domain when it lies beyond it; `true` when
+/// it did.
+fn reflect<const D: usize>(grid: &Grid<D>, idx: &mut [usize; D], axis: usize, side: usize) -> bool {
+    let face = if side == 0 {
+        grid.pad
+    } else {
+        grid.pad + grid.cells[axis]
+    };
+    let beyond = if side == 0 {
+        idx[axis] < face
+    } else {
+        idx[axis] > face
+    };
+    if beyond {
+        idx[axis] = 2 * face - idx[axis];
+    }
+    beyond
+}
+
 /// The node whose pressure unknown a ghost node mirrors and the sign (module docs).
 fn pressure_owner<const D: usize>(
     grid: &Grid<D>,
@@ -66,21 +85,8 @@ fn pressure_owner<const D: usize>(
             if !negate && (wall.separable || wall.kind == WallKind::Free) {
                 continue;
             }
-            let face = if side == 0 {
-                grid.pad
-            } else {
-                grid.pad + grid.cells[axis]
-            };
-            let beyond = if side == 0 {
-                idx[axis] < face
-            } else {
-                idx[axis] > face
-            };
-            if beyond {
-                idx[axis] = 2 * face - idx[axis];
-                if negate {
-                    sign = -sign;
-                }
+            if reflect(grid, &mut idx, axis, side) && negate {
+                sign = -sign;
             }
         }
     }
@@ -105,18 +111,7 @@ fn owner<const D: usize>(
                 WallKind::Fixed | WallKind::NoSlip => true,
                 WallKind::Slip => false,
             };
-            let face = if side == 0 {
-                grid.pad
-            } else {
-                grid.pad + grid.cells[axis]
-            };
-            let beyond = if side == 0 {
-                idx[axis] < face
-            } else {
-                idx[axis] > face
-            };
-            if beyond {
-                idx[axis] = 2 * face - idx[axis];
+            if reflect(grid, &mut idx, axis, side) {
                 if reflect_all {
                     sign.iter_mut().for_each(|s| *s = -*s);
                 } else {

@@ -194,19 +194,32 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Option<Coupled<f64, D>> {
+        let (g, p_hat, grad) = self.coupled_inputs(p, x);
+        self.kernel(p, &materials.real, &g, p_hat, &grad)
+    }
+
+    /// [`coupled_update`] of particle `p` with its material from `mats` (lifted to the scalar
+    /// type of the inputs), its fluid data and the step's `Δt` and scale.
+    fn kernel<T: Scalar>(
+        &self,
+        p: usize,
+        mats: &[Material<T>],
+        delta_f: &Tensor<T, D>,
+        p_hat: T,
+        grad_p_hat: &Vector<T, D>,
+    ) -> Option<Coupled<T, D>> {
         let flow = self.fluid();
         let fr = &self.frozen[p];
-        let (g, p_hat, grad) = self.coupled_inputs(p, x);
         coupled_update(
-            &materials.real[fr.material],
+            &mats[fr.material],
             fr,
             &flow.hydraulic[fr.material],
             &flow.particles[p],
             flow.dt,
             flow.scale,
-            &g,
+            delta_f,
             p_hat,
-            &grad,
+            grad_p_hat,
         )
     }
 
@@ -390,8 +403,6 @@ impl<const D: usize> StepSystem<D> {
         mats: &[Material<DualSVec64<L>>],
     ) -> Option<CoupledTangent> {
         debug_assert_eq!(L, coupled_lanes(D));
-        let flow = self.fluid();
-        let fr = &self.frozen[p];
         let (g, p_hat, grad) = self.coupled_inputs(p, x);
         let seed = |v: f64, lane: usize| {
             let mut e = nalgebra::SVector::<f64, L>::zeros();
@@ -401,17 +412,7 @@ impl<const D: usize> StepSystem<D> {
         let gd = Tensor::<DualSVec64<L>, D>::from_fn(|i, j| seed(g[(i, j)], i * D + j));
         let pd = seed(p_hat, D * D);
         let gradd = Vector::<DualSVec64<L>, D>::from_fn(|d, _| seed(grad[d], D * D + 1 + d));
-        let c = coupled_update(
-            &mats[fr.material],
-            fr,
-            &flow.hydraulic[fr.material],
-            &flow.particles[p],
-            flow.dt,
-            flow.scale,
-            &gd,
-            pd,
-            &gradd,
-        )?;
+        let c = self.kernel(p, mats, &gd, pd, &gradd)?;
         let lanes = |v: &DualSVec64<L>| -> [f64; L] {
             std::array::from_fn(|l| v.eps.0.as_ref().map_or(0.0, |e| e[l]))
         };
@@ -454,7 +455,6 @@ impl<const D: usize> StepSystem<D> {
         mats: &[Material<DualSVec64<L>>],
         k: &mut SparseMatrix,
     ) -> Result<(), Inverted> {
-        let flow = self.fluid();
         for colour in 0..self.colours() {
             self.chunked(
                 |p| {
@@ -487,17 +487,7 @@ impl<const D: usize> StepSystem<D> {
                         p_hat += pv * n.weight;
                         grad += n.gradient.map(DualSVec64::<L>::from_re) * pv;
                     });
-                    let c = coupled_update(
-                        &mats[fr.material],
-                        fr,
-                        &flow.hydraulic[fr.material],
-                        &flow.particles[p],
-                        flow.dt,
-                        flow.scale,
-                        &g,
-                        p_hat,
-                        &grad,
-                    )?;
+                    let c = self.kernel(p, mats, &g, p_hat, &grad)?;
                     Some((seeded, c))
                 },
                 |p, (seeded, c)| {
