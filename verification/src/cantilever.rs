@@ -112,6 +112,7 @@ impl Setup {
                     lo: vec![x0, neutral],
                     hi: vec![x0, neutral],
                     displacement: vec![None, Some(0.0)],
+                    force: Vec::new(),
                 }];
             }
             Root::Clamped => {

@@ -27,6 +27,8 @@ pub mod inverse_mlp;
 pub mod inverse_v0;
 mod inversion;
 pub mod k0_layer;
+pub mod mandel;
+pub mod mandel_series;
 pub mod newmark_bar;
 pub mod newmark_energy;
 pub mod newton_quadratic;
@@ -326,6 +328,11 @@ pub fn cases() -> Vec<Case> {
             name: "terzaghi",
             description: "one-dimensional consolidation by the coupled u–p solver (GeoWarp's column, steps of 100 s, 25 s and growing) vs Terzaghi's series: pore pressures and settlement",
             runner: Runner::Cpu(terzaghi::run),
+        },
+        Case {
+            name: "mandel",
+            description: "Mandel's problem (plane strain) by the coupled u–p solver under a force-controlled rigid plate vs the series solution: pore pressures, the plate's settlement, the Mandel–Cryer peak",
+            runner: Runner::Cpu(mandel::run),
         },
         Case {
             name: "triaxial-dp",

@@ -413,9 +413,13 @@ impl<const D: usize> Boundary<D> {
     }
 }
 
-/// A displacement constraint on the grid nodes inside a box (for loading plates, supports,
-/// pinned points). Components with `Some(u)` are prescribed to reach the total displacement
-/// `u` at the end of the loading, linearly over the load steps.
+/// A constraint on the grid nodes inside a box (for loading plates, footings, supports,
+/// pinned points). Components with `Some(u)` in `displacement` are prescribed to reach the
+/// total displacement `u` at the end of the loading, linearly over the load steps
+/// (displacement control). Components with `Some(f)` in `force` move as one rigid group,
+/// `Δu_{i,c} = w` for every node `i` in the box, with the total force `f` on the group
+/// reached over the loading (force control: `w` is an unknown, and the group's nodes share
+/// the force through the tangent).
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodeConstraint<const D: usize> {
     /// Lower corner of the box of nodes (inclusive, with a tolerance of 1e-9 h).
@@ -424,6 +428,9 @@ pub struct NodeConstraint<const D: usize> {
     pub hi: [f64; D],
     /// Total prescribed displacement per component; `None` leaves the component free.
     pub displacement: [Option<f64>; D],
+    /// Total force per component on a rigid group (N; N per metre run in 2D); `None`: the
+    /// component is not force-controlled.
+    pub force: [Option<f64>; D],
 }
 
 impl<const D: usize> NodeConstraint<D> {

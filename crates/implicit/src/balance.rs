@@ -14,6 +14,10 @@
 //! and it acts in full at every step ([`ImplicitConfig::balance`]). It is data of the initial
 //! state, as the initial stress is: the adjoints hold it fixed.
 //!
+//! In a coupled run the particles' initial stress is effective and the water carries the
+//! rest: the residual at rest is that of the total stress `σ′ − α p I`, with `p` the
+//! particles' (hydrostatic) pore pressure.
+//!
 //! Where the initial stress is not in equilibrium in the continuum (a geostatic state under a
 //! sloping surface), `R₀` is that real imbalance and balancing it would hold the ground up;
 //! the scene key is therefore an explicit choice (`solver.balance_initial_stress`).
@@ -46,9 +50,22 @@ pub fn balance_initial_stress<const D: usize>(
 ) -> Result<Balance<D>, ImplicitError> {
     let (solver, system) = at_rest(config, particles)?;
     let n = system.len();
-    let f_int = system
+    let mut f_int = system
         .internal_force(&vec![0.0; n], solver.materials())
         .map_err(|Inverted { particle }| ImplicitError::InvalidState { step: 1, particle })?;
+    if let Some(fluid) = &config.pore_fluid {
+        // The pore water's share of the total stress, −α p V I per particle.
+        let s: Vec<Tensor<f64, D>> = (0..particles.len())
+            .map(|p| {
+                let biot = fluid.hydraulic[particles.material[p] as usize].biot;
+                let volume = particles.volume0[p] * loam_core::tensor::det(&particles.f[p]);
+                Tensor::<f64, D>::identity() * (-biot * particles.pore_pressure[p] * volume)
+            })
+            .collect();
+        for (f, w) in f_int.iter_mut().zip(system.divergence(&s)) {
+            *f += w;
+        }
+    }
     let r0: Vec<f64> = (system.f_ext.iter().zip(&f_int))
         .map(|(e, i)| i - e)
         .collect();
@@ -85,7 +102,8 @@ pub fn balance_rate<const D: usize>(
 }
 
 /// The solver and the system of `particles` at rest under `config`'s gravity in full, with
-/// no point loads and no prescribed displacement (from load factor 0 to 0).
+/// no point loads and no prescribed displacement (from load factor 0 to 0): the solid's
+/// unknowns alone, also in a coupled run.
 fn at_rest<const D: usize>(
     config: &ImplicitConfig<D>,
     particles: &Particles<f64, D>,
@@ -95,6 +113,7 @@ fn at_rest<const D: usize>(
         dynamics: None,
         gravity_in_full: true,
         balance: Vec::new(),
+        pore_fluid: None,
         ..config.clone()
     };
     let solver = ImplicitSolver::new(rest, particles)?;

@@ -14,6 +14,12 @@
 //! the negative mirror image (the interpolated excess pressure vanishes on the face, whose own
 //! nodes are prescribed to zero); across any other wall the positive one (no flow through it);
 //! across a free face none.
+//!
+//! A force-controlled rigid constraint (a loading plate, a footing) makes one component of a
+//! group of nodes share one unknown ([`DofMap::tie`]): the group moves as one along that
+//! axis and carries the force applied to the unknown. Such an unknown couples with every
+//! unknown near any node of the group, so the sparsity pattern adds its row and column
+//! explicitly (`crate::system::Structure`).
 
 use loam_core::{Boundary, Grid, WallKind};
 
@@ -44,6 +50,17 @@ pub struct DofMap<const D: usize> {
     nodes: Vec<NodeDof>,
     owners: Vec<(usize, usize)>,
     fields: usize,
+    ties: Vec<Tie>,
+}
+
+/// An unknown shared by one component of several nodes ([`DofMap::tie`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tie {
+    /// The shared unknown.
+    pub dof: usize,
+    /// The nodes (flat indices, ascending) with a component mapped to it: the group and the
+    /// ghost or weak nodes that follow its nodes.
+    pub nodes: Vec<usize>,
 }
 
 /// Which grid faces drain the pore fluid, `[axis][side]` (side 0 the low face): the excess
@@ -249,7 +266,60 @@ impl<const D: usize> DofMap<D> {
             nodes,
             owners,
             fields,
+            ties: Vec::new(),
         }
+    }
+
+    /// Makes the free node components `members` (flat node, component) share one unknown,
+    /// `Δu_{i,c} = w` for every member, and returns it (`None` when no member is free).
+    /// Prescribed or inactive members are left as they are; a member already tied merges its
+    /// group into the new one. The unknowns are renumbered: the others keep their order and
+    /// the shared one comes last, owned by the first member's owner.
+    pub fn tie(&mut self, members: &[(usize, usize)]) -> Option<usize> {
+        let old: std::collections::BTreeSet<usize> = members
+            .iter()
+            .filter_map(|&(f, c)| match self.get(f, c) {
+                NodeDof::Free { dof, .. } => Some(dof),
+                _ => None,
+            })
+            .collect();
+        let first = *old.first()?;
+        let mut map = vec![usize::MAX; self.owners.len()];
+        let mut owners = Vec::with_capacity(self.owners.len() + 1 - old.len());
+        for (d, &o) in self.owners.iter().enumerate() {
+            if !old.contains(&d) {
+                map[d] = owners.len();
+                owners.push(o);
+            }
+        }
+        let w = owners.len();
+        owners.push(self.owners[first]);
+        for &d in &old {
+            map[d] = w;
+        }
+        for n in &mut self.nodes {
+            if let NodeDof::Free { dof, .. } = n {
+                *dof = map[*dof];
+            }
+        }
+        self.owners = owners;
+        self.ties.retain_mut(|t| {
+            t.dof = map[t.dof];
+            t.dof != w
+        });
+        let k = self.fields;
+        let mut nodes: Vec<usize> = (0..self.nodes.len())
+            .filter(|&i| matches!(self.nodes[i], NodeDof::Free { dof, .. } if dof == w))
+            .map(|i| i / k)
+            .collect();
+        nodes.dedup();
+        self.ties.push(Tie { dof: w, nodes });
+        Some(w)
+    }
+
+    /// The shared unknowns ([`DofMap::tie`]).
+    pub fn ties(&self) -> &[Tie] {
+        &self.ties
     }
 
     /// Makes the inactive node `node` (flat index) follow `target`: every component of `node`

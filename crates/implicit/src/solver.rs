@@ -27,7 +27,7 @@ pub struct ImplicitConfig<const D: usize> {
     /// Gravity, ramped with the load factor (in full from the first step with
     /// [`ImplicitConfig::gravity_in_full`] or in dynamics).
     pub gravity: Vector<f64, D>,
-    /// Prescribed displacements on grid nodes (ramped).
+    /// Prescribed displacements and force-controlled rigid groups of grid nodes (ramped).
     pub constraints: Vec<NodeConstraint<D>>,
     /// Point loads on particles (ramped).
     pub point_loads: Vec<PointLoad<D>>,
@@ -130,8 +130,13 @@ pub struct StepReport<const D: usize> {
     /// Times the step was cut.
     pub cuts: usize,
     /// Per entry of `ImplicitConfig::constraints`, the total force the prescribed components
-    /// exert on the material at the end of the step (the reaction; N per m in 2D).
+    /// exert on the material at the end of the step (the reaction; N per m in 2D); for a
+    /// force-controlled component, the applied force it balances.
     pub constraint_forces: Vec<Vector<f64, D>>,
+    /// Per entry of `ImplicitConfig::constraints`, the total displacement (m) of its
+    /// force-controlled components since the start of the run, the motion of the rigid
+    /// group; zero for the other components.
+    pub constraint_displacements: Vec<Vector<f64, D>>,
 }
 
 impl<const D: usize> StepReport<D> {
@@ -234,6 +239,8 @@ pub struct ImplicitSolver<const D: usize> {
     steps: usize,
     /// The sparsity of the last step built, for the next one with the same unknowns.
     structure: Mutex<Option<Arc<Structure>>>,
+    /// Total displacement of the force-controlled components of each constraint.
+    constraint_displacements: Vec<Vector<f64, D>>,
 }
 
 impl<const D: usize> ImplicitSolver<D> {
@@ -300,7 +307,9 @@ impl<const D: usize> ImplicitSolver<D> {
         if let Some(fluid) = &config.pore_fluid {
             check_pore_fluid(&config, fluid)?;
         }
+        check_constraints(&config)?;
         Ok(Self {
+            constraint_displacements: vec![Vector::zeros(); config.constraints.len()],
             materials: Materials::new(config.materials.clone()),
             linear: LinearSolver::new(config.newton.linear),
             mass_solver: LinearSolver::new(LinearSolverKind::Cholesky),
@@ -413,6 +422,32 @@ impl<const D: usize> ImplicitSolver<D> {
             }
         };
         follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
+        // Force-controlled components: the free components of the nodes in the box share
+        // one unknown, which carries the force.
+        let mut shared_forces = Vec::new();
+        for (i, k) in cfg.constraints.iter().enumerate() {
+            for c in 0..D {
+                let Some(force) = k.force[c] else { continue };
+                let members: Vec<(usize, usize)> = (0..grid.num_nodes())
+                    .filter(|&f| {
+                        let x: Vector<f64, D> = grid.node_position(grid.multi(f));
+                        k.contains(&std::array::from_fn(|a| x[a]), grid.h)
+                    })
+                    .map(|f| (f, c))
+                    .collect();
+                let dof = dofs.tie(&members).ok_or_else(|| ImplicitError::Config {
+                    field: format!("constraints[{i}].force"),
+                    msg: format!(
+                        "no grid node in the box [{:?}, {:?}] moves with the particles in load \
+                         step {}: a force-controlled box must hold nodes of the body's surface",
+                        k.lo,
+                        k.hi,
+                        self.steps + 1
+                    ),
+                })?;
+                shared_forces.push((dof, force));
+            }
+        }
         // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so do
         // gravity on a prestressed body and its balance.
         let factor = if cfg.dynamics.is_some() { 1.0 } else { to_load };
@@ -427,6 +462,9 @@ impl<const D: usize> ImplicitSolver<D> {
             p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
         };
         let mut system = StepSystem::reusing(grid, frozen, dofs, force, previous.as_ref());
+        for (dof, f) in shared_forces {
+            system.f_ext[dof] += f * factor;
+        }
         if let Ok(mut cache) = self.structure.lock() {
             *cache = Some(system.structure().clone());
         }
@@ -531,7 +569,7 @@ impl<const D: usize> ImplicitSolver<D> {
                     let pos: Vector<f64, D> = grid.node_position(grid.multi(n));
                     if k.contains(&std::array::from_fn(|a| pos[a]), grid.h) {
                         for a in 0..D {
-                            if k.displacement[a].is_some() {
+                            if k.displacement[a].is_some() || k.force[a].is_some() {
                                 total[a] += fn_[a];
                             }
                         }
@@ -540,6 +578,29 @@ impl<const D: usize> ImplicitSolver<D> {
                 total
             })
             .collect()
+    }
+
+    /// Adds the converged increment `x` of every force-controlled component to its total:
+    /// the value of the shared unknown at any node of the group.
+    fn add_constraint_displacements(&mut self, system: &StepSystem<D>, x: &[f64]) {
+        let grid = &self.config.grid;
+        for (k, total) in self
+            .config
+            .constraints
+            .iter()
+            .zip(&mut self.constraint_displacements)
+        {
+            for c in (0..D).filter(|&c| k.force[c].is_some()) {
+                let member = (0..grid.num_nodes()).find(|&f| {
+                    let pos: Vector<f64, D> = grid.node_position(grid.multi(f));
+                    k.contains(&std::array::from_fn(|a| pos[a]), grid.h)
+                        && matches!(system.dofs.get(f, c), crate::dofs::NodeDof::Free { .. })
+                });
+                if let Some(f) = member {
+                    total[c] += system.dofs.value(f, c, x);
+                }
+            }
+        }
     }
 
     /// The particle updates of a converged (sub-)step `x`, with the grid motion of a Newmark
@@ -669,6 +730,7 @@ impl<const D: usize> ImplicitSolver<D> {
             solves: Vec::new(),
             cuts: 0,
             constraint_forces: vec![Vector::zeros(); self.config.constraints.len()],
+            constraint_displacements: self.constraint_displacements.clone(),
         }
     }
 
@@ -713,6 +775,8 @@ impl<const D: usize> ImplicitSolver<D> {
             Err(reason) => return Ok(Some(reason)),
         };
         report.constraint_forces = self.constraint_forces(&system, &x);
+        self.add_constraint_displacements(&system, &x);
+        report.constraint_displacements = self.constraint_displacements.clone();
         accepted(AcceptedStep {
             step: report.step,
             from,
@@ -735,6 +799,31 @@ impl<const D: usize> ImplicitSolver<D> {
         self.load_factor = to;
         Ok(None)
     }
+}
+
+/// Checks the constraints: a component is prescribed or force-controlled, not both, and a
+/// force-controlled group needs the per-particle tangent (the colour-seeded one assumes that
+/// an unknown moves one node).
+fn check_constraints<const D: usize>(config: &ImplicitConfig<D>) -> Result<(), ImplicitError> {
+    for (i, k) in config.constraints.iter().enumerate() {
+        if let Some(c) = (0..D).find(|&c| k.displacement[c].is_some() && k.force[c].is_some()) {
+            return Err(ImplicitError::Config {
+                field: format!("constraints[{i}]"),
+                msg: format!("component {c} has both a displacement and a force"),
+            });
+        }
+        if k.force.iter().any(Option::is_some)
+            && config.newton.tangent == crate::newton::TangentMethod::Colour
+        {
+            return Err(ImplicitError::Config {
+                field: format!("constraints[{i}].force"),
+                msg: "a force-controlled group needs tangent = \"local\" (the colour-seeded \
+                      tangent assumes each unknown moves one node)"
+                    .into(),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Checks a coupled run's pore fluid against the rest of its configuration.

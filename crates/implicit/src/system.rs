@@ -1,7 +1,7 @@
 //! The nonlinear system of one load step: residual `R(Δu) = f_int(Δu) − f_ext` over the free
 //! unknowns, its sparse tangent `K = ∂R/∂Δu`, and the particle update once it converged.
 
-use crate::dofs::{DofMap, NodeDof};
+use crate::dofs::{DofMap, NodeDof, Tie};
 use crate::flow::Flow;
 use crate::kernel::{Frozen, delta_f, particle_stress};
 use crate::linear::{LinearError, LinearSolver, NearNullspace, SparseMatrix, SparsePattern};
@@ -251,6 +251,11 @@ pub struct Structure {
     key_centre: isize,
     /// Neighbour offsets per node, `reach^D`.
     offsets: usize,
+    /// Per unknown, whether it is shared by a group of nodes ([`DofMap::tie`]; empty when
+    /// none is): its entries are looked up in the pattern, not through the offset tables.
+    tied: Vec<bool>,
+    /// The groups of the shared unknowns.
+    ties: Vec<Tie>,
 }
 
 impl Structure {
@@ -292,13 +297,19 @@ impl Structure {
             }
             Some(grid.flat(out))
         };
+        let mut tied = vec![false; if dofs.ties().is_empty() { 0 } else { n }];
+        for t in dofs.ties() {
+            tied[t.dof] = true;
+        }
+        let is_tied = |d: usize| !tied.is_empty() && tied[d];
         let owner_dof = |flat: usize, c: usize| match dofs.get(flat, c) {
-            NodeDof::Free { dof, .. } if dofs.owner_of(dof).0 == flat => Some(dof),
+            NodeDof::Free { dof, .. } if !is_tied(dof) && dofs.owner_of(dof).0 == flat => Some(dof),
             _ => None,
         };
-        // Every (column unknown, neighbour offset, row component, row unknown) coupling.
+        // Every (column unknown, neighbour offset, row component, row unknown) coupling of
+        // unknowns that are not shared.
         let couplings = |f: &mut dyn FnMut(usize, usize, usize, usize)| {
-            for col in 0..n {
+            for col in (0..n).filter(|&d| !is_tied(d)) {
                 let (node, col_c) = dofs.owner_of(col);
                 for k in 0..offsets {
                     let ring = outer(k);
@@ -317,6 +328,23 @@ impl Structure {
         };
         let mut entries = Vec::with_capacity(n * offsets * fields);
         couplings(&mut |col, _, _, row| entries.push((row, col)));
+        // A shared unknown couples with every unknown of the nodes within b − 1 of any node
+        // of its group (it is a displacement: no outer pressure ring).
+        for t in dofs.ties() {
+            for &node in &t.nodes {
+                for k in (0..offsets).filter(|&k| !outer(k)) {
+                    let Some(m) = neighbour(node, k) else {
+                        continue;
+                    };
+                    for c in 0..fields {
+                        if let NodeDof::Free { dof, .. } = dofs.get(m, c) {
+                            entries.push((dof, t.dof));
+                            entries.push((t.dof, dof));
+                        }
+                    }
+                }
+            }
+        }
         let pattern = Arc::new(SparsePattern::new(n, entries));
         let mut slots = vec![NO_SLOT; n * offsets * fields];
         couplings(&mut |col, k, c, row| {
@@ -346,6 +374,8 @@ impl Structure {
             owner_key,
             key_centre,
             offsets,
+            tied,
+            ties: dofs.ties().to_vec(),
         }
     }
 
@@ -354,6 +384,7 @@ impl Structure {
         self.b == b
             && self.fields == dofs.fields()
             && self.owners.len() == dofs.len()
+            && self.ties == dofs.ties()
             && (0..dofs.len()).all(|d| dofs.owner_of(d) == self.owners[d])
     }
 }
@@ -451,6 +482,12 @@ impl<const D: usize> StepSystem<D> {
     #[inline]
     pub(crate) fn slot(&self, row: usize, col: usize) -> usize {
         let st = &*self.structure;
+        if !st.tied.is_empty() && (st.tied[row] || st.tied[col]) {
+            return st
+                .pattern
+                .position(row, col)
+                .expect("a shared unknown's entries are in the pattern");
+        }
         let (kr, rc) = st.owner_key[row];
         let (kc, _) = st.owner_key[col];
         let k = (kr - kc + st.key_centre) as usize;

@@ -424,6 +424,10 @@ impl Scene {
         let affine = self.affine_transfer();
         let mut issues = Vec::new();
         let mut start = 0;
+        let water = self
+            .pore_fluid
+            .as_ref()
+            .and_then(|f| Some((f.unit_weight, f.water_table?)));
         for (b, body) in self.bodies.iter().enumerate() {
             let range = start..start + counts[b];
             start = range.end;
@@ -435,10 +439,18 @@ impl Scene {
                 material: &materials[body_data[b].0 as usize],
                 gravity,
                 affine,
+                water,
             };
             issues.extend(self.initial_state(&context, &mut particles));
         }
         self.issues_to_result(issues)?;
+        // Coupled runs start with the water at rest: the hydrostatic pressure of the water
+        // table, no excess.
+        if let Some((gamma, z)) = water {
+            for (p, x) in particles.pore_pressure.iter_mut().zip(&particles.x) {
+                *p = gamma * (z - x[D - 1]).max(0.0);
+            }
+        }
 
         let mut boundary = Boundary::all(Default::default());
         for (_, axis, side, wall) in self.boundaries.faces() {
@@ -551,7 +563,8 @@ impl Scene {
             .map(|k| NodeConstraint {
                 lo: std::array::from_fn(|a| k.lo[a]),
                 hi: std::array::from_fn(|a| k.hi[a]),
-                displacement: std::array::from_fn(|a| k.displacement[a]),
+                displacement: std::array::from_fn(|a| k.displacement.get(a).copied().flatten()),
+                force: std::array::from_fn(|a| k.force.get(a).copied().flatten()),
             })
             .collect()
     }

@@ -32,7 +32,7 @@ pub(crate) mod displacement {
                 type Value = Component;
 
                 fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                    f.write_str("a number (a displacement, m) or \"free\"")
+                    f.write_str("a number (a displacement in m, a force in N) or \"free\"")
                 }
 
                 fn visit_f64<E: de::Error>(self, x: f64) -> Result<Component, E> {
@@ -173,7 +173,7 @@ mod tests {
         for bad in ["[\"fixed\"]", "[true]", "[[0.0]]"] {
             let err = read(&format!("displacement = {bad}")).unwrap_err();
             assert!(
-                err.contains("expected a number (a displacement, m) or \"free\""),
+                err.contains("expected a number (a displacement in m, a force in N) or \"free\""),
                 "{bad}: {err}"
             );
         }

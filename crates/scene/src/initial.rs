@@ -44,6 +44,10 @@ pub(crate) struct BodyContext<'a, const D: usize> {
     pub gravity: SVector<f64, D>,
     /// Whether the explicit transfer carries the affine matrix `C`.
     pub affine: bool,
+    /// A coupled scene's water: `(γ_w, z_w)`, the unit weight of water (N/m³) and the water
+    /// table's height along the last axis (m). A geostatic stress is then effective:
+    /// `σ′_v = −(ρ g d − p_h)`, `p_h = γ_w (z_w − z)` below the table.
+    pub water: Option<(f64, f64)>,
 }
 
 impl Scene {
@@ -318,18 +322,24 @@ fn set_stress<const D: usize>(
     // The shallowest depth at which the state is inadmissible, and why.
     let mut failure: Option<(f64, String)> = None;
     for (i, depth) in range.zip(d) {
+        // The pore water carries p_h of the total overburden ρ g d (ρ the saturated density
+        // below the water table); the skeleton carries the rest, the effective stress.
+        let water = body
+            .water
+            .map_or(0.0, |(gamma, z)| gamma * (z - p.x[i][D - 1]).max(0.0));
+        let overburden = rho * g * depth - water;
         let target: [f64; 3] = match (k0, &material.model) {
             (None, Model::Fluid(fluid)) => {
                 let p = tait_hydrostatic(fluid.bulk_modulus, fluid.gamma, rho * g * depth);
                 [-p; 3]
             }
             (k0, _) => {
-                let vertical = -rho * g * depth;
+                let vertical = -overburden;
                 let horizontal = k0.unwrap_or(1.0) * vertical;
                 std::array::from_fn(|a| if a == axis { vertical } else { horizontal })
             }
         };
-        match state_at_rest::<D>(material, target, k0, rho * g * depth) {
+        match state_at_rest::<D>(material, target, k0, overburden) {
             Ok(rest) => {
                 let j = det(&rest.f);
                 let volume = p.volume0[i];

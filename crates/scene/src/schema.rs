@@ -805,11 +805,16 @@ pub(crate) const DEFAULT_LINEAR_REL_TOL: f64 = 1e-10;
 /// Default iteration limit of the iterative linear solvers.
 pub(crate) const DEFAULT_LINEAR_MAX_ITERATIONS: usize = 1000;
 
-/// `[[constraints]]` (implicit solver): prescribed displacements of the grid nodes in a box.
+/// `[[constraints]]` (implicit solver): prescribed displacements, or forces on rigid groups,
+/// of the grid nodes in a box.
 ///
 /// Every grid node `x` with `lo − ε ≤ x ≤ hi + ε` (per axis, `ε = 1e-9 h`) gets, for each
-/// component written as a number, that total displacement (m), reached linearly over the
-/// load steps; a component written `"free"` is left to the solver. Where boxes overlap the
+/// component of `displacement` written as a number, that total displacement (m), reached
+/// linearly over the load steps (or following the consolidation schedule's load). A
+/// component of `force` written as a number makes the nodes' components in the box move as
+/// one rigid group along that axis (a loading plate, a rigid footing) under that total
+/// force (N; N per metre run in 2D), reached the same way. A component written `"free"` (or
+/// left out with the whole key) is left to the solver. Where displacement boxes overlap the
 /// later constraint wins, component by component.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -818,9 +823,22 @@ pub struct ConstraintSpec {
     pub lo: Vec<f64>,
     /// Upper corner of the box (m), `≥ lo` on every axis (equal for a plane or a point).
     pub hi: Vec<f64>,
-    /// Per component, the total displacement (m) or `"free"` (`None`); at least one number.
-    #[serde(with = "forms::displacement")]
+    /// Per component, the total displacement (m) or `"free"` (`None`); empty when the key
+    /// is absent. With `force`, at least one number, and no component a number in both.
+    #[serde(
+        default,
+        with = "forms::displacement",
+        skip_serializing_if = "Vec::is_empty"
+    )]
     pub displacement: Vec<Option<f64>>,
+    /// Per component, the total force on the rigid group (N; N per metre run in 2D) or
+    /// `"free"`; empty when the key is absent.
+    #[serde(
+        default,
+        with = "forms::displacement",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub force: Vec<Option<f64>>,
 }
 
 /// `[[point_loads]]` (implicit solver): a total force shared equally by the `count`

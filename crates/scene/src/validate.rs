@@ -14,6 +14,7 @@ use crate::schema::{
 };
 use loam_core::constitutive::Elasticity;
 use loam_core::{ModelKind, TimeStep, Transfer, WallKind};
+use loam_implicit::TangentMethod;
 use std::collections::HashSet;
 
 mod contact;
@@ -602,26 +603,84 @@ impl Scene {
                     }
                 }
             }
-            let dpath = format!("{path}.displacement");
-            if k.displacement.len() != dim {
+            let mut sized = true;
+            for (key, values, unit) in [
+                ("displacement", &k.displacement, "m"),
+                ("force", &k.force, "N"),
+            ] {
+                let kpath = format!("{path}.{key}");
+                if !values.is_empty() && values.len() != dim {
+                    sized = false;
+                    c.issue(
+                        &kpath,
+                        format!(
+                            "expected {dim} components (the grid is {dim}D), each a number \
+                             ({unit}) or \"free\", got {}",
+                            values.len()
+                        ),
+                    );
+                }
+                for (a, u) in values.iter().enumerate() {
+                    if let Some(u) = *u {
+                        c.finite(&format!("{kpath}[{a}]"), u);
+                    }
+                }
+            }
+            let number = |v: &[Option<f64>], a: usize| v.get(a).is_some_and(Option::is_some);
+            if !sized {
+                continue;
+            }
+            if (0..dim).all(|a| !number(&k.displacement, a) && !number(&k.force, a)) {
                 c.issue(
-                    &dpath,
+                    &path,
+                    "no component is prescribed: give `displacement` (m) or `force` (N) a \
+                     number for at least one axis",
+                );
+            }
+            for a in (0..dim).filter(|&a| number(&k.displacement, a) && number(&k.force, a)) {
+                c.issue(
+                    format!("{path}.force[{a}]"),
                     format!(
-                        "expected {dim} components (the grid is {dim}D), each a number (m) or \
-                         \"free\", got {}",
-                        k.displacement.len()
+                        "axis {a} also has a displacement; a component is either \
+                         displacement- or force-controlled (write \"free\" in one of them)"
                     ),
                 );
-            } else if k.displacement.iter().all(Option::is_none) {
+            }
+            if k.force.iter().any(Option::is_some)
+                && self
+                    .solver
+                    .newton
+                    .is_some_and(|n| n.tangent == TangentMethod::Colour)
+            {
                 c.issue(
-                    &dpath,
-                    "every component is \"free\"; prescribe at least one (a displacement, m)",
+                    format!("{path}.force"),
+                    "a force-controlled group needs solver.newton.tangent = \"local\" (the default): \
+                     the colour-seeded tangent assumes each unknown moves one node",
                 );
-            } else {
-                for (a, u) in k.displacement.iter().enumerate() {
-                    if let Some(u) = *u {
-                        c.finite(&format!("{dpath}[{a}]"), u);
-                    }
+            }
+            // Force-controlled boxes must not share nodes on the same axis: each is one group.
+            for (j, other) in self.constraints.iter().enumerate().take(i) {
+                let overlap = (0..dim).all(|b| {
+                    k.lo.get(b)
+                        .zip(other.hi.get(b))
+                        .is_some_and(|(l, h)| l <= h)
+                        && other
+                            .lo
+                            .get(b)
+                            .zip(k.hi.get(b))
+                            .is_some_and(|(l, h)| l <= h)
+                });
+                if let Some(a) = (0..dim).find(|&a| number(&k.force, a) && number(&other.force, a))
+                    && overlap
+                {
+                    c.issue(
+                        format!("{path}.force[{a}]"),
+                        format!(
+                            "the box overlaps constraints[{j}], also force-controlled along \
+                             axis {a}: each force-controlled box is one rigid group; merge them \
+                             or separate the boxes"
+                        ),
+                    );
                 }
             }
         }

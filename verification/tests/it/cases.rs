@@ -165,6 +165,11 @@ fn terzaghi() {
 }
 
 #[test]
+fn mandel() {
+    check("mandel");
+}
+
+#[test]
 fn triaxial_dp() {
     check("triaxial-dp");
 }

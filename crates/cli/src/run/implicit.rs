@@ -4,7 +4,7 @@ use super::{Options, Stop, Target, interrupt};
 use crate::Outcome;
 use loam_core::Particles;
 use loam_core::tensor::det;
-use loam_implicit::ImplicitSolver;
+use loam_implicit::{ImplicitConfig, ImplicitSolver, StepReport};
 use loam_scene::output::{LoadStepSummary, WaterTable};
 use loam_scene::{Built, ImplicitPlan};
 use std::time::Instant;
@@ -116,6 +116,7 @@ pub fn run<const D: usize>(
                     .iter()
                     .map(|f| f.iter().copied().collect())
                     .collect(),
+                constraint_displacements: rigid_displacements(solver.config(), &report),
                 time: coupled.then(|| clock(&solver)),
                 degree_of_consolidation: degree.map(|d| d.0),
                 max_excess_pore_pressure: degree.map(|d| d.1),
@@ -233,4 +234,25 @@ fn report_balance<const D: usize>(
         100.0 * total.norm() / weight,
         largest
     );
+}
+
+/// Per constraint, the total displacement of each force-controlled component (`None` for
+/// the others); empty when no constraint is force-controlled.
+fn rigid_displacements<const D: usize>(
+    config: &ImplicitConfig<D>,
+    report: &StepReport<D>,
+) -> Vec<Vec<Option<f64>>> {
+    if config
+        .constraints
+        .iter()
+        .all(|k| k.force.iter().all(Option::is_none))
+    {
+        return Vec::new();
+    }
+    config
+        .constraints
+        .iter()
+        .zip(&report.constraint_displacements)
+        .map(|(k, u)| (0..D).map(|a| k.force[a].map(|_| u[a])).collect())
+        .collect()
 }

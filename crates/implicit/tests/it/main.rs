@@ -2,4 +2,5 @@
 
 mod coupled;
 mod newmark;
+mod rigid;
 mod strength_reduction;

@@ -79,8 +79,23 @@ impl<const D: usize> ImplicitProblem<D> {
         self.observations.validate(&self.config, &self.initial)
     }
 
-    /// Refuses a coupled (u–p) run: the reverse pass replays the steps of the solid alone.
+    /// Refuses a coupled (u–p) run (the reverse pass replays the steps of the solid alone)
+    /// and force-controlled constraints (its seeds and parameters know prescribed
+    /// displacements only).
     fn check_dry(&self) -> Result<(), AdjointError> {
+        if let Some(i) = self
+            .config
+            .constraints
+            .iter()
+            .position(|k| k.force.iter().any(Option::is_some))
+        {
+            return Err(AdjointError::Unsupported {
+                what: format!("constraints[{i}].force"),
+                why: "the implicit adjoint knows prescribed displacements, not yet \
+                      force-controlled rigid groups"
+                    .into(),
+            });
+        }
         match self.config.pore_fluid {
             Some(_) => Err(AdjointError::Unsupported {
                 what: "[pore_fluid]".into(),

@@ -53,9 +53,15 @@ pub struct LoadStepSummary {
     pub wall_time_s: f64,
     /// Per `[[constraints]]` entry, in file order, the total force its prescribed
     /// displacements exert on the material at the end of the step, one component per axis
-    /// (N; N per metre run in 2D; a footing pushed down has a negative vertical force).
+    /// (N; N per metre run in 2D; a footing pushed down has a negative vertical force); on a
+    /// force-controlled component, the applied force it balances.
     #[serde(default)]
     pub constraint_forces: Vec<Vec<f64>>,
+    /// Scenes with a force-controlled constraint: per `[[constraints]]` entry, the total
+    /// displacement of each force-controlled component since the start (m; the settlement of
+    /// a loading plate is negative), `null` for the other components.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constraint_displacements: Vec<Vec<Option<f64>>>,
     /// Coupled (u–p) runs: the time at the end of the step, in the summary's `time_unit`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,

@@ -264,7 +264,34 @@ const BAD: &[(&str, &[&str])] = &[
     ),
     (
         "constraint_all_free.toml",
-        &[r#"constraints[1].displacement: every component is "free"; prescribe at least one"#],
+        &[
+            "constraints[1]: no component is prescribed: give `displacement` (m) or `force` (N) \
+             a number for at least one axis",
+        ],
+    ),
+    (
+        "constraint_force_and_displacement.toml",
+        &["constraints[1].force[1]: axis 1 also has a displacement"],
+    ),
+    (
+        "constraint_force_colour.toml",
+        &[
+            r#"constraints[1].force: a force-controlled group needs solver.newton.tangent = "local""#,
+        ],
+    ),
+    (
+        "constraint_force_overlap.toml",
+        &[
+            "constraints[2].force[1]: the box overlaps constraints[1], also force-controlled \
+             along axis 1",
+        ],
+    ),
+    (
+        "constraint_force_wrong_length.toml",
+        &[
+            "constraints[1].force: expected 2 components (the grid is 2D), each a number (N) or \
+             \"free\", got 3",
+        ],
     ),
     (
         "constraint_no_node.toml",
@@ -943,16 +970,19 @@ fn implicit_2d_fixture_builds_constraints_and_point_loads() {
                 lo: [0.5, -1.0e9],
                 hi: [0.5, 1.0e9],
                 displacement: [Some(0.0), None],
+                force: [None, None],
             },
             NodeConstraint {
                 lo: [0.5, 1.5],
                 hi: [0.5, 1.5],
                 displacement: [None, Some(0.0)],
+                force: [None, None],
             },
             NodeConstraint {
                 lo: [2.5, 1.0],
                 hi: [2.5, 2.0],
                 displacement: [Some(-0.1), Some(-0.05)],
+                force: [None, None],
             },
         ]
     );
@@ -1010,6 +1040,7 @@ fn implicit_3d_fixture_builds_with_the_defaults() {
             lo: [-1e9, -1e9, 0.25],
             hi: [1e9, 1e9, 0.25],
             displacement: [None, None, Some(0.0)],
+            force: [None, None, None],
         }]
     );
     // The four top particles (z = 0.625) are equally near (0.5, 0.5, 1).
@@ -1122,7 +1153,7 @@ fn implicit_rules_name_the_field() {
         (
             "displacement = [-0.1, -0.05]",
             "displacement = [-0.1, \"fixed\"]",
-            r#"constraints[2].displacement[1]: invalid value: string "fixed", expected a number (a displacement, m) or "free""#,
+            r#"constraints[2].displacement[1]: invalid value: string "fixed", expected a number (a displacement in m, a force in N) or "free""#,
         ),
         (
             "hi = [2.5, 2.0]\ndisplacement",
