@@ -500,11 +500,13 @@ mod tests {
                     lo: [0.0, -1.0e9],
                     hi: [0.25, 1.0e9],
                     displacement: [Some(0.0), None],
+                    force: [None, None],
                 },
                 NodeConstraint {
                     lo: [0.0, 9.5],
                     hi: [0.25, 9.5],
                     displacement: [None, Some(0.0)],
+                    force: [None, None],
                 },
             ]
         );

@@ -46,6 +46,8 @@ pub struct Built<const D: usize> {
     /// `[[point_loads]]` entry in file order, one load of `force / count` on each of its
     /// `count` particles, nearest first.
     pub point_loads: Vec<PointLoad<D>>,
+    /// The particles `[[probes]]` follow, in file order (implicit solver; empty otherwise).
+    pub probes: Vec<Probe>,
     /// The `[solver]` section as written (absent settings are `None`).
     pub solver: SolverSpec,
     /// The solver settings with every default filled in: what a front end runs.
@@ -62,6 +64,15 @@ pub struct Built<const D: usize> {
     /// The pore fluid of a coupled (u–p) implicit run (`[pore_fluid]`), with its schedule of
     /// time and load factor; `None` otherwise.
     pub pore_fluid: Option<PoreFluid<D>>,
+}
+
+/// A `[[probes]]` entry resolved: its name and the particle it follows.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Probe {
+    /// The name (`probe_<index>` by default).
+    pub name: String,
+    /// The particle nearest the probe's point.
+    pub particle: usize,
 }
 
 /// The solver to run and its settings, defaults filled in.
@@ -467,6 +478,18 @@ impl Scene {
             material_names,
             constraints: self.node_constraints(),
             point_loads: self.point_loads(&particles),
+            probes: self
+                .probes
+                .iter()
+                .enumerate()
+                .map(|(i, p)| Probe {
+                    name: p.name.clone().unwrap_or_else(|| format!("probe_{i}")),
+                    particle: nearest(&particles.x, &SVector::from_column_slice(&p.at), 1)
+                        .first()
+                        .copied()
+                        .unwrap_or(0),
+                })
+                .collect(),
             particles,
             solver: self.solver.clone(),
             plan,

@@ -74,7 +74,7 @@ pub mod output;
 mod schema;
 mod validate;
 
-pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, SolverPlan};
+pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, Probe, SolverPlan};
 pub use csv::read_csv;
 pub use error::{Issue, Location, SceneError, SceneFormat};
 pub use estimate::Estimate;
@@ -83,6 +83,6 @@ pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConsolidationSpec, ConstraintSpec,
     DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InitialStressSpec,
     LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec,
-    OutputSpec, PointLoadSpec, PoreFluidSpec, RotationSpec, Scene, SolverKind, SolverSpec,
-    TimeUnit,
+    OutputSpec, PointLoadSpec, PoreFluidSpec, ProbeSpec, RotationSpec, Scene, SolverKind,
+    SolverSpec, TimeUnit,
 };

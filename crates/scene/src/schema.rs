@@ -38,6 +38,10 @@ pub struct Scene {
     /// Forces on particles (implicit solver only; default: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub point_loads: Vec<PointLoadSpec>,
+    /// Material points whose history the run records (implicit solver only; default:
+    /// none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub probes: Vec<ProbeSpec>,
     /// Coulomb friction segments on walls (explicit solver only; default: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub friction: Vec<FrictionSpec>,
@@ -858,6 +862,21 @@ pub struct PointLoadSpec {
 
 fn default_point_load_count() -> usize {
     1
+}
+
+/// `[[probes]]` (implicit solver): the material point nearest a point, whose settlement,
+/// displacement, effective stress invariants and (coupled runs) pore pressures the run
+/// records after every step: a settlement plate or a piezometer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    /// The probe's name in the summary, the CSV and the plots (default `probe_<index>`);
+    /// unique.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The point (m), inside the domain: the particle nearest it (by initial position, ties
+    /// to the lower id) is followed.
+    pub at: Vec<f64>,
 }
 
 /// A face of the domain, named as in `[boundaries]`.

@@ -141,6 +141,7 @@ impl Scene {
         }
         self.check_constraints(&mut c, dim);
         self.check_point_loads(&mut c, dim);
+        self.check_probes(&mut c, dim);
         self.check_friction(&mut c, dim);
         self.check_obstacles(&mut c, dim);
         self.check_solver(&mut c);
@@ -700,28 +701,66 @@ impl Scene {
                 c.issue(format!("{path}.count"), "must be at least 1, got 0");
             }
             let Some(dim) = dim else { continue };
-            if c.coords(&format!("{path}.at"), &l.at, dim) {
-                let (lo, hi) = (&self.grid.lo, &self.grid.hi);
-                let grid_ok = lo.len() == dim
-                    && hi.len() == dim
-                    && lo.iter().chain(hi).all(|x| x.is_finite());
-                if grid_ok
-                    && !(0..dim).all(|a| {
-                        let tol = GEOMETRY_TOLERANCE * (hi[a] - lo[a]).abs();
-                        l.at[a] >= lo[a] - tol && l.at[a] <= hi[a] + tol
-                    })
-                {
-                    c.issue(
-                        format!("{path}.at"),
-                        format!(
-                            "the point {} lies outside the grid domain {}",
-                            Point(&l.at),
-                            Interval(lo, hi)
-                        ),
-                    );
-                }
-            }
+            self.check_point_in_domain(c, &format!("{path}.at"), &l.at, dim);
             c.vector(&format!("{path}.force"), &l.force, dim, "components");
+        }
+    }
+
+    fn check_probes(&self, c: &mut Checker, dim: Option<usize>) {
+        if self.probes.is_empty() {
+            return;
+        }
+        if self.solver.kind != SolverKind::Implicit {
+            c.issue(
+                "probes",
+                "only recorded by the implicit solver; set solver.type = \"implicit\" (explicit \
+                 runs write every particle's history in their frames)",
+            );
+            return;
+        }
+        let mut names = HashSet::new();
+        for (i, probe) in self.probes.iter().enumerate() {
+            let path = format!("probes[{i}]");
+            let name = probe.name.clone().unwrap_or_else(|| format!("probe_{i}"));
+            if name.is_empty() || name.contains([',', '"', '\n']) {
+                c.issue(
+                    format!("{path}.name"),
+                    format!("{name:?}: a probe's name must be non-empty, without commas, quotes or line breaks (it heads CSV columns)"),
+                );
+            } else if !names.insert(name.clone()) {
+                c.issue(
+                    format!("{path}.name"),
+                    format!("{name:?} is the name of an earlier probe; names must be unique"),
+                );
+            }
+            if let Some(dim) = dim {
+                self.check_point_in_domain(c, &format!("{path}.at"), &probe.at, dim);
+            }
+        }
+    }
+
+    /// `at` (field `path`) has `dim` finite coordinates and lies in the grid's domain.
+    fn check_point_in_domain(&self, c: &mut Checker, path: &str, at: &[f64], dim: usize) {
+        if !c.coords(path, at, dim) {
+            return;
+        }
+        let (lo, hi) = (&self.grid.lo, &self.grid.hi);
+        let grid_ok =
+            lo.len() == dim && hi.len() == dim && lo.iter().chain(hi).all(|x| x.is_finite());
+        if grid_ok
+            && !(0..dim).all(|a| {
+                let tol = GEOMETRY_TOLERANCE * (hi[a] - lo[a]).abs();
+                at[a] >= lo[a] - tol && at[a] <= hi[a] + tol
+            })
+        {
+            c.issue(
+                path,
+                format!(
+                    "the point {} lies outside the grid domain {}",
+                    Point(at),
+                    Interval(lo, hi)
+                ),
+            );
         }
     }
 

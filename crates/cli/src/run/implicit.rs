@@ -1,5 +1,6 @@
 //! Implicit runs: load steps with a per-step Newton table.
 
+use super::probes::Probes;
 use super::{Options, Stop, Target, interrupt};
 use crate::Outcome;
 use loam_core::Particles;
@@ -21,6 +22,7 @@ pub fn run<const D: usize>(
     let coupled = built.pore_fluid.is_some();
     let unit = built.time_unit();
     let water = built.water_table();
+    let probes = Probes::new(built.probes.clone(), water, coupled);
     let config = built
         .implicit_config()
         .expect("an implicit plan has an implicit configuration");
@@ -39,6 +41,7 @@ pub fn run<const D: usize>(
         Err(outcome) => return outcome,
     };
     let mut particles = built.particles;
+    rec.summary.probes = probes.histories(&particles);
     // Frames and the summary use simulated time in dynamics and in a coupled run (there in
     // the consolidation's unit), the load factor otherwise.
     let time_scale = plan
@@ -121,6 +124,7 @@ pub fn run<const D: usize>(
                 degree_of_consolidation: degree.map(|d| d.0),
                 max_excess_pore_pressure: degree.map(|d| d.1),
             });
+            probes.sample(&mut rec.summary, &particles);
             if !quiet {
                 let history: Vec<String> = last
                     .map(|s| {
@@ -155,6 +159,9 @@ pub fn run<const D: usize>(
         }
     });
     let wall = start.elapsed().as_secs_f64();
+    if let Err(e) = probes.write(rec.dir(), &rec.summary) {
+        stop.get_or_insert(Stop::Failed(e));
+    }
     let iterations: u64 = rec.summary.load_steps.iter().map(|s| s.iterations).sum();
     let reached = match (coupled, plan.newmark_dt) {
         (true, _) => format!("t = {:.4e} {}", clock(&solver), unit.name()),

@@ -16,6 +16,7 @@ mod explicit;
 pub mod gpu;
 mod implicit;
 pub mod interrupt;
+mod probes;
 mod progress;
 
 use crate::Outcome;
@@ -278,6 +279,7 @@ impl<const D: usize> Recorder<D> {
                 energy: Vec::new(),
                 frames: Vec::new(),
                 load_steps: Vec::new(),
+                probes: Vec::new(),
                 obstacle_forces: Vec::new(),
                 resumed_from: None,
                 checkpoint: None,
@@ -320,6 +322,11 @@ impl<const D: usize> Recorder<D> {
         s.resumed_from = Some(from.note());
         rec.first_step = from.header.step as usize;
         Ok(rec)
+    }
+
+    /// The output folder.
+    pub fn dir(&self) -> &Path {
+        self.writer.dir()
     }
 
     /// Frames in the series so far (a resumed run starts with those it kept).

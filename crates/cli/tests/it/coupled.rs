@@ -68,6 +68,28 @@ fn a_coupled_run_writes_pore_pressures_and_the_degree_of_consolidation() {
     for field in ["pore_pressure", "excess_pore_pressure"] {
         assert!(frame.contains(&format!("Name=\"{field}\"")), "{field}");
     }
+    // The probes: one sample per step. At t = 1000 s (T_v = 0.018) the drainage has not
+    // reached 7.5 m depth (Terzaghi's p/q there is 1 − 1e-9); the surface plate has settled
+    // by the top particle's displacement.
+    let probes = summary["probes"].as_array().unwrap();
+    assert_eq!(probes.len(), 3);
+    let deep = &probes[2];
+    assert_eq!(deep["name"], "piezometer_7.5m");
+    let p = deep["pore_pressure"].as_array().unwrap();
+    assert_eq!(p.len(), 11);
+    let last = p[10].as_f64().unwrap();
+    assert!((last / 1e3 - 1.0).abs() < 1e-3, "{last}");
+    let settled = probes[0]["settlement"][10].as_f64().unwrap();
+    assert!(settled > 0.0, "{settled}");
+    let csv = std::fs::read_to_string(dir.path().join("out/probes.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 12, "{csv}");
+    assert!(
+        csv.starts_with("step,time (s),surface.settlement_m,"),
+        "{csv}"
+    );
+    for png in ["probes_settlement.png", "probes_pore_pressure.png"] {
+        assert!(dir.path().join("out").join(png).is_file(), "{png}");
+    }
 }
 
 #[test]

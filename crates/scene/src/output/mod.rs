@@ -20,8 +20,8 @@ mod vtu;
 pub use field::{Field, WaterTable, hencky_strain, pressure, von_mises};
 pub use pvd::{PvdEntry, read_pvd, write_pvd};
 pub use summary::{
-    CheckpointNote, EnergySample, LoadStepSummary, ObstacleForceSample, RunStatus, RunSummary,
-    write_obstacle_forces, write_summary,
+    CheckpointNote, EnergySample, LoadStepSummary, ObstacleForceSample, ProbeHistory, RunStatus,
+    RunSummary, write_obstacle_forces, write_summary,
 };
 pub use vtu::write_vtu;
 

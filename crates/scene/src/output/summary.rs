@@ -75,6 +75,33 @@ pub struct LoadStepSummary {
     pub max_excess_pore_pressure: Option<f64>,
 }
 
+/// The history of one `[[probes]]` entry: the particle it follows after every load step.
+/// Signs are the geotechnical ones: settlement, pressures and `p′` positive in compression.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ProbeHistory {
+    /// The probe's name.
+    pub name: String,
+    /// The particle it follows.
+    pub particle: u64,
+    /// The particle's initial position (m).
+    pub position: Vec<f64>,
+    /// Settlement, the downward displacement `−u_z` along the last axis (m).
+    pub settlement: Vec<f64>,
+    /// Displacement from the initial position, one component per axis (m).
+    pub displacement: Vec<Vec<f64>>,
+    /// Mean effective stress `p′ = −tr σ′ / 3` (Pa, compression positive).
+    pub mean_effective_stress: Vec<f64>,
+    /// Deviatoric stress `q = √(3 J₂)` (Pa).
+    pub deviatoric_stress: Vec<f64>,
+    /// Coupled runs: the pore pressure (Pa, compression positive).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pore_pressure: Vec<f64>,
+    /// Coupled runs: the excess pore pressure over the water table's hydrostatic pressure
+    /// (Pa).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub excess_pore_pressure: Vec<f64>,
+}
+
 /// The mean force of every rigid obstacle on the material over the interval that ends at a
 /// frame of an explicit run (CPU): `(I(t) − I(t_prev)) / (t − t_prev)`, `I` the impulse the
 /// obstacle has given the material (`loam_explicit::Solver::obstacle_impulse`). Explicit
@@ -141,6 +168,10 @@ pub struct RunSummary {
     /// Implicit runs: the Newton report of every load step (empty for explicit runs).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub load_steps: Vec<LoadStepSummary>,
+    /// Implicit runs with `[[probes]]`: each probe's history, one sample per entry of
+    /// `load_steps` (also written as `probes.csv`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub probes: Vec<ProbeHistory>,
     /// Explicit runs on the CPU with `[[obstacles]]`: the mean force of each obstacle on the
     /// material between consecutive frames (also written as
     /// [`FrameWriter::OBSTACLE_FORCES_NAME`](super::FrameWriter::OBSTACLE_FORCES_NAME)).

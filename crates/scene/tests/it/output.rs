@@ -292,6 +292,7 @@ fn run_summary_is_written_as_json() {
         }],
         frames: vec!["frame_0000.vtu".into()],
         load_steps: vec![],
+        probes: vec![],
         obstacle_forces: vec![ObstacleForceSample {
             step: 200,
             time: 0.2,

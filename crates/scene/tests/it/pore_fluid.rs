@@ -124,6 +124,21 @@ fn coupled_rules_name_the_field() {
             "materials[0].biot_coefficient: must be in (0, 1], got 1.5",
         ),
         (
+            "name = \"piezometer_7.5m\"",
+            "name = \"surface\"",
+            "probes[2].name: \"surface\" is the name of an earlier probe; names must be unique",
+        ),
+        (
+            "at = [0.05, 2.5]",
+            "at = [0.05, 12.5]",
+            "probes[2].at: the point (0.05, 12.5) lies outside the grid domain",
+        ),
+        (
+            "name = \"piezometer_7.5m\"",
+            "name = \"a,b\"",
+            "probes[2].name: \"a,b\": a probe's name must be non-empty, without commas",
+        ),
+        (
             "end_time = 55600.0",
             "end_time = 55600.0\ngrowth = 0.5",
             "solver.consolidation.growth: must be at least 1, got 0.5",
