@@ -26,7 +26,8 @@
 //! `S Δp V` (storage `S = 1/M`, zero for incompressible constituents) expel, against the
 //! water that flows out, `Δt ∫ ∇N_i · κ ∇p_e dv` in the end-of-step configuration
 //! (`∇N = ΔF⁻ᵀ ∇ⁿN`, `dv = ΔJ dvⁿ`); faces without a drained condition are impermeable
-//! (the natural condition). The fluid rows are scaled by `G_ref/h` and the pressure unknowns
+//! (the natural condition). The mobility is constant, or follows the porosity of the
+//! end-of-step volume `J = Jⁿ ΔJ` by Kozeny–Carman ([`Permeability`]). The fluid rows are scaled by `G_ref/h` and the pressure unknowns
 //! by its inverse ([`Flow::scale`]), so that the two blocks of the residual are forces and
 //! the two blocks of the unknowns lengths, and Newton's tolerances hold for both.
 //!
@@ -68,6 +69,42 @@ pub struct Hydraulic {
     /// Storage `S = 1/M = n/K_w + (α − n)/K_s` (1/Pa); zero for incompressible water and
     /// grains.
     pub storage: f64,
+    /// How the mobility follows the volume change.
+    pub permeability: Permeability,
+}
+
+/// How a material's mobility follows its volume change at large strain.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Permeability {
+    /// `κ` constant.
+    #[default]
+    Constant,
+    /// Kozeny–Carman: `κ(J) = κ₀ [n³/(1 − n)²] / [n₀³/(1 − n₀)²]` with the porosity
+    /// `n = 1 − (1 − n₀)/J` of incompressible grains, `n₀` the porosity at `F = I` (where
+    /// `κ = κ₀`) and `J = det F`.
+    KozenyCarman {
+        /// `n₀`, in (0, 1).
+        porosity: f64,
+    },
+}
+
+impl Permeability {
+    /// `κ(J)/κ₀` (enum docs); `None` where the grains alone would fill more than the volume
+    /// (`J ≤ 1 − n₀`, no porosity left).
+    pub fn factor<T: Scalar>(&self, j: T) -> Option<T> {
+        match *self {
+            Self::Constant => Some(T::one()),
+            Self::KozenyCarman { porosity: n0 } => {
+                let solid = T::cst(1.0 - n0) / j;
+                let n = T::one() - solid;
+                if n.re() <= 0.0 {
+                    return None;
+                }
+                let reference = n0.powi(3) / ((1.0 - n0) * (1.0 - n0));
+                Some(n * n * n / (solid * solid * T::cst(reference)))
+            }
+        }
+    }
 }
 
 /// The pore fluid of one particle, frozen over a step.
@@ -146,9 +183,10 @@ pub fn coupled_update<T: Scalar, const D: usize>(
     let volume = (alpha * (dj - T::one())
         + T::cst(hydraulic.storage) * (excess - T::cst(fluid.excess)))
         * T::cst(scale * vn);
+    let mobility = hydraulic.permeability.factor(dj * T::cst(jn))? * T::cst(hydraulic.mobility);
     let flux = dfinv
         * (dfinv.transpose() * grad_p_hat)
-        * (dj * T::cst(scale * scale * dt * vn * hydraulic.mobility));
+        * (dj * mobility * T::cst(scale * scale * dt * vn));
     Some(Coupled {
         momentum,
         volume,

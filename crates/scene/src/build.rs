@@ -5,8 +5,8 @@ use crate::initial::BodyContext;
 use crate::output::{Field, WaterTable};
 use crate::schema::{
     ConsolidationSpec, DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL,
-    Device, LinearKind, LinearSpec, MaterialSpec, NewtonSpec, Scene, SolverKind, SolverSpec,
-    TimeUnit,
+    Device, LinearKind, LinearSpec, MaterialSpec, NewtonSpec, PermeabilityLaw, Scene, SolverKind,
+    SolverSpec, TimeUnit,
 };
 use loam_core::constitutive::{
     DruckerPrager, Elasticity, Lame, Model, ModifiedCamClay, MohrCoulomb, Preconsolidation, Shear,
@@ -16,7 +16,7 @@ use loam_core::{
     Shape, TimeStep, Transfer,
 };
 use loam_implicit::NewtonSettings;
-use loam_implicit::flow::{Hydraulic, PoreFluid, Schedule};
+use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule};
 use loam_implicit::linear::LinearSolverKind;
 use loam_implicit::strength_reduction::SearchSettings;
 use nalgebra::SVector;
@@ -518,6 +518,12 @@ impl Scene {
                 storage: match (spec.bulk_modulus, m.porosity) {
                     (Some(k), Some(n)) => n / k,
                     _ => 0.0,
+                },
+                permeability: match (spec.permeability, m.porosity) {
+                    (PermeabilityLaw::KozenyCarman, Some(porosity)) => {
+                        Permeability::KozenyCarman { porosity }
+                    }
+                    _ => Permeability::Constant,
                 },
             })
             .collect();

@@ -83,6 +83,6 @@ pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConsolidationSpec, ConstraintSpec,
     DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InitialStressSpec,
     LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec,
-    OutputSpec, PointLoadSpec, PoreFluidSpec, ProbeSpec, RotationSpec, Scene, SolverKind,
-    SolverSpec, TimeUnit,
+    OutputSpec, PermeabilityLaw, PointLoadSpec, PoreFluidSpec, ProbeSpec, RotationSpec, Scene,
+    SolverKind, SolverSpec, TimeUnit,
 };

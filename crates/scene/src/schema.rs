@@ -493,6 +493,22 @@ pub struct PoreFluidSpec {
     /// oscillation near the undrained limit (default `true`).
     #[serde(default = "default_stabilisation")]
     pub stabilisation: bool,
+    /// How the materials' hydraulic conductivity follows their volume change (default
+    /// `constant`).
+    #[serde(default)]
+    pub permeability: PermeabilityLaw,
+}
+
+/// `pore_fluid.permeability`: the law of the hydraulic conductivity at large strain.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PermeabilityLaw {
+    /// `k` constant.
+    #[default]
+    Constant,
+    /// Kozeny–Carman, `k ∝ n³/(1 − n)²` with the porosity `n = 1 − (1 − n₀)/J`: `k` is the
+    /// material's `hydraulic_conductivity` at its `porosity` `n₀` (at `F = I`).
+    KozenyCarman,
 }
 
 fn default_unit_weight() -> f64 {

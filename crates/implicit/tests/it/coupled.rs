@@ -3,7 +3,7 @@
 
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::flow::{Hydraulic, PoreFluid, Schedule};
+use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule};
 use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
 
 /// Deterministic pseudo-random numbers in [−1, 1).
@@ -68,6 +68,7 @@ fn block<const D: usize>(
                 mobility: 1e-7,
                 biot: 0.9,
                 storage: 1e-9,
+                permeability: Permeability::KozenyCarman { porosity: 0.4 },
             }],
             unit_weight: 9810.0,
             water_table: Some(1.5),
@@ -178,4 +179,29 @@ fn the_coupled_tangent_is_the_derivative_of_the_residual() {
         check_coupled_tangent::<2>(sand.clone(), shape);
     }
     check_coupled_tangent::<3>(sand, Shape::QuadraticBspline);
+}
+
+#[test]
+fn kozeny_carman_follows_the_porosity() {
+    use num_dual::{Dual64, DualNum};
+    let law = Permeability::KozenyCarman { porosity: 0.4 };
+    // κ₀ at F = I.
+    assert_eq!(law.factor(1.0f64), Some(1.0));
+    // J = 0.8: n = 1 − 0.6/0.8 = 0.25, so κ/κ₀ = (0.25³/0.75²)/(0.4³/0.6²) = 5/32.
+    let k = law.factor(0.8f64).expect("porous");
+    assert!((k - 5.0 / 32.0).abs() < 1e-15, "{k}");
+    // No porosity left at J ≤ 1 − n₀.
+    assert_eq!(law.factor(0.6f64), None);
+    // The dual derivative (the tangent's) against central differences, whose truncation
+    // O(ε² f‴) at ε = 1e-6 is ~1e-12.
+    for j in [0.7, 1.0, 1.3] {
+        let d = law
+            .factor(Dual64::from_re(j).derivative())
+            .expect("porous")
+            .eps;
+        let eps = 1e-6;
+        let fd = (law.factor(j + eps).unwrap() - law.factor(j - eps).unwrap()) / (2.0 * eps);
+        assert!((d - fd).abs() < 1e-8 * d.abs(), "J = {j}: {d} vs {fd}");
+    }
+    assert_eq!(Permeability::Constant.factor(0.3f64), Some(1.0));
 }

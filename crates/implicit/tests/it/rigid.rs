@@ -189,6 +189,6 @@ fn force_control_is_refused_where_it_cannot_work() {
     config.constraints[0].hi = [1.0, 2.4];
     let mut p2 = p.clone();
     let mut solver = ImplicitSolver::new(config, &p2).expect("valid");
-    let err = solver.step(&mut p2).err().expect("no group");
+    let err = solver.step(&mut p2).expect_err("no group");
     assert!(err.to_string().contains("constraints[0].force"), "{err}");
 }

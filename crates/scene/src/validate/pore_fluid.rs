@@ -2,7 +2,7 @@
 //! the materials, `[solver.consolidation]`, and that every drained face bounds the soil.
 
 use super::Checker;
-use crate::schema::{Face, LinearKind, Scene, SolverKind};
+use crate::schema::{Face, LinearKind, PermeabilityLaw, Scene, SolverKind};
 use loam_implicit::linear::Preconditioner;
 
 /// The hydraulic keys of a material: only used with a `[pore_fluid]`.
@@ -86,6 +86,12 @@ impl Scene {
                     format!("materials[{i}].porosity"),
                     "required with pore_fluid.bulk_modulus (the storage of the pore water is \
                      n / K_w)",
+                );
+            } else if fluid.permeability == PermeabilityLaw::KozenyCarman && !m.has("porosity") {
+                c.issue(
+                    format!("materials[{i}].porosity"),
+                    "required with pore_fluid.permeability = \"kozeny_carman\" (the porosity \
+                     n₀ at which the hydraulic conductivity is k)",
                 );
             }
         }

@@ -139,6 +139,16 @@ fn coupled_rules_name_the_field() {
             "probes[2].name: \"a,b\": a probe's name must be non-empty, without commas",
         ),
         (
+            "[pore_fluid]",
+            "[pore_fluid]\npermeability = \"kozeny_carman\"",
+            "materials[0].porosity: required with pore_fluid.permeability = \"kozeny_carman\"",
+        ),
+        (
+            "[pore_fluid]",
+            "[pore_fluid]\npermeability = \"kozeny\"",
+            "pore_fluid.permeability: unknown variant `kozeny`",
+        ),
+        (
             "end_time = 55600.0",
             "end_time = 55600.0\ngrowth = 0.5",
             "solver.consolidation.growth: must be at least 1, got 0.5",
