@@ -165,6 +165,11 @@ fn terzaghi() {
 }
 
 #[test]
+fn consolidation_large() {
+    check("consolidation-large");
+}
+
+#[test]
 fn triaxial_dp() {
     check("triaxial-dp");
 }
