@@ -48,30 +48,46 @@ const TIMES: [f64; 4] = [0.1, 0.2, 0.5, 1.0];
 /// Terms of the series: the last, `exp(−M² T_v)` at T_v = 0.1 and m = 200, is 0.
 const TERMS: usize = 2000;
 
-/// The column of the scene.
-struct Column {
-    height: f64,
-    load: f64,
-    /// Constrained modulus `M_c` (Pa).
+/// The column of a one-dimensional consolidation scene (this case's and
+/// `consolidation-large`'s): one body between slip walls, loaded on its top by the first point
+/// load.
+pub(crate) struct Column {
+    /// Height `H` (m).
+    pub(crate) height: f64,
+    /// Compressive total stress on the top `q` (Pa).
+    pub(crate) load: f64,
+    /// Shear modulus `μ` (Pa).
+    pub(crate) shear_modulus: f64,
+    /// Lamé's first parameter `Λ` (Pa).
+    pub(crate) lame: f64,
+    /// Mobility `κ = k/γ_w` (m²/(Pa·s)).
+    pub(crate) mobility: f64,
+    /// Constrained modulus `M_c = 2μ + Λ` (Pa).
     modulus: f64,
-    /// `c_v` (m²/s).
+    /// `c_v = κ M_c` (m²/s).
     cv: f64,
 }
 
 impl Column {
-    fn of(scene: &Scene) -> Self {
+    /// The column of `scene`.
+    pub(crate) fn of(scene: &Scene) -> Self {
         let m = &scene.materials[0];
         let (e, nu) = (
             m.youngs_modulus.unwrap_or(0.0),
             m.poisson_ratio.unwrap_or(0.0),
         );
-        let modulus = e * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        let shear_modulus = e / (2.0 * (1.0 + nu));
+        let lame = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        let modulus = 2.0 * shear_modulus + lame;
         let unit_weight = scene.pore_fluid.as_ref().map_or(9810.0, |f| f.unit_weight);
         let mobility = m.hydraulic_conductivity.unwrap_or(0.0) / unit_weight;
         let width = scene.grid.hi[0] - scene.grid.lo[0];
         Self {
             height: scene.grid.hi[1] - scene.grid.lo[1],
             load: -scene.point_loads[0].force[1] / width,
+            shear_modulus,
+            lame,
+            mobility,
             modulus,
             cv: mobility * modulus,
         }
@@ -84,25 +100,103 @@ impl Column {
 
     /// Terzaghi's `p/q` at depth `z` below the top.
     fn pressure(&self, z: f64, tv: f64) -> f64 {
-        (0..TERMS)
-            .map(|m| {
-                let mm = PI * (2 * m + 1) as f64 / 2.0;
-                2.0 / mm * (mm * z / self.height).sin() * (-mm * mm * tv).exp()
-            })
-            .sum()
+        pressure_ratio(z / self.height, tv)
     }
 
-    /// The settlement of the material point at depth `d` (m).
-    fn settlement(&self, d: f64, tv: f64) -> f64 {
-        let h = self.height;
-        let series: f64 = (0..TERMS)
-            .map(|m| {
-                let mm = PI * (2 * m + 1) as f64 / 2.0;
-                2.0 * h / (mm * mm) * (mm * d / h).cos() * (-mm * mm * tv).exp()
-            })
-            .sum();
-        self.load / self.modulus * (h - d - series)
+    /// Terzaghi's settlement of the material point at distance `d` from the drained face
+    /// (depth below the drained top) (m).
+    pub(crate) fn settlement(&self, d: f64, tv: f64) -> f64 {
+        self.load / self.modulus * self.height * settlement_ratio(d / self.height, tv)
     }
+}
+
+/// Terzaghi's `p/q` at distance `ζ H` from the drained face: `Σ (2/M) sin(M ζ) exp(−M² T_v)`.
+pub(crate) fn pressure_ratio(zeta: f64, tv: f64) -> f64 {
+    (0..TERMS)
+        .map(|m| {
+            let mm = PI * (2 * m + 1) as f64 / 2.0;
+            2.0 / mm * (mm * zeta).sin() * (-mm * mm * tv).exp()
+        })
+        .sum()
+}
+
+/// Terzaghi's settlement of the material point at distance `d` from the drained face, over
+/// `q H/M_c`, at `ζ = d/H`: `(1 − ζ) − Σ (2/M²) cos(M ζ) exp(−M² T_v)`; at `ζ = 0` the degree
+/// of consolidation `U`.
+pub(crate) fn settlement_ratio(zeta: f64, tv: f64) -> f64 {
+    let series: f64 = (0..TERMS)
+        .map(|m| {
+            let mm = PI * (2 * m + 1) as f64 / 2.0;
+            2.0 / (mm * mm) * (mm * zeta).cos() * (-mm * mm * tv).exp()
+        })
+        .sum();
+    1.0 - zeta - series
+}
+
+/// What a coupled run of a column scene gives at one of its output times.
+pub(crate) struct Snapshot {
+    /// The settlement of the top row of particles (m).
+    pub(crate) settlement: f64,
+    /// `(initial height, pore pressure)` of every particle (m, Pa).
+    pub(crate) pressures: Vec<(f64, f64)>,
+}
+
+/// A coupled run of a column scene.
+pub(crate) struct Consolidation {
+    /// `(t, settlement of the top row of particles)` after every step (s, m).
+    pub(crate) history: Vec<(f64, f64)>,
+    /// The initial height of the top row of particles (m).
+    pub(crate) top: f64,
+    /// At each output time.
+    pub(crate) snapshots: Vec<Snapshot>,
+    /// The number of steps the run took.
+    pub(crate) steps: usize,
+}
+
+/// Runs the coupled scene `scene` of case `case` (a column, as [`Column`] reads it), with
+/// steps that land on each of `times` (s, increasing, within the run).
+pub(crate) fn consolidate(
+    case: &str,
+    scene: &Scene,
+    times: &[f64],
+) -> Result<Consolidation, VerifyError> {
+    let mut built = scenes::build::<2>(scene);
+    let fluid = built.pore_fluid.as_mut().expect("a coupled scene");
+    for &t in times {
+        fluid.schedule.land_on(t);
+    }
+    let config = built.implicit_config().expect("an implicit scene");
+    let mut particles = built.particles;
+    let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
+    let top = y0.iter().fold(f64::NEG_INFINITY, |m, &y| m.max(y));
+    let row: Vec<usize> = (0..y0.len()).filter(|&p| y0[p] == top).collect();
+    let fail = |source| VerifyError::Implicit {
+        case: case.into(),
+        source,
+    };
+    let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
+    let (mut history, mut snapshots) = (Vec::new(), Vec::new());
+    while !solver.finished() {
+        solver.step(&mut particles).map_err(fail)?;
+        let t = solver.time();
+        let settlement =
+            row.iter().map(|&p| y0[p] - particles.x[p][1]).sum::<f64>() / row.len() as f64;
+        history.push((t, settlement));
+        if times.iter().any(|&s| (s - t).abs() <= 1e-9 * t) {
+            snapshots.push(Snapshot {
+                settlement,
+                pressures: (0..particles.len())
+                    .map(|p| (y0[p], particles.pore_pressure[p]))
+                    .collect(),
+            });
+        }
+    }
+    Ok(Consolidation {
+        history,
+        top,
+        snapshots,
+        steps: solver.steps(),
+    })
 }
 
 /// At each output time: `(T_v, max |p − p_exact|/q, relative error of the top row's
@@ -117,47 +211,26 @@ struct Run {
 fn run_with(scene: &Scene, column: &Column, steps: ConsolidationSpec) -> Result<Run, VerifyError> {
     let mut scene = scene.clone();
     scene.solver.consolidation = Some(steps);
-    let mut built = scenes::build::<2>(&scene);
-    let fluid = built.pore_fluid.as_mut().expect("a coupled scene");
-    for tv in TIMES {
-        fluid.schedule.land_on(column.time(tv));
-    }
-    let config = built.implicit_config().expect("an implicit scene");
-    let mut particles = built.particles;
-    let y0: Vec<f64> = particles.x.iter().map(|x| x[1]).collect();
-    let top_row = y0.iter().fold(f64::NEG_INFINITY, |m, &y| m.max(y));
-    let top: Vec<usize> = (0..y0.len()).filter(|&p| y0[p] == top_row).collect();
-    let fail = |source| VerifyError::Implicit {
-        case: CASE.into(),
-        source,
-    };
-    let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
+    let times = TIMES.map(|tv| column.time(tv));
+    let run = consolidate(CASE, &scene, &times)?;
     let (mut rows, mut profiles) = (Vec::new(), Vec::new());
-    while !solver.finished() {
-        solver.step(&mut particles).map_err(fail)?;
-        let t = solver.time();
-        let Some(&tv) = TIMES
+    for (snapshot, tv) in run.snapshots.iter().zip(TIMES) {
+        let profile: Vec<(f64, f64)> = snapshot
+            .pressures
             .iter()
-            .find(|&&tv| (column.time(tv) - t).abs() <= 1e-9 * t)
-        else {
-            continue;
-        };
-        let depth = |p: usize| column.height - y0[p];
-        let profile: Vec<(f64, f64)> = (0..particles.len())
-            .map(|p| (depth(p), particles.pore_pressure[p] / column.load))
+            .map(|&(y, p)| (column.height - y, p / column.load))
             .collect();
         let error = profile
             .iter()
             .map(|&(z, p)| (p - column.pressure(z, tv)).abs())
             .fold(0.0f64, f64::max);
-        let s = top.iter().map(|&p| y0[p] - particles.x[p][1]).sum::<f64>() / top.len() as f64;
-        let exact = column.settlement(depth(top[0]), tv);
-        rows.push((tv, error, s / exact - 1.0));
+        let exact = column.settlement(column.height - run.top, tv);
+        rows.push((tv, error, snapshot.settlement / exact - 1.0));
         profiles.push(profile);
     }
     Ok(Run {
         rows,
-        steps: solver.steps(),
+        steps: run.steps,
         profiles,
     })
 }

@@ -170,6 +170,11 @@ fn mandel() {
 }
 
 #[test]
+fn consolidation_large() {
+    check("consolidation-large");
+}
+
+#[test]
 fn triaxial_dp() {
     check("triaxial-dp");
 }
