@@ -183,7 +183,7 @@ fn the_coupled_tangent_is_the_derivative_of_the_residual() {
 
 #[test]
 fn kozeny_carman_follows_the_porosity() {
-    use num_dual::{Dual64, DualNum};
+    use num_dual::Dual64;
     let law = Permeability::KozenyCarman { porosity: 0.4 };
     // κ₀ at F = I.
     assert_eq!(law.factor(1.0f64), Some(1.0));
