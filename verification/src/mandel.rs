@@ -24,6 +24,7 @@
 //! Reduced size (the test suite): cells of 0.1 m and steps growing from `ΔT = 5e-4`.
 
 use crate::mandel_series::Mandel;
+use crate::terzaghi::undrained_loading;
 use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot};
 use loam_implicit::ImplicitSolver;
 use loam_scene::Scene;
@@ -132,22 +133,7 @@ fn run_with(scene: &Scene, mandel: &Mandel) -> Result<Run, VerifyError> {
 /// specimen (`x < a/2`): the spread `(max p − min p)/p₀` (a checkerboard's
 /// amplitude) and the mean's `|p̄/p₀ − 1|`.
 fn undrained(scene: &Scene, p0: f64, stabilisation: bool) -> Result<(f64, f64), VerifyError> {
-    let mut scene = scene.clone();
-    scene.solver.consolidation = None;
-    if let Some(fluid) = scene.pore_fluid.as_mut() {
-        fluid.stabilisation = stabilisation;
-    }
-    let built = scenes::build::<2>(&scene);
-    let config = built.implicit_config().expect("an implicit scene");
-    let mut particles = built.particles;
-    let fail = |source| VerifyError::Implicit {
-        case: CASE.into(),
-        source,
-    };
-    let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
-    while !solver.finished() {
-        solver.step(&mut particles).map_err(fail)?;
-    }
+    let particles = undrained_loading(CASE, scene, stabilisation)?;
     let edge = 0.5 * (scene.grid.hi[0] - scene.grid.lo[0]);
     let inner: Vec<f64> = (0..particles.len())
         .filter(|&p| particles.x[p][0] < edge)

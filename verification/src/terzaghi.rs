@@ -37,6 +37,7 @@
 //! Reduced size (the test suite): cells of 0.25 m; the run with steps of 25 s is left out.
 
 use crate::{CaseReport, Metric, Series, Size, VerifyError, scenes, write_csv, write_plot};
+use loam_core::Particles;
 use loam_implicit::ImplicitSolver;
 use loam_scene::{ConsolidationSpec, Scene};
 use std::f64::consts::PI;
@@ -239,27 +240,38 @@ fn run_with(scene: &Scene, column: &Column, steps: ConsolidationSpec) -> Result<
 /// stabilisation on or off: the largest `|p/q − 1|` over the particles deeper than `2 m`,
 /// beyond the boundary layer of the drained top.
 fn undrained_oscillation(scene: &Scene, stabilisation: bool) -> Result<f64, VerifyError> {
+    let column = Column::of(scene);
+    let particles = undrained_loading(CASE, scene, stabilisation)?;
+    Ok((0..particles.len())
+        .filter(|&p| particles.x[p][1] < column.height - 2.0)
+        .map(|p| (particles.pore_pressure[p] / column.load - 1.0).abs())
+        .fold(0.0f64, f64::max))
+}
+
+/// The particles after a coupled scene's loading steps alone (its consolidation left out),
+/// with the pressure stabilisation on or off: the undrained response of case `case`.
+pub(crate) fn undrained_loading(
+    case: &str,
+    scene: &Scene,
+    stabilisation: bool,
+) -> Result<Particles<f64, 2>, VerifyError> {
     let mut scene = scene.clone();
     scene.solver.consolidation = None;
     if let Some(fluid) = scene.pore_fluid.as_mut() {
         fluid.stabilisation = stabilisation;
     }
-    let column = Column::of(&scene);
     let built = scenes::build::<2>(&scene);
     let config = built.implicit_config().expect("an implicit scene");
     let mut particles = built.particles;
     let fail = |source| VerifyError::Implicit {
-        case: CASE.into(),
+        case: case.into(),
         source,
     };
     let mut solver = ImplicitSolver::new(config, &particles).map_err(fail)?;
     while !solver.finished() {
         solver.step(&mut particles).map_err(fail)?;
     }
-    Ok((0..particles.len())
-        .filter(|&p| particles.x[p][1] < column.height - 2.0)
-        .map(|p| (particles.pore_pressure[p] / column.load - 1.0).abs())
-        .fold(0.0f64, f64::max))
+    Ok(particles)
 }
 
 /// Runs the case.

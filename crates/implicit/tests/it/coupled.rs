@@ -124,25 +124,14 @@ fn check_coupled_tangent<const D: usize>(material: Material<f64>, shape: Shape) 
     let at = |k: &loam_implicit::linear::SparseMatrix, i: usize, j: usize| {
         k.pattern.position(i, j).map_or(0.0, |p| k.values[p])
     };
-    for j in 0..n {
-        // Central differences: truncation O(ε²) against round-off O(1e-16 |R| / ε). Both
-        // kinds of unknown are lengths (the pressure scaled by h/G), of ~1e-3 m; ε = 1e-8 m
-        // balances the two near 1e-8 of the block's largest entry.
-        let eps = 1e-8;
-        let mut xp = x.clone();
-        xp[j] += eps;
-        let rp = system.residual(&xp, mats).expect("residual");
-        xp[j] -= 2.0 * eps;
-        let rm = system.residual(&xp, mats).expect("residual");
-        for i in 0..n {
-            let (bi, bj) = (pressure(i), pressure(j));
-            let fd = (rp[i] - rm[i]) / (2.0 * eps);
-            let kl = at(&local, i, j);
-            kmax[bi][bj] = kmax[bi][bj].max(kl.abs());
-            worst_fd[bi][bj] = worst_fd[bi][bj].max((kl - fd).abs());
-            worst_colour[bi][bj] = worst_colour[bi][bj].max((kl - at(&colour, i, j)).abs());
-        }
-    }
+    // Both kinds of unknown are lengths (the pressure scaled by h/G), of ~1e-3 m.
+    crate::central_differences(&system, mats, &x, |i, j, fd| {
+        let (bi, bj) = (pressure(i), pressure(j));
+        let kl = at(&local, i, j);
+        kmax[bi][bj] = kmax[bi][bj].max(kl.abs());
+        worst_fd[bi][bj] = worst_fd[bi][bj].max((kl - fd).abs());
+        worst_colour[bi][bj] = worst_colour[bi][bj].max((kl - at(&colour, i, j)).abs());
+    });
     for (bi, row) in ["mixture", "fluid"].iter().enumerate() {
         for (bj, col) in ["u", "p"].iter().enumerate() {
             let (fd, co, k) = (worst_fd[bi][bj], worst_colour[bi][bj], kmax[bi][bj]);

@@ -140,25 +140,14 @@ fn the_tangent_with_a_shared_unknown_is_the_derivative_of_the_residual() {
     let mut kmax = 0.0f64;
     let mut worst = 0.0f64;
     let mut worst_shared = 0.0f64;
-    for j in 0..n {
-        // Central differences of O(ε²) truncation and O(1e-16 |R| / ε) round-off; with
-        // unknowns of ~1e-3 m, ε = 1e-8 m balances the two near 1e-8 of the largest entry.
-        let eps = 1e-8;
-        let mut xp = x.clone();
-        xp[j] += eps;
-        let rp = system.residual(&xp, mats).expect("residual");
-        xp[j] -= 2.0 * eps;
-        let rm = system.residual(&xp, mats).expect("residual");
-        for i in 0..n {
-            let fd = (rp[i] - rm[i]) / (2.0 * eps);
-            let e = (at(i, j) - fd).abs();
-            kmax = kmax.max(at(i, j).abs());
-            worst = worst.max(e);
-            if i == tie.dof || j == tie.dof {
-                worst_shared = worst_shared.max(e);
-            }
+    crate::central_differences(&system, mats, &x, |i, j, fd| {
+        let e = (at(i, j) - fd).abs();
+        kmax = kmax.max(at(i, j).abs());
+        worst = worst.max(e);
+        if i == tie.dof || j == tie.dof {
+            worst_shared = worst_shared.max(e);
         }
-    }
+    });
     assert!(at(tie.dof, tie.dof) > 0.0, "the plate's own stiffness");
     assert!(worst <= 1e-6 * kmax, "{worst:e} vs {kmax:e}");
     assert!(worst_shared <= 1e-6 * kmax, "shared {worst_shared:e}");
