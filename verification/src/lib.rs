@@ -18,6 +18,7 @@ pub mod disk_collision;
 pub mod elastica;
 pub mod fe_beam;
 pub mod footing;
+pub mod footing_consolidation;
 mod gibson;
 pub mod granular;
 pub mod implicit_adjoint_fd;
@@ -340,6 +341,11 @@ pub fn cases() -> Vec<Case> {
             name: "consolidation-large",
             description: "large-strain one-dimensional consolidation by the coupled u–p solver (GeoWarp's Neo-Hookean column, q/M = 0.25, drained base) vs Gibson's finite-strain theory by finite volumes: settlement within 1 %, pore pressures; Terzaghi's settlement 13–20 % off at T_v = 1–2",
             runner: Runner::Cpu(consolidation_large::run),
+        },
+        Case {
+            name: "footing-consolidation-3d",
+            description: "rigid square footing on a saturated elastic block in 3D by the coupled u–p solver (quarter symmetry, force-controlled): immediate over long-term settlement vs the half-space's (1 − ν_u)/(1 − ν), the long-term settlement vs a drained run, the consolidation curve between them",
+            runner: Runner::Cpu(footing_consolidation::run),
         },
         Case {
             name: "triaxial-dp",

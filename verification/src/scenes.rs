@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 30] = [
+pub const SCENES: [CaseScene; 31] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -52,6 +52,7 @@ pub const SCENES: [CaseScene; 30] = [
     case_scene!("terzaghi"),
     case_scene!("mandel"),
     case_scene!("consolidation_large"),
+    case_scene!("footing_consolidation_3d"),
     case_scene!("disk_collision"),
     case_scene!("bui_collapse"),
     case_scene!("column_runout"),

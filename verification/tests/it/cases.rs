@@ -175,6 +175,11 @@ fn consolidation_large() {
 }
 
 #[test]
+fn footing_consolidation_3d() {
+    check("footing-consolidation-3d");
+}
+
+#[test]
 fn triaxial_dp() {
     check("triaxial-dp");
 }
