@@ -463,6 +463,12 @@ impl Scene {
             }
         }
 
+        let mut point_loads = self.point_loads(&particles);
+        point_loads.extend(
+            self.traction_loads(&particles)
+                .or_else(|issues| self.issues_to_result(issues).map(|()| Vec::new()))?,
+        );
+
         let mut boundary = Boundary::all(Default::default());
         for (_, axis, side, wall) in self.boundaries.faces() {
             if let Some(wall) = wall.filter(|_| axis < D) {
@@ -477,7 +483,7 @@ impl Scene {
             materials,
             material_names,
             constraints: self.node_constraints(),
-            point_loads: self.point_loads(&particles),
+            point_loads,
             probes: self
                 .probes
                 .iter()

@@ -6,7 +6,7 @@
 //! A scene is a TOML file (JSON is accepted too, chosen by the `.json` extension) with the
 //! sections `[grid]`, `[[materials]]`, `[[bodies]]`, `[boundaries]`, `[loads]`, `[solver]`
 //! and `[output]`, and for quasi-static implicit runs (`[solver] type = "implicit"`)
-//! `[[constraints]]` and `[[point_loads]]`, for explicit runs `[[friction]]` (Coulomb
+//! `[[constraints]]`, `[[point_loads]]` and `[[tractions]]`, for explicit runs `[[friction]]` (Coulomb
 //! friction segments on walls) and `[[obstacles]]` (rigid boxes and cylinders), and `[fos]`
 //! (the factor-of-safety search of `loam fos`); `docs/scene-format.md` documents every field.
 //! A small 2D example:
@@ -72,6 +72,7 @@ mod initial;
 mod load;
 pub mod output;
 mod schema;
+mod traction;
 mod validate;
 
 pub use build::{Built, ExplicitPlan, ImplicitPlan, OutputPlan, Probe, SolverPlan};
@@ -84,5 +85,5 @@ pub use schema::{
     DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InitialStressSpec,
     LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec,
     OutputSpec, PermeabilityLaw, PointLoadSpec, PoreFluidSpec, ProbeSpec, RotationSpec, Scene,
-    SolverKind, SolverSpec, TimeUnit,
+    SolverKind, SolverSpec, TimeUnit, TractionSpec,
 };

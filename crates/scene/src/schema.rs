@@ -38,6 +38,9 @@ pub struct Scene {
     /// Forces on particles (implicit solver only; default: none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub point_loads: Vec<PointLoadSpec>,
+    /// Distributed loads on free surfaces (implicit solver only; default: none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tractions: Vec<TractionSpec>,
     /// Material points whose history the run records (implicit solver only; default:
     /// none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -878,6 +881,33 @@ pub struct PointLoadSpec {
 
 fn default_point_load_count() -> usize {
     1
+}
+
+/// `[[tractions]]` (implicit solver): a distributed load `t` (Pa: force per area of the
+/// surface, per metre of depth in 2D) on the free surface of the bodies that faces `face`.
+///
+/// The loaded particles are, among those inside the box `lo..hi` (default: the grid's
+/// domain), the outermost along the face's normal in each column of particles (particles
+/// with the same coordinates across the normal): the top layer of a body under `face =
+/// "y_max"`, whatever the surface's height. Each carries `t A_p`, with `A_p` its share of the
+/// surface, `∏_{a ≠ n} 2 h_a` (`h` the particle's half-width), as a point load: a dead load,
+/// reached like the point loads (over the load steps, or in the first step of a
+/// consolidation) and fixed in direction and magnitude as the surface moves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSpec {
+    /// The side of the grid the loaded surface faces (its outward normal): `"y_max"` for a
+    /// top surface in 2D, `"z_max"` in 3D.
+    pub face: Face,
+    /// Lower corner of the box that holds the loaded particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lo: Option<Vec<f64>>,
+    /// Upper corner of the box that holds the loaded particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hi: Option<Vec<f64>>,
+    /// The traction `t` (Pa), one component per axis: `[0, -q]` for a downward pressure `q`
+    /// on a top surface in 2D.
+    pub traction: Vec<f64>,
 }
 
 /// `[[probes]]` (implicit solver): the material point nearest a point, whose settlement,

@@ -141,6 +141,7 @@ impl Scene {
         }
         self.check_constraints(&mut c, dim);
         self.check_point_loads(&mut c, dim);
+        self.check_tractions(&mut c, dim);
         self.check_probes(&mut c, dim);
         self.check_friction(&mut c, dim);
         self.check_obstacles(&mut c, dim);
@@ -192,11 +193,11 @@ impl Scene {
             .gravity
             .as_ref()
             .is_some_and(|g| g.iter().any(|&x| x != 0.0));
-        if !gravity && self.point_loads.is_empty() {
+        if !gravity && self.point_loads.is_empty() && self.tractions.is_empty() {
             c.issue(
                 "loads.gravity",
                 "nothing loads the scene: the search reduces the strength until the loading \
-                 fails, so it needs gravity or [[point_loads]]",
+                 fails, so it needs gravity, [[point_loads]] or [[tractions]]",
             );
         }
         for (i, body) in self.bodies.iter().enumerate() {
@@ -703,6 +704,42 @@ impl Scene {
             let Some(dim) = dim else { continue };
             self.check_point_in_domain(c, &format!("{path}.at"), &l.at, dim);
             c.vector(&format!("{path}.force"), &l.force, dim, "components");
+        }
+    }
+
+    fn check_tractions(&self, c: &mut Checker, dim: Option<usize>) {
+        if self.tractions.is_empty() {
+            return;
+        }
+        if self.solver.kind != SolverKind::Implicit {
+            c.issue("tractions", IMPLICIT_ONLY_LOADING);
+            return;
+        }
+        let Some(dim) = dim else { return };
+        for (i, t) in self.tractions.iter().enumerate() {
+            let path = format!("tractions[{i}]");
+            let (axis, _) = t.face.axis_side();
+            if axis >= dim {
+                c.issue(
+                    format!("{path}.face"),
+                    format!("{} is not a face of a {dim}D grid", t.face.name()),
+                );
+            }
+            let lo_ok =
+                t.lo.as_ref()
+                    .is_none_or(|lo| c.coords(&format!("{path}.lo"), lo, dim));
+            let hi_ok =
+                t.hi.as_ref()
+                    .is_none_or(|hi| c.coords(&format!("{path}.hi"), hi, dim));
+            if let (Some(lo), Some(hi), true, true) = (&t.lo, &t.hi, lo_ok, hi_ok)
+                && let Some(a) = (0..dim).find(|&a| lo[a] > hi[a])
+            {
+                c.issue(
+                    format!("{path}.hi[{a}]"),
+                    format!("{} is below lo[{a}] = {}", hi[a], lo[a]),
+                );
+            }
+            c.vector(&format!("{path}.traction"), &t.traction, dim, "components");
         }
     }
 

@@ -5,3 +5,4 @@ mod initial_state;
 mod output;
 mod pore_fluid;
 mod scene_files;
+mod traction;
