@@ -208,6 +208,20 @@ pub const fn coupled_lanes(d: usize) -> usize {
 pub type CoupledTangent = Vec<f64>;
 
 impl<const D: usize> StepSystem<D> {
+    /// Adds the water the inflows bring over the step, `Δt Σ Q N_i(xⁿ)`, to the external side
+    /// of the fluid rows (scaled as the rows are); nothing without a pore fluid.
+    pub(crate) fn add_inflow(&mut self, inflow: &[Inflow]) {
+        let Some(flow) = &self.flow else { return };
+        let weight = flow.dt * flow.scale;
+        for q in inflow {
+            self.frozen[q.particle].stencil.for_each(|node| {
+                if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, D) {
+                    self.f_ext[dof] += sign * node.weight * weight * q.rate;
+                }
+            });
+        }
+    }
+
     /// The pore fluid of this step, if it is coupled.
     fn fluid(&self) -> &Flow {
         self.flow.as_ref().expect("a coupled step")
@@ -649,6 +663,20 @@ pub struct PoreFluid<const D: usize> {
     pub stabilisation: bool,
     /// Time (s) and load factor at the end of each load step.
     pub schedule: Schedule,
+    /// Prescribed flows of water into the soil, constant in time.
+    pub inflow: Vec<Inflow>,
+}
+
+/// A prescribed flow of water into the soil through a free surface, carried by one particle
+/// of the surface: over a step it brings `Δt Q N_i(xⁿ)` to the fluid balance of node `i`
+/// (the natural boundary term `Δt ∫_Γ q̄ N_i dΓ` with the surface lumped on its particles).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Inflow {
+    /// Particle id.
+    pub particle: usize,
+    /// Volume rate `Q = q̄ A_p` into the soil (m³/s; m²/s per metre of depth in 2D); negative
+    /// for an outflow.
+    pub rate: f64,
 }
 
 impl<const D: usize> PoreFluid<D> {

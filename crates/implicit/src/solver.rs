@@ -470,6 +470,7 @@ impl<const D: usize> ImplicitSolver<D> {
         }
         if let Some(fluid) = &cfg.pore_fluid {
             system.flow = Some(self.flow(fluid, p, from, to));
+            system.add_inflow(&fluid.inflow);
         }
         if let Some(dt) = cfg.dynamics {
             let step_dt = dt * cfg.load_steps as f64 * dl;

@@ -463,6 +463,12 @@ impl Scene {
             }
         }
 
+        let mut pore_fluid = self.pore_fluid_plan::<D>(&plan);
+        if let Some(fluid) = pore_fluid.as_mut() {
+            fluid.inflow = self
+                .inflows(&particles)
+                .or_else(|issues| self.issues_to_result(issues).map(|()| Vec::new()))?;
+        }
         let mut point_loads = self.point_loads(&particles);
         point_loads.extend(
             self.traction_loads(&particles)
@@ -502,7 +508,7 @@ impl Scene {
             output: self.output_plan(),
             contact: self.contact::<D>(),
             prestressed: self.bodies.iter().any(|b| b.initial_stress.is_some()),
-            pore_fluid: self.pore_fluid_plan::<D>(&plan),
+            pore_fluid,
         })
     }
 
@@ -564,6 +570,7 @@ impl Scene {
             drained,
             stabilisation: spec.stabilisation,
             schedule,
+            inflow: Vec::new(),
         })
     }
 

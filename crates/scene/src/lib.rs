@@ -82,8 +82,8 @@ pub use estimate::Estimate;
 pub use load::parse_file;
 pub use schema::{
     AxisName, BodyShape, BodySpec, BoundarySpec, ConsolidationSpec, ConstraintSpec,
-    DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InitialStressSpec,
-    LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind, ObstacleSpec,
-    OutputSpec, PermeabilityLaw, PointLoadSpec, PoreFluidSpec, ProbeSpec, RotationSpec, Scene,
-    SolverKind, SolverSpec, TimeUnit, TractionSpec,
+    DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InflowSpec,
+    InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind,
+    ObstacleSpec, OutputSpec, PermeabilityLaw, PointLoadSpec, PoreFluidSpec, ProbeSpec,
+    RotationSpec, Scene, SolverKind, SolverSpec, TimeUnit, TractionSpec,
 };

@@ -500,6 +500,33 @@ pub struct PoreFluidSpec {
     /// `constant`).
     #[serde(default)]
     pub permeability: PermeabilityLaw,
+    /// Prescribed flows of water into the soil through free surfaces (default none: the
+    /// faces that do not drain are impermeable).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inflow: Vec<InflowSpec>,
+}
+
+/// `[[pore_fluid.inflow]]`: a prescribed flux of water `q̄` (m/s: volume per area of surface
+/// and per second) into the soil through the free surface that faces `face`, constant from
+/// `t = 0` on; negative for an outflow (pumping).
+///
+/// The surface is found as for `[[tractions]]`: among the particles in the box `lo..hi`, the
+/// outermost along the face's normal in each column. Each brings `q̄ A_p` (m³/s; m²/s in 2D)
+/// into the nodes of its stencil, `A_p` its share of the surface.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InflowSpec {
+    /// The side of the grid the surface faces (its outward normal): `"y_min"` for the base of
+    /// a 2D body.
+    pub face: Face,
+    /// Lower corner of the box that holds the surface's particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lo: Option<Vec<f64>>,
+    /// Upper corner of the box that holds the surface's particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hi: Option<Vec<f64>>,
+    /// The flux `q̄` into the soil (m/s).
+    pub rate: f64,
 }
 
 /// `pore_fluid.permeability`: the law of the hydraulic conductivity at large strain.

@@ -718,27 +718,7 @@ impl Scene {
         let Some(dim) = dim else { return };
         for (i, t) in self.tractions.iter().enumerate() {
             let path = format!("tractions[{i}]");
-            let (axis, _) = t.face.axis_side();
-            if axis >= dim {
-                c.issue(
-                    format!("{path}.face"),
-                    format!("{} is not a face of a {dim}D grid", t.face.name()),
-                );
-            }
-            let lo_ok =
-                t.lo.as_ref()
-                    .is_none_or(|lo| c.coords(&format!("{path}.lo"), lo, dim));
-            let hi_ok =
-                t.hi.as_ref()
-                    .is_none_or(|hi| c.coords(&format!("{path}.hi"), hi, dim));
-            if let (Some(lo), Some(hi), true, true) = (&t.lo, &t.hi, lo_ok, hi_ok)
-                && let Some(a) = (0..dim).find(|&a| lo[a] > hi[a])
-            {
-                c.issue(
-                    format!("{path}.hi[{a}]"),
-                    format!("{} is below lo[{a}] = {}", hi[a], lo[a]),
-                );
-            }
+            check_surface(c, &path, t.face, (&t.lo, &t.hi), dim);
             c.vector(&format!("{path}.traction"), &t.traction, dim, "components");
         }
     }
@@ -1103,6 +1083,37 @@ const AXES: [&str; 3] = ["x", "y", "z"];
 const IMPLICIT_ONLY_LOADING: &str = "only applied by the implicit solver; set solver.type = \
                                      \"implicit\" or remove them (the explicit solver takes \
                                      [boundaries] and [loads])";
+
+/// The face and the box of a surface (`[[tractions]]`, `[[pore_fluid.inflow]]`) at `path`:
+/// a face of the grid's dimension, corners of `dim` coordinates, `lo ≤ hi`.
+fn check_surface(
+    c: &mut Checker,
+    path: &str,
+    face: crate::schema::Face,
+    (lo, hi): (&Option<Vec<f64>>, &Option<Vec<f64>>),
+    dim: usize,
+) {
+    if face.axis_side().0 >= dim {
+        c.issue(
+            format!("{path}.face"),
+            format!("{} is not a face of a {dim}D grid", face.name()),
+        );
+    }
+    let lo_ok = lo
+        .as_ref()
+        .is_none_or(|lo| c.coords(&format!("{path}.lo"), lo, dim));
+    let hi_ok = hi
+        .as_ref()
+        .is_none_or(|hi| c.coords(&format!("{path}.hi"), hi, dim));
+    if let (Some(lo), Some(hi), true, true) = (lo, hi, lo_ok, hi_ok)
+        && let Some(a) = (0..dim).find(|&a| lo[a] > hi[a])
+    {
+        c.issue(
+            format!("{path}.hi[{a}]"),
+            format!("{} is below lo[{a}] = {}", hi[a], lo[a]),
+        );
+    }
+}
 
 /// Collects issues; the check helpers return `true` when the value passed.
 #[derive(Default)]

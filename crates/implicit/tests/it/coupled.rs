@@ -75,6 +75,7 @@ fn block<const D: usize>(
             drained,
             stabilisation,
             schedule,
+            inflow: Vec::new(),
         }),
     };
     (config, particles)

@@ -53,6 +53,7 @@ impl Scene {
             c.positive("pore_fluid.bulk_modulus", k);
         }
         if let Some(dim) = dim {
+            self.check_inflow(c, dim);
             self.check_water_table(c, dim);
             let mut seen = Vec::new();
             for (i, face) in fluid.drained.iter().enumerate() {
@@ -99,6 +100,16 @@ impl Scene {
     }
 
     /// The water table lies inside the grid, on the last axis.
+    /// `[[pore_fluid.inflow]]`: each surface and a finite rate.
+    fn check_inflow(&self, c: &mut Checker, dim: usize) {
+        let inflow = self.pore_fluid.as_ref().map_or(&[][..], |f| &f.inflow);
+        for (i, q) in inflow.iter().enumerate() {
+            let path = format!("pore_fluid.inflow[{i}]");
+            super::check_surface(c, &path, q.face, (&q.lo, &q.hi), dim);
+            c.finite(&format!("{path}.rate"), q.rate);
+        }
+    }
+
     fn check_water_table(&self, c: &mut Checker, dim: usize) {
         let Some(z) = self.pore_fluid.as_ref().and_then(|f| f.water_table) else {
             return;
