@@ -26,7 +26,8 @@
 //! `S Δp V` (storage `S = 1/M`, zero for incompressible constituents) expel, against the
 //! water that flows out, `Δt ∫ ∇N_i · κ ∇p_e dv` in the end-of-step configuration
 //! (`∇N = ΔF⁻ᵀ ∇ⁿN`, `dv = ΔJ dvⁿ`); faces without a drained condition are impermeable
-//! (the natural condition). The mobility is constant, or follows the porosity of the
+//! (the natural condition), unless water is fed through them ([`Inflow`]) or they drain
+//! as free surfaces that move with the soil ([`SurfaceDrain`]). The mobility is constant, or follows the porosity of the
 //! end-of-step volume `J = Jⁿ ΔJ` by Kozeny–Carman ([`Permeability`]). The fluid rows are scaled by `G_ref/h` and the pressure unknowns
 //! by its inverse ([`Flow::scale`]), so that the two blocks of the residual are forces and
 //! the two blocks of the unknowns lengths, and Newton's tolerances hold for both.
@@ -116,6 +117,9 @@ pub struct FlowFrozen {
     pub hydrostatic: f64,
     /// Stabilisation weight `w_p = Vⁿ_p / G_p` (m³/Pa; m²/Pa in 2D).
     pub weight: f64,
+    /// Leakage `κ A_p / ℓ_p` of a particle on a drained free surface (m³/(Pa·s); m²/(Pa·s)
+    /// in 2D), zero elsewhere ([`SurfaceDrain`]).
+    pub leakage: f64,
 }
 
 /// The pore fluid of a coupled step (module docs).
@@ -182,7 +186,8 @@ pub fn coupled_update<T: Scalar, const D: usize>(
     let momentum = s - dfinv.transpose() * (alpha * p * dj * T::cst(frozen.volume0 * jn));
     let volume = (alpha * (dj - T::one())
         + T::cst(hydraulic.storage) * (excess - T::cst(fluid.excess)))
-        * T::cst(scale * vn);
+        * T::cst(scale * vn)
+        + excess * T::cst(scale * dt * fluid.leakage);
     let mobility = hydraulic.permeability.factor(dj * T::cst(jn))? * T::cst(hydraulic.mobility);
     let flux = dfinv
         * (dfinv.transpose() * grad_p_hat)
@@ -665,6 +670,23 @@ pub struct PoreFluid<const D: usize> {
     pub schedule: Schedule,
     /// Prescribed flows of water into the soil, constant in time.
     pub inflow: Vec<Inflow>,
+    /// The particles of drained free surfaces.
+    pub drains: Vec<SurfaceDrain>,
+}
+
+/// A particle of a drained free surface, which moves with the soil (unlike a drained grid
+/// face). The excess pressure falls to zero across the distance `ℓ_p` from the particle to
+/// the surface, so the water leaves through the particle's share `A_p` of the surface at the
+/// rate `κ A_p p_e / ℓ_p`: over a step it adds `Δt κ (A_p/ℓ_p) p̂_e N_i(xⁿ)` to the fluid
+/// balance of node `i` (a Robin condition that tends to `p_e = 0` on the surface as `ℓ_p`
+/// shrinks with the cell size). The undrained steps at `t = 0` (`Δt = 0`) lose no water.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceDrain {
+    /// Particle id.
+    pub particle: usize,
+    /// `A_p / ℓ_p` (m; dimensionless in 2D, per metre of depth): the particle's share of the
+    /// surface over its distance to it.
+    pub conductance: f64,
 }
 
 /// A prescribed flow of water into the soil through a free surface, carried by one particle

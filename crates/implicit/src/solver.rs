@@ -520,16 +520,21 @@ impl<const D: usize> ImplicitSolver<D> {
             .collect();
         let total: f64 = volume.iter().sum();
         let g_ref = shear.iter().zip(&volume).map(|(g, v)| g * v).sum::<f64>() / total;
-        let particles = (0..p.len())
+        let mut particles: Vec<FlowFrozen> = (0..p.len())
             .map(|i| {
                 let hydrostatic = fluid.hydrostatic(&p.x[i]);
                 FlowFrozen {
                     excess: p.pore_pressure[i] - hydrostatic,
                     hydrostatic,
                     weight: volume[i] / shear[i],
+                    leakage: 0.0,
                 }
             })
             .collect();
+        for d in &fluid.drains {
+            let mobility = fluid.hydraulic[p.material[d.particle] as usize].mobility;
+            particles[d.particle].leakage = mobility * d.conductance;
+        }
         let patches = if fluid.stabilisation {
             let grid = &self.config.grid;
             let origin = grid.origin();

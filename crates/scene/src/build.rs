@@ -468,6 +468,9 @@ impl Scene {
             fluid.inflow = self
                 .inflows(&particles)
                 .or_else(|issues| self.issues_to_result(issues).map(|()| Vec::new()))?;
+            fluid.drains = self
+                .surface_drains(&particles)
+                .or_else(|issues| self.issues_to_result(issues).map(|()| Vec::new()))?;
         }
         let mut point_loads = self.point_loads(&particles);
         point_loads.extend(
@@ -571,6 +574,7 @@ impl Scene {
             stabilisation: spec.stabilisation,
             schedule,
             inflow: Vec::new(),
+            drains: Vec::new(),
         })
     }
 

@@ -504,6 +504,29 @@ pub struct PoreFluidSpec {
     /// faces that do not drain are impermeable).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inflow: Vec<InflowSpec>,
+    /// Free surfaces that drain and move with the soil (default none), beside the drained
+    /// faces of the grid.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub drained_surface: Vec<SurfaceSpec>,
+}
+
+/// `[[pore_fluid.drained_surface]]`: a free surface of the soil that drains, found as for
+/// `[[tractions]]` (among the particles in the box `lo..hi`, the outermost along the face's
+/// normal in each column) and followed as the soil moves: the excess pore pressure falls to
+/// zero across the half-width `ℓ_p` of each of its particles, which lets water out at the
+/// rate `κ A_p p_e / ℓ_p`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceSpec {
+    /// The side of the grid the surface faces (its outward normal): `"y_max"` for the top of
+    /// a 2D body.
+    pub face: Face,
+    /// Lower corner of the box that holds the surface's particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lo: Option<Vec<f64>>,
+    /// Upper corner of the box that holds the surface's particles (m; default: the grid's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hi: Option<Vec<f64>>,
 }
 
 /// `[[pore_fluid.inflow]]`: a prescribed flux of water `q̄` (m/s: volume per area of surface

@@ -1,11 +1,12 @@
 //! Loads and flows through free surfaces: `[[tractions]]` ([`crate::TractionSpec`]) turned into
-//! point loads and `[[pore_fluid.inflow]]` ([`InflowSpec`]) into particle sources, both
-//! carried by the particles of the surface layer.
+//! point loads, `[[pore_fluid.inflow]]` ([`InflowSpec`]) into particle sources and
+//! `[[pore_fluid.drained_surface]]` ([`crate::SurfaceSpec`]) into particle drains, all carried
+//! by the particles of the surface layer.
 
 use crate::error::Issue;
 use crate::schema::{Face, InflowSpec, Scene};
 use loam_core::{Particles, PointLoad};
-use loam_implicit::flow::Inflow;
+use loam_implicit::flow::{Inflow, SurfaceDrain};
 use std::collections::BTreeMap;
 
 /// Relative size of the cells that group particles into columns across a face's normal: two
@@ -70,6 +71,31 @@ impl Scene {
                 .map(|(particle, area)| Inflow {
                     particle,
                     rate: q.rate * area,
+                })
+                .collect())
+        });
+        collect(per_entry)
+    }
+
+    /// The particle drains of every `[[pore_fluid.drained_surface]]` entry, in file order (the
+    /// fields must be valid and of dimension `D`), or the entries that reach no particle.
+    pub(crate) fn surface_drains<const D: usize>(
+        &self,
+        particles: &Particles<f64, D>,
+    ) -> Result<Vec<SurfaceDrain>, Vec<Issue>> {
+        let specs = self
+            .pore_fluid
+            .as_ref()
+            .map_or(&[][..], |f| &f.drained_surface);
+        let per_entry = specs.iter().enumerate().map(|(i, d)| {
+            let surface = self.surface(d.face, &d.lo, &d.hi);
+            let layer = surface.layer(particles, &format!("pore_fluid.drained_surface[{i}]"))?;
+            let (normal, _) = d.face.axis_side();
+            Ok(layer
+                .into_iter()
+                .map(|(particle, area)| SurfaceDrain {
+                    particle,
+                    conductance: area / particles.half_width0[particle][normal],
                 })
                 .collect())
         });

@@ -76,6 +76,7 @@ fn block<const D: usize>(
             stabilisation,
             schedule,
             inflow: Vec::new(),
+            drains: Vec::new(),
         }),
     };
     (config, particles)

@@ -100,13 +100,22 @@ impl Scene {
     }
 
     /// The water table lies inside the grid, on the last axis.
-    /// `[[pore_fluid.inflow]]`: each surface and a finite rate.
+    /// `[[pore_fluid.inflow]]` (each surface and a finite rate) and
+    /// `[[pore_fluid.drained_surface]]` (each surface).
     fn check_inflow(&self, c: &mut Checker, dim: usize) {
         let inflow = self.pore_fluid.as_ref().map_or(&[][..], |f| &f.inflow);
         for (i, q) in inflow.iter().enumerate() {
             let path = format!("pore_fluid.inflow[{i}]");
             super::check_surface(c, &path, q.face, (&q.lo, &q.hi), dim);
             c.finite(&format!("{path}.rate"), q.rate);
+        }
+        let drains = self
+            .pore_fluid
+            .as_ref()
+            .map_or(&[][..], |f| &f.drained_surface);
+        for (i, d) in drains.iter().enumerate() {
+            let path = format!("pore_fluid.drained_surface[{i}]");
+            super::check_surface(c, &path, d.face, (&d.lo, &d.hi), dim);
         }
     }
 
