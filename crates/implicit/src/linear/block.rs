@@ -1,5 +1,5 @@
 //! Block preconditioner of the coupled displacement–pressure (u–p) systems:
-//! [`Preconditioner::Block`](super::Preconditioner::Block).
+//! [`Preconditioner::Block`].
 //!
 //! With the unknowns split into displacements `u` and pore pressures `p`, the tangent of a
 //! coupled step is the 2 × 2 block matrix
@@ -12,8 +12,11 @@
 //! (`A_uu` the skeleton's stiffness, `A_up = −α Bᵀ`-like and `A_pu = α B`-like the Biot
 //! couplings, `A_pp` the storage, the Darcy flow over the step and the pressure
 //! stabilisation; see [`crate::flow`]). It is not symmetric, and near the undrained limit
-//! (`Δt κ → 0`, no storage) `A_pp` nearly vanishes, so point or incomplete factorisations of
-//! the whole matrix break down.
+//! (`Δt κ → 0`, no storage) `A_pp` is only the small stabilisation term. Preconditioners of
+//! the whole matrix do not scale: on the Q1–Q1 systems of `block_tests` (3D, 6³ → 12³
+//! elements) GMRES with ILU(0) needs 24 → 47 iterations, and with the AMG, which coarsens
+//! displacements and pressures as one field, 57 → 893 in the undrained limit; with this
+//! preconditioner 27 → 30.
 //!
 //! # The preconditioner
 //!
