@@ -12,7 +12,7 @@
 //! (`x_{D−1} = 0`) and the top face (`x_{D−1} = 1`) is drained (`p = 0`); the rest is free and
 //! impermeable. Material: `E` = 20 MPa, `ν` = 0.3 (`G` ≈ 7.7 MPa), `α` = 1, incompressible
 //! constituents (`S` = 0, the hardest case for the pressure block), `Δt` = 1 s and mobilities
-//! `κ` from 1e-12 to 1e-4 m²/(Pa·s), so `Δt κ G / h²` spans 1e-4 … 1e5 on these grids: from
+//! `κ` from 1e-12 to 1e-4 m²/(Pa·s), so `Δt κ G / h²` spans 2e-4 … 8e5 on these grids: from
 //! undrained steps, where the pressure block is the stabilisation alone, to drained ones,
 //! where it is a Laplacian.
 
