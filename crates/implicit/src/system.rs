@@ -4,7 +4,9 @@
 use crate::dofs::{DofMap, NodeDof, Tie};
 use crate::flow::Flow;
 use crate::kernel::{Frozen, delta_f, particle_stress};
-use crate::linear::{LinearError, LinearSolver, NearNullspace, SparseMatrix, SparsePattern};
+use crate::linear::{
+    BlockSplit, LinearError, LinearSolver, NearNullspace, SparseMatrix, SparsePattern,
+};
 use loam_core::tensor::{Tensor, Vector, det};
 use loam_core::{Grid, Material, Stencil};
 use nalgebra::Matrix3;
@@ -461,21 +463,40 @@ impl<const D: usize> StepSystem<D> {
     /// The rigid-body modes of the unknowns at their owner nodes' positions (the
     /// near-nullspace of the tangent, for the AMG preconditioner).
     pub fn near_nullspace(&self) -> NearNullspace {
-        let unknowns: Vec<(usize, usize)> =
-            (0..self.len()).map(|d| self.dofs.owner_of(d)).collect();
-        NearNullspace::rigid_body::<D>(&unknowns, |flat| {
-            let x: Vector<f64, D> = self.grid.node_position(self.grid.multi(flat));
-            std::array::from_fn(|a| x[a])
-        })
+        NearNullspace::rigid_body::<D>(&self.owners(), |flat| self.node_position(flat))
     }
 
-    /// Hands `linear` the near-nullspace of this step's unknowns when its method uses one (the
-    /// AMG preconditioner), so that every solve of the step (Newton's, and the adjoint's
-    /// transposed ones) coarsens with the rigid-body modes.
+    /// The displacement–pressure split of a coupled step's unknowns (component `D` the pore
+    /// pressure), with the rigid-body modes of the displacement unknowns at their owner nodes'
+    /// positions: what the block preconditioner needs besides the tangent.
+    pub fn block_split(&self) -> BlockSplit {
+        BlockSplit::new::<D>(&self.owners(), |flat| self.node_position(flat))
+    }
+
+    /// Hands `linear` what its preconditioner needs besides the tangent: the near-nullspace of
+    /// this step's unknowns (the AMG preconditioner of a solid step), or the
+    /// displacement–pressure split (the block preconditioner; none in a step without pore
+    /// fluid, whose solves then fail with `LinearError::NoBlockSplit`), so that every solve
+    /// of the step (Newton's, and the adjoint's transposed ones) uses them.
     pub fn prepare(&self, linear: &mut LinearSolver) {
-        if linear.kind().uses_near_nullspace() && self.flow.is_none() {
+        let kind = linear.kind();
+        if kind.uses_near_nullspace() && self.flow.is_none() {
             linear.set_near_nullspace(Some(self.near_nullspace()));
         }
+        if kind.uses_block_split() {
+            linear.set_block_split(self.flow.as_ref().map(|_| self.block_split()));
+        }
+    }
+
+    /// The owner (node, component) of every unknown, in order.
+    fn owners(&self) -> Vec<(usize, usize)> {
+        (0..self.len()).map(|d| self.dofs.owner_of(d)).collect()
+    }
+
+    /// The coordinates of grid node `flat`.
+    fn node_position(&self, flat: usize) -> [f64; D] {
+        let x: Vector<f64, D> = self.grid.node_position(self.grid.multi(flat));
+        std::array::from_fn(|a| x[a])
     }
 
     /// Position in the value array of entry (row unknown, column unknown); both are owners.

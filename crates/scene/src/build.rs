@@ -151,6 +151,11 @@ impl LinearSpec {
                 rel_tol,
                 max_iter,
             },
+            LinearKind::Gmres => LinearSolverKind::Gmres {
+                preconditioner,
+                rel_tol,
+                max_iter,
+            },
         }
     }
 }

@@ -832,7 +832,7 @@ impl Default for NewtonSpec {
 /// `[solver.linear]`: the linear solver of the Newton corrections.
 ///
 /// `preconditioner`, `rel_tol` and `max_iterations` belong to the iterative solvers (`cg`,
-/// `bicgstab`) and are errors on the direct ones; [`LinearSpec::solver`] fills in their
+/// `bicgstab`, `gmres`) and are errors on the direct ones; [`LinearSpec::solver`] fills in their
 /// defaults.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -864,12 +864,14 @@ pub enum LinearKind {
     Cg,
     /// Preconditioned BiCGSTAB (iterative; any non-singular matrix).
     Bicgstab,
+    /// Restarted right-preconditioned GMRES (iterative; any non-singular matrix).
+    Gmres,
 }
 
 impl LinearKind {
     /// Whether the method is iterative (takes a preconditioner and a tolerance).
     pub fn is_iterative(self) -> bool {
-        matches!(self, Self::Cg | Self::Bicgstab)
+        matches!(self, Self::Cg | Self::Bicgstab | Self::Gmres)
     }
 }
 

@@ -950,7 +950,7 @@ impl Scene {
                     if given {
                         c.issue(
                             format!("solver.linear.{key}"),
-                            "only used by the iterative solvers \"cg\" and \"bicgstab\"; \
+                            "only used by the iterative solvers \"cg\", \"bicgstab\" and \"gmres\"; \
                              remove it or change solver.linear.type",
                         );
                     }

@@ -11,8 +11,8 @@ use super::precond::PrecondState;
 use super::*;
 
 /// Young's modulus and Poisson's ratio of the test material.
-const YOUNG: f64 = 1.0;
-const POISSON: f64 = 0.3;
+pub(super) const YOUNG: f64 = 1.0;
+pub(super) const POISSON: f64 = 0.3;
 
 /// Stiffness matrix of the elements of a `k^D` grid (see the module documentation) and the
 /// rigid-body modes of its unknowns.
@@ -22,7 +22,7 @@ struct Elasticity {
 }
 
 /// The `2^D` corners of the reference cell `[0, 1]^D`, lexicographic.
-fn corners<const D: usize>() -> Vec<[usize; D]> {
+pub(super) fn corners<const D: usize>() -> Vec<[usize; D]> {
     (0..1 << D)
         .map(|v| std::array::from_fn(|a| (v >> a) & 1))
         .collect()
@@ -31,7 +31,7 @@ fn corners<const D: usize>() -> Vec<[usize; D]> {
 /// Element stiffness of a cube of side `h` (`2^D` corners × `D` components, corner-major):
 /// `K_(v,i)(w,j) = Σ_g w_g h^D [λ ∂_i N_v ∂_j N_w + μ (∇N_v·∇N_w δ_ij + ∂_j N_v ∂_i N_w)]` with
 /// the tensor-product Q1 shape functions and 2-point Gauss rules per axis (exact here).
-fn element_stiffness<const D: usize>(h: f64) -> Vec<Vec<f64>> {
+pub(super) fn element_stiffness<const D: usize>(h: f64) -> Vec<Vec<f64>> {
     let lambda = YOUNG * POISSON / ((1.0 + POISSON) * (1.0 - 2.0 * POISSON));
     let mu = YOUNG / (2.0 * (1.0 + POISSON));
     let corners = corners::<D>();
@@ -221,7 +221,7 @@ fn precondition(state: &PrecondState, a: &SparseMatrix, v: &[f64], transpose: bo
 fn amg_state(a: &SparseMatrix, modes: &NearNullspace) -> PrecondState {
     let mut state =
         PrecondState::new(Preconditioner::Amg, &a.pattern).expect("no structural check");
-    state.factorize(a, Some(modes)).expect("AMG setup");
+    state.factorize(a, Some(modes), None).expect("AMG setup");
     state
 }
 

@@ -138,7 +138,7 @@ pub(super) fn solve_bicgstab(
 
 /// The error of a solve that hit the iteration limit, with the true residual of the last
 /// iterate (faer's error carries the initial one).
-fn not_converged(
+pub(super) fn not_converged(
     a: &SparseMatrix,
     b: &[f64],
     x: &[f64],

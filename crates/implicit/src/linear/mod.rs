@@ -1,8 +1,9 @@
 //! Sparse linear algebra of the Newton solver: a fixed per-step [`SparsePattern`], the
 //! [`SparseMatrix`] refilled on it at every iteration, and a [`LinearSolver`] that solves
 //! `A x = b` or `Aᵀ x = b` with faer's sparse LU or Cholesky (symbolic analysis reused while the
-//! pattern stays the same) or with faer's preconditioned CG / BiCGSTAB (identity, Jacobi,
-//! ILU(0) or smoothed-aggregation AMG preconditioner).
+//! pattern stays the same), with faer's preconditioned CG / BiCGSTAB or with restarted GMRES
+//! ([`gmres`]), preconditioned by the identity, Jacobi, ILU(0), smoothed-aggregation AMG or,
+//! for the coupled u–p systems, the block preconditioner of [`block`].
 //!
 //! Everything runs sequentially ([`faer::Par::Seq`]): faer's parallel dense kernels split some
 //! reductions by thread count, which would make the results depend on the machine.
@@ -10,7 +11,11 @@
 pub mod amg;
 #[cfg(test)]
 mod amg_tests;
+pub mod block;
+#[cfg(test)]
+mod block_tests;
 mod direct;
+pub mod gmres;
 mod krylov;
 mod pattern;
 mod precond;
@@ -22,6 +27,7 @@ use std::sync::Arc;
 use faer::Par;
 
 pub use amg::NearNullspace;
+pub use block::BlockSplit;
 pub use pattern::{SparseMatrix, SparsePattern};
 pub use precond::Preconditioner;
 
@@ -66,62 +72,77 @@ pub enum LinearSolverKind {
         /// Iteration limit.
         max_iter: usize,
     },
+    /// Right-preconditioned GMRES restarted every [`gmres::RESTART`] iterations ([`gmres`]);
+    /// any non-singular matrix.
+    Gmres {
+        /// Preconditioner.
+        preconditioner: Preconditioner,
+        /// Stop when `‖b − A x‖ < rel_tol ‖b‖`.
+        rel_tol: f64,
+        /// Iteration limit.
+        max_iter: usize,
+    },
 }
+
+/// [`LinearSolverKind::name`] of the Krylov methods: row CG, BiCGSTAB, GMRES; column by
+/// preconditioner in the order of [`Preconditioner`]'s variants.
+const KRYLOV_NAMES: [[&str; 5]; 3] = [
+    ["CG", "CG+Jacobi", "CG+ILU(0)", "CG+AMG", "CG+block"],
+    [
+        "BiCGSTAB",
+        "BiCGSTAB+Jacobi",
+        "BiCGSTAB+ILU(0)",
+        "BiCGSTAB+AMG",
+        "BiCGSTAB+block",
+    ],
+    [
+        "GMRES",
+        "GMRES+Jacobi",
+        "GMRES+ILU(0)",
+        "GMRES+AMG",
+        "GMRES+block",
+    ],
+];
 
 impl LinearSolverKind {
     /// Short name used in reports and errors, e.g. `"CG+ILU(0)"`.
     pub fn name(self) -> &'static str {
-        use Preconditioner::{Amg, Identity, Ilu0, Jacobi};
+        let (method, preconditioner) = match self {
+            Self::Lu => return "LU",
+            Self::Cholesky => return "Cholesky",
+            Self::Cg { preconditioner, .. } => (0, preconditioner),
+            Self::Bicgstab { preconditioner, .. } => (1, preconditioner),
+            Self::Gmres { preconditioner, .. } => (2, preconditioner),
+        };
+        let column = match preconditioner {
+            Preconditioner::Identity => 0,
+            Preconditioner::Jacobi => 1,
+            Preconditioner::Ilu0 => 2,
+            Preconditioner::Amg => 3,
+            Preconditioner::Block => 4,
+        };
+        KRYLOV_NAMES[method][column]
+    }
+
+    /// The preconditioner of an iterative method (`None` for a direct one).
+    pub fn preconditioner(self) -> Option<Preconditioner> {
         match self {
-            Self::Lu => "LU",
-            Self::Cholesky => "Cholesky",
-            Self::Cg {
-                preconditioner: Identity,
-                ..
-            } => "CG",
-            Self::Cg {
-                preconditioner: Jacobi,
-                ..
-            } => "CG+Jacobi",
-            Self::Cg {
-                preconditioner: Ilu0,
-                ..
-            } => "CG+ILU(0)",
-            Self::Cg {
-                preconditioner: Amg,
-                ..
-            } => "CG+AMG",
-            Self::Bicgstab {
-                preconditioner: Identity,
-                ..
-            } => "BiCGSTAB",
-            Self::Bicgstab {
-                preconditioner: Jacobi,
-                ..
-            } => "BiCGSTAB+Jacobi",
-            Self::Bicgstab {
-                preconditioner: Ilu0,
-                ..
-            } => "BiCGSTAB+ILU(0)",
-            Self::Bicgstab {
-                preconditioner: Amg,
-                ..
-            } => "BiCGSTAB+AMG",
+            Self::Lu | Self::Cholesky => None,
+            Self::Cg { preconditioner, .. }
+            | Self::Bicgstab { preconditioner, .. }
+            | Self::Gmres { preconditioner, .. } => Some(preconditioner),
         }
     }
 
     /// Whether the method uses a near-nullspace ([`LinearSolver::set_near_nullspace`]).
     pub fn uses_near_nullspace(self) -> bool {
-        matches!(
-            self,
-            Self::Cg {
-                preconditioner: Preconditioner::Amg,
-                ..
-            } | Self::Bicgstab {
-                preconditioner: Preconditioner::Amg,
-                ..
-            }
-        )
+        self.preconditioner() == Some(Preconditioner::Amg)
+    }
+
+    /// Whether the method needs the displacement–pressure split of the unknowns
+    /// ([`LinearSolver::set_block_split`]).
+    pub fn uses_block_split(self) -> bool {
+        self.preconditioner() == Some(Preconditioner::Block)
     }
 
     /// Whether the method needs a symmetric matrix.
@@ -205,10 +226,17 @@ pub enum LinearError {
         /// First row without a diagonal entry.
         row: usize,
     },
+    /// The block preconditioner was not given the displacement–pressure split of the unknowns
+    /// (a system without pore pressures).
+    #[error(
+        "the block preconditioner needs a coupled displacement–pressure system (a pore fluid); \
+         use another preconditioner for the solid alone"
+    )]
+    NoBlockSplit,
     /// A preconditioner divides by zero.
     #[error("{preconditioner} preconditioner: zero pivot in row {row}")]
     ZeroPivot {
-        /// `"Jacobi"`, `"ILU(0)"` or `"AMG"`.
+        /// `"Jacobi"`, `"ILU(0)"`, `"AMG"` or `"block"`.
         preconditioner: &'static str,
         /// Row of the zero diagonal entry or pivot (for the AMG, a row of the level where it
         /// was met: the finest, a coarse one or the coarsest's dense LU).
@@ -236,8 +264,15 @@ enum Orientation {
 enum Backend {
     Lu(direct::Lu),
     Cholesky(direct::Cholesky),
-    Cg(PrecondState, KrylovParams),
-    Bicgstab(PrecondState, KrylovParams),
+    Krylov(Krylov, PrecondState, KrylovParams),
+}
+
+/// The Krylov methods.
+#[derive(Clone, Copy, Debug)]
+enum Krylov {
+    Cg,
+    Bicgstab,
+    Gmres,
 }
 
 /// The per-pattern state and the pattern it belongs to.
@@ -256,6 +291,7 @@ pub struct LinearSolver {
     analysis: Option<Analysis>,
     symbolic_analyses: usize,
     near_nullspace: Option<Arc<NearNullspace>>,
+    block_split: Option<Arc<BlockSplit>>,
 }
 
 impl LinearSolver {
@@ -266,6 +302,7 @@ impl LinearSolver {
             analysis: None,
             symbolic_analyses: 0,
             near_nullspace: None,
+            block_split: None,
         }
     }
 
@@ -276,6 +313,15 @@ impl LinearSolver {
     /// The solves that follow panic if its size differs from that of their matrix.
     pub fn set_near_nullspace(&mut self, near_nullspace: Option<NearNullspace>) {
         self.near_nullspace = near_nullspace.map(Arc::new);
+    }
+
+    /// Gives the displacement–pressure split of the next matrices, for the block
+    /// preconditioner ([`BlockSplit`]); `None` (a system without pore pressures) makes its
+    /// solves fail with [`LinearError::NoBlockSplit`]. The other methods ignore it.
+    ///
+    /// The solves that follow panic if its size differs from that of their matrix.
+    pub fn set_block_split(&mut self, block_split: Option<BlockSplit>) {
+        self.block_split = block_split.map(Arc::new);
     }
 
     /// The kind of solver.
@@ -347,6 +393,7 @@ impl LinearSolver {
         }
 
         let near_nullspace = self.near_nullspace.clone();
+        let block_split = self.block_split.clone();
         let iterations = match self.backend(&a.pattern)? {
             Backend::Lu(lu) => {
                 lu.solve(a, b, x, orientation)?;
@@ -357,13 +404,14 @@ impl LinearSolver {
                 llt.solve(a, b, x)?;
                 1
             }
-            Backend::Cg(state, params) => {
-                state.factorize(a, near_nullspace.as_deref())?;
-                krylov::solve_cg(state, a, b, x, orientation, *params)?
-            }
-            Backend::Bicgstab(state, params) => {
-                state.factorize(a, near_nullspace.as_deref())?;
-                krylov::solve_bicgstab(state, a, b, x, orientation, *params)?
+            Backend::Krylov(method, state, params) => {
+                state.factorize(a, near_nullspace.as_deref(), block_split.as_deref())?;
+                let solve = match method {
+                    Krylov::Cg => krylov::solve_cg,
+                    Krylov::Bicgstab => krylov::solve_bicgstab,
+                    Krylov::Gmres => gmres::solve,
+                };
+                solve(state, a, b, x, orientation, *params)?
             }
         };
 
@@ -393,6 +441,15 @@ impl LinearSolver {
                 // Free the old factorisation before building the new one.
                 drop(stale);
                 let method = self.kind.name();
+                let iterative = |method_kind, preconditioner, rel_tol, max_iter| {
+                    let params = KrylovParams {
+                        method,
+                        rel_tol,
+                        max_iter,
+                    };
+                    PrecondState::new(preconditioner, pattern)
+                        .map(|state| Backend::Krylov(method_kind, state, params))
+                };
                 let backend = match self.kind {
                     LinearSolverKind::Lu => Backend::Lu(direct::Lu::analyse(pattern)?),
                     LinearSolverKind::Cholesky => {
@@ -402,26 +459,17 @@ impl LinearSolver {
                         preconditioner,
                         rel_tol,
                         max_iter,
-                    } => Backend::Cg(
-                        PrecondState::new(preconditioner, pattern)?,
-                        KrylovParams {
-                            method,
-                            rel_tol,
-                            max_iter,
-                        },
-                    ),
+                    } => iterative(Krylov::Cg, preconditioner, rel_tol, max_iter)?,
                     LinearSolverKind::Bicgstab {
                         preconditioner,
                         rel_tol,
                         max_iter,
-                    } => Backend::Bicgstab(
-                        PrecondState::new(preconditioner, pattern)?,
-                        KrylovParams {
-                            method,
-                            rel_tol,
-                            max_iter,
-                        },
-                    ),
+                    } => iterative(Krylov::Bicgstab, preconditioner, rel_tol, max_iter)?,
+                    LinearSolverKind::Gmres {
+                        preconditioner,
+                        rel_tol,
+                        max_iter,
+                    } => iterative(Krylov::Gmres, preconditioner, rel_tol, max_iter)?,
                 };
                 self.symbolic_analyses += 1;
                 Analysis {

@@ -1,11 +1,13 @@
-//! Preconditioners of the Krylov solvers: identity, Jacobi, ILU(0) and smoothed-aggregation
-//! AMG, with solves by `M` and by `Mᵀ` (for the transposed systems of the adjoints).
+//! Preconditioners of the Krylov solvers: identity, Jacobi, ILU(0), smoothed-aggregation
+//! AMG and the u–p block preconditioner, with solves by `M` and by `Mᵀ` (for the transposed
+//! systems of the adjoints).
 
 use super::amg::{Amg, NearNullspace};
+use super::block::{Block, BlockSplit};
 use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
 /// Preconditioner of an iterative solver (in a scene file: `"identity"`, `"jacobi"`, `"ilu0"`,
-/// the default, or `"amg"`).
+/// the default, `"amg"` or `"block"`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preconditioner {
@@ -22,6 +24,12 @@ pub enum Preconditioner {
     /// [`LinearSolver::set_near_nullspace`](super::LinearSolver::set_near_nullspace): an
     /// iteration count nearly independent of the mesh for elasticity-like systems.
     Amg,
+    /// The block upper-triangular preconditioner of a coupled displacement–pressure system
+    /// (see [`super::block`]): `M = [[Ã_uu, A_up], [0, S̃]]` with one AMG V-cycle for
+    /// `Ã_uu⁻¹` and one for `S̃⁻¹`, `S̃ = A_pp − diag(A_pu diag(A_uu)⁻¹ A_up)`, the split handed
+    /// over by [`LinearSolver::set_block_split`](super::LinearSolver::set_block_split). Not
+    /// symmetric: for BiCGSTAB and GMRES.
+    Block,
 }
 
 /// Marks a row that is not in the column currently being eliminated.
@@ -47,6 +55,8 @@ pub(super) enum PrecondState {
     },
     /// The multigrid hierarchy (built by [`PrecondState::factorize`]).
     Amg(Option<Amg>),
+    /// The blocks and their preconditioners (built by [`PrecondState::factorize`]).
+    Block(Option<Box<Block>>),
 }
 
 impl PrecondState {
@@ -71,15 +81,18 @@ impl PrecondState {
                 marker: vec![UNSET; n],
             },
             Preconditioner::Amg => Self::Amg(None),
+            Preconditioner::Block => Self::Block(None),
         })
     }
 
     /// Computes the preconditioner of `a` (whose pattern is the one given to [`Self::new`]);
-    /// only the AMG uses `near_nullspace`.
+    /// only the AMG uses `near_nullspace`, and only the block preconditioner `block_split`
+    /// (without which it fails with [`LinearError::NoBlockSplit`]).
     pub(super) fn factorize(
         &mut self,
         a: &SparseMatrix,
         near_nullspace: Option<&NearNullspace>,
+        block_split: Option<&BlockSplit>,
     ) -> Result<(), LinearError> {
         match self {
             Self::Identity => Ok(()),
@@ -106,6 +119,12 @@ impl PrecondState {
                 *hierarchy = Some(Amg::new(a, near_nullspace)?);
                 Ok(())
             }
+            Self::Block(blocks) => {
+                *blocks = None;
+                let split = block_split.ok_or(LinearError::NoBlockSplit)?;
+                *blocks = Some(Box::new(Block::new(a, split)?));
+                Ok(())
+            }
         }
     }
 
@@ -126,6 +145,10 @@ impl PrecondState {
             Self::Amg(hierarchy) => hierarchy
                 .as_ref()
                 .expect("the hierarchy is built by `factorize`")
+                .apply(orientation, z),
+            Self::Block(blocks) => blocks
+                .as_ref()
+                .expect("the blocks are built by `factorize`")
                 .apply(orientation, z),
         }
     }

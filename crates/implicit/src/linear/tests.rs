@@ -108,6 +108,14 @@ fn bicgstab(preconditioner: Preconditioner) -> LinearSolverKind {
     }
 }
 
+fn gmres(preconditioner: Preconditioner) -> LinearSolverKind {
+    LinearSolverKind::Gmres {
+        preconditioner,
+        rel_tol: 1e-10,
+        max_iter: 1000,
+    }
+}
+
 /// Solves with `kind` (plain or transposed) and checks the solution against the dense LU solve.
 fn check_against_dense(a: &SparseMatrix, kind: LinearSolverKind, transpose: bool) {
     let n = a.pattern.n();
@@ -124,9 +132,11 @@ fn check_against_dense(a: &SparseMatrix, kind: LinearSolverKind, transpose: bool
     let err = relative_error(&x, &dense_solve(a, &b, transpose));
     let bound = match kind {
         LinearSolverKind::Lu | LinearSolverKind::Cholesky => 1e-10,
-        LinearSolverKind::Cg { rel_tol, .. } | LinearSolverKind::Bicgstab { rel_tol, .. } => {
+        LinearSolverKind::Cg { rel_tol, .. }
+        | LinearSolverKind::Bicgstab { rel_tol, .. }
+        | LinearSolverKind::Gmres { rel_tol, .. } => {
             // faer stops on its recursively updated residual; the true one may differ by
-            // round-off only.
+            // round-off only (GMRES stops on the true one).
             assert!(
                 stats.relative_residual <= 1.01 * rel_tol,
                 "{}: {stats:?}",
@@ -194,7 +204,10 @@ fn every_solver_matches_dense_on_poisson() {
 #[test]
 fn nonsymmetric_solvers_match_dense_on_convection_diffusion() {
     let a = convection_diffusion(12);
-    for kind in std::iter::once(LinearSolverKind::Lu).chain(PRECONDITIONERS.map(bicgstab)) {
+    for kind in std::iter::once(LinearSolverKind::Lu)
+        .chain(PRECONDITIONERS.map(bicgstab))
+        .chain(PRECONDITIONERS.map(gmres))
+    {
         check_against_dense(&a, kind, false);
     }
 }
@@ -202,13 +215,48 @@ fn nonsymmetric_solvers_match_dense_on_convection_diffusion() {
 #[test]
 fn transpose_solves_match_dense() {
     let a = convection_diffusion(12);
-    for kind in std::iter::once(LinearSolverKind::Lu).chain(PRECONDITIONERS.map(bicgstab)) {
+    for kind in std::iter::once(LinearSolverKind::Lu)
+        .chain(PRECONDITIONERS.map(bicgstab))
+        .chain(PRECONDITIONERS.map(gmres))
+    {
         check_against_dense(&a, kind, true);
     }
     // Symmetric solvers: Aᵀ = A.
     let a = poisson(12);
     for kind in std::iter::once(LinearSolverKind::Cholesky).chain(PRECONDITIONERS.map(cg)) {
         check_against_dense(&a, kind, true);
+    }
+}
+
+/// Unpreconditioned GMRES on a 900-unknown convection–diffusion system needs several restart
+/// cycles of [`gmres::RESTART`] steps; the restarted solves, plain and transposed, still match
+/// the dense LU solve within `κ(A)` times the relative residual.
+#[test]
+fn restarted_gmres_matches_dense() {
+    let a = convection_diffusion(30);
+    for transpose in [false, true] {
+        let n = a.pattern.n();
+        let b = rhs(n);
+        let mut x = vec![0.0; n];
+        let kind = gmres(Preconditioner::Identity);
+        let mut solver = LinearSolver::new(kind);
+        let stats = if transpose {
+            solver.solve_transpose(&a, &b, &mut x)
+        } else {
+            solver.solve(&a, &b, &mut x)
+        }
+        .expect("converges");
+        assert!(
+            stats.iterations > 2 * gmres::RESTART,
+            "restarted: {stats:?}"
+        );
+        assert!(stats.relative_residual <= 1e-10, "{stats:?}");
+        let err = relative_error(&x, &dense_solve(&a, &b, transpose));
+        let bound = condition_number(&a) * stats.relative_residual + 1e-12;
+        assert!(
+            err <= bound,
+            "transpose {transpose}: {err:.2e} > {bound:.2e}"
+        );
     }
 }
 
@@ -403,7 +451,7 @@ fn ilu0_of_a_tridiagonal_matrix_is_exact() {
     ] {
         let mut state =
             PrecondState::new(Preconditioner::Ilu0, &a.pattern).expect("diagonal present");
-        state.factorize(&a, None).expect("non-zero pivots");
+        state.factorize(&a, None, None).expect("non-zero pivots");
         let (l, u) = dense_factors(&a, &state);
         assert!((&l * &u - a.to_dense()).abs().max() < 1e-14);
         let mut x = vec![0.0; n];
@@ -421,7 +469,7 @@ fn ilu0_reproduces_the_matrix_on_its_pattern() {
         let mut state =
             PrecondState::new(Preconditioner::Ilu0, &a.pattern).expect("diagonal present");
         state
-            .factorize(&a, None)
+            .factorize(&a, None, None)
             .expect("M-matrix: positive pivots");
         let (l, u) = dense_factors(&a, &state);
         let lu = &l * &u;
@@ -500,6 +548,7 @@ fn empty_system() {
     for kind in kinds
         .chain(PRECONDITIONERS.map(cg))
         .chain(PRECONDITIONERS.map(bicgstab))
+        .chain(PRECONDITIONERS.map(gmres))
     {
         let stats = LinearSolver::new(kind)
             .solve(&a, &[], &mut [])

@@ -31,6 +31,15 @@ impl Scene {
                     "only used with a [pore_fluid] section; remove it or add the section",
                 );
             }
+            if (self.solver.linear.as_ref()).is_some_and(|l| {
+                l.kind.is_iterative() && l.preconditioner == Some(Preconditioner::Block)
+            }) {
+                c.issue(
+                    "solver.linear.preconditioner",
+                    "\"block\" splits the unknowns into displacements and pore pressures and \
+                     needs a [pore_fluid] section; use \"ilu0\" or \"amg\" for the solid alone",
+                );
+            }
             return;
         };
         if self.solver.kind != SolverKind::Implicit {
@@ -181,13 +190,18 @@ impl Scene {
         if let Some(l) = &s.linear {
             let refused = match l.kind {
                 LinearKind::Cg | LinearKind::Cholesky => Some(
-                    "the coupled system is not symmetric positive definite; use \"lu\" or \
-                     \"bicgstab\"",
+                    "the coupled system is not symmetric positive definite; use \"lu\", \
+                     \"bicgstab\" or \"gmres\"",
                 ),
-                LinearKind::Bicgstab if l.preconditioner == Some(Preconditioner::Amg) => Some(
-                    "the AMG preconditioner is for the displacement block of a solid; use \
-                     \"ilu0\" or \"jacobi\" with a pore fluid, or \"lu\"",
-                ),
+                LinearKind::Bicgstab | LinearKind::Gmres
+                    if l.preconditioner == Some(Preconditioner::Amg) =>
+                {
+                    Some(
+                        "the AMG preconditioner is for the displacement block of a solid; use \
+                         \"block\" (AMG on the displacements within a block preconditioner), \
+                         \"ilu0\" or \"jacobi\" with a pore fluid, or \"lu\"",
+                    )
+                }
                 _ => None,
             };
             if let Some(msg) = refused {

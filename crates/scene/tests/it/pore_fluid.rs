@@ -52,6 +52,42 @@ fn the_terzaghi_example_builds_a_coupled_run() {
     assert_eq!(plan.load_steps, 1);
 }
 
+/// `[solver.linear]` with GMRES or BiCGSTAB and the block preconditioner is accepted on a
+/// coupled scene and reaches the solver.
+#[test]
+fn the_block_preconditioner_is_accepted_with_a_pore_fluid() {
+    use loam_implicit::linear::{LinearSolverKind, Preconditioner};
+    let (_, text) = example();
+    for (method, kind) in [
+        (
+            "gmres",
+            LinearSolverKind::Gmres {
+                preconditioner: Preconditioner::Block,
+                rel_tol: 1e-8,
+                max_iter: 1000,
+            },
+        ),
+        (
+            "bicgstab",
+            LinearSolverKind::Bicgstab {
+                preconditioner: Preconditioner::Block,
+                rel_tol: 1e-8,
+                max_iter: 1000,
+            },
+        ),
+    ] {
+        let linear = format!(
+            "load_steps = 1\nlinear = {{ type = \"{method}\", preconditioner = \"block\", \
+             rel_tol = 1e-8 }}"
+        );
+        assert!(text.contains("load_steps = 1"));
+        let scene = Scene::from_toml_str(&text.replacen("load_steps = 1", &linear, 1))
+            .unwrap_or_else(|e| panic!("{method}: {e}"));
+        let config = scene.build::<2>().unwrap().implicit_config().unwrap();
+        assert_eq!(config.newton.linear, kind);
+    }
+}
+
 #[test]
 fn times_are_in_the_consolidation_unit() {
     let (_, text) = example();
@@ -166,6 +202,17 @@ fn coupled_rules_name_the_field() {
         (
             "load_steps = 1",
             "load_steps = 1\nlinear = \"cg\"",
+            "solver.linear: the coupled system is not symmetric positive definite",
+        ),
+        (
+            "load_steps = 1",
+            "load_steps = 1\nlinear = { type = \"gmres\", preconditioner = \"amg\" }",
+            "solver.linear: the AMG preconditioner is for the displacement block of a solid; \
+             use \"block\"",
+        ),
+        (
+            "load_steps = 1",
+            "load_steps = 1\nlinear = { type = \"cg\", preconditioner = \"block\" }",
             "solver.linear: the coupled system is not symmetric positive definite",
         ),
         (

@@ -317,6 +317,13 @@ const BAD: &[(&str, &[&str])] = &[
         ],
     ),
     (
+        "block_without_pore_fluid.toml",
+        &[
+            "solver.linear.preconditioner: \"block\" splits the unknowns into displacements and \
+             pore pressures and needs a [pore_fluid] section",
+        ],
+    ),
+    (
         "friction_on_free_face.toml",
         &[
             "friction[0].wall: friction needs a unilateral slip wall on y_min, which is not \
@@ -1118,12 +1125,12 @@ fn implicit_rules_name_the_field() {
         (
             "type = \"cg\"",
             "type = \"lu\"",
-            r#"solver.linear.preconditioner: only used by the iterative solvers "cg" and "bicgstab""#,
+            r#"solver.linear.preconditioner: only used by the iterative solvers "cg", "bicgstab" and "gmres""#,
         ),
         (
             "type = \"cg\"",
-            "type = \"gmres\"",
-            "solver.linear.type: unknown variant `gmres`",
+            "type = \"minres\"",
+            "solver.linear.type: unknown variant `minres`",
         ),
         (
             "max_iterations = 500",
