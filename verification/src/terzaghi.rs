@@ -274,18 +274,26 @@ pub(crate) fn undrained_loading(
     Ok(particles)
 }
 
+/// A column scene (one cell wide, loaded on its top by its first point load) on cells of
+/// `cell` m: the column and the grid widened to one cell, the load kept per unit width.
+pub(crate) fn coarsen_column(scene: &mut Scene, cell: f64) {
+    let widening = cell / (scene.grid.hi[0] - scene.grid.lo[0]);
+    let height = scene.grid.hi[1];
+    scene.grid.cell_size = cell;
+    scene.grid.hi[0] = scene.grid.lo[0] + cell;
+    scene.bodies[0].shape = loam_scene::BodyShape::Box {
+        lo: vec![scene.grid.lo[0], 0.0],
+        hi: vec![scene.grid.hi[0], height],
+    };
+    scene.point_loads[0].at[0] = scene.grid.lo[0] + 0.5 * cell;
+    scene.point_loads[0].force[1] *= widening;
+}
+
 /// Runs the case.
 pub fn run(size: Size, out: &Path) -> Result<CaseReport, VerifyError> {
     let mut scene = scenes::scene("terzaghi");
     if size == Size::Reduced {
-        scene.grid.cell_size = 0.25;
-        scene.grid.hi[0] = 0.25;
-        scene.bodies[0].shape = loam_scene::BodyShape::Box {
-            lo: vec![0.0, 0.0],
-            hi: vec![0.25, 10.0],
-        };
-        scene.point_loads[0].at[0] = 0.125;
-        scene.point_loads[0].force[1] *= 2.5;
+        coarsen_column(&mut scene, 0.25);
     }
     let column = Column::of(&scene);
     let base = scene
