@@ -36,7 +36,12 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>, max_steps: StepLimi
     };
     let (particles, steps, warnings) = match checked {
         Ok(c) => c,
-        Err(msg) => {
+        // The scene's own errors name the file already.
+        Err(Refused::Scene(e)) => {
+            eprintln!("error: {e}");
+            return Outcome::BadInput;
+        }
+        Err(Refused::Solver(msg)) => {
             eprintln!("error: {}: {msg}", path.display());
             return Outcome::BadInput;
         }
@@ -73,11 +78,25 @@ pub fn check(path: &Path, memory_limit: Option<MemoryLimit>, max_steps: StepLimi
 
 /// Builds the scene and makes the solver's checks: the particle count, the estimated steps
 /// (explicit) and the warnings, or the problem.
+/// Why [`check_dim`] refused a scene.
+enum Refused {
+    /// The scene does not build (its error names the file).
+    Scene(loam_scene::SceneError),
+    /// The solver's checks failed.
+    Solver(String),
+}
+
+impl From<String> for Refused {
+    fn from(msg: String) -> Self {
+        Self::Solver(msg)
+    }
+}
+
 fn check_dim<const D: usize>(
     scene: &Scene,
     max_steps: StepLimit,
-) -> Result<(usize, Option<f64>, Vec<String>), String> {
-    let built: Built<D> = scene.build().map_err(|e| e.to_string())?;
+) -> Result<(usize, Option<f64>, Vec<String>), Refused> {
+    let built: Built<D> = scene.build().map_err(Refused::Scene)?;
     let n = built.particles.len();
     match built.plan {
         SolverPlan::Explicit(plan) => {

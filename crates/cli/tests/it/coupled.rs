@@ -111,6 +111,31 @@ fn a_water_table_above_the_grid_is_refused_with_exit_2() {
     }
 }
 
+/// A drained surface whose box holds no particle is refused with exit 2 by `check` and `run`,
+/// the field named once after the file's name.
+#[test]
+fn an_empty_drained_surface_is_refused_with_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = short_terzaghi(dir.path());
+    let scene = std::fs::read_to_string(&path).unwrap().replace(
+        "drained = [\"y_max\"]",
+        "drained_surface = [{ face = \"y_max\", lo = [0.0, 10.5], hi = [0.1, 11.0] }]",
+    );
+    std::fs::write(&path, scene).unwrap();
+    let file = path.display().to_string();
+    for cmd in ["check", "run"] {
+        let out = loam(&[cmd, path.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
+        assert!(
+            err.contains(&format!(
+                "error: {file}: pore_fluid.drained_surface[0]: no particle lies in the box"
+            )),
+            "{cmd}: {err}"
+        );
+    }
+}
+
 /// The Mandel example (examples/consolidation/mandel.toml) on cells of 0.1 m to t = 1 s:
 /// the force-controlled plate's settlement is in the summary, at the undrained plate
 /// settlement `F(1 − ν_u) b/(2Ga)` after the loading and growing as the sides drain.
