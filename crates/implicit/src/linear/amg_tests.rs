@@ -21,6 +21,44 @@ struct Elasticity {
     modes: NearNullspace,
 }
 
+/// Assembles the element matrix `ke` of every element of a `k^D`-element grid (its rows and
+/// columns `fields` per corner, corners in the order of `corners`) into a matrix over the
+/// `n` unknowns `dof[node · fields + c]` (`None`: fixed); `flat` numbers the nodes.
+pub(super) fn assemble<const D: usize>(
+    k: usize,
+    fields: usize,
+    ke: &[Vec<f64>],
+    corners: &[[usize; D]],
+    flat: impl Fn([usize; D]) -> usize,
+    dof: &[Option<usize>],
+    n: usize,
+) -> SparseMatrix {
+    let mut triplets = Vec::new();
+    for element in 0..k.pow(D as u32) {
+        let origin: [usize; D] = std::array::from_fn(|a| element / k.pow(a as u32) % k);
+        let element_dofs: Vec<Option<usize>> = (corners.iter())
+            .flat_map(|v| {
+                let node = flat(std::array::from_fn(|a| origin[a] + v[a]));
+                (0..fields).map(move |c| node * fields + c)
+            })
+            .map(|g| dof[g])
+            .collect();
+        for (r, row) in element_dofs.iter().enumerate() {
+            for (c, col) in element_dofs.iter().enumerate() {
+                if let (Some(row), Some(col)) = (row, col) {
+                    triplets.push((*row, *col, ke[r][c]));
+                }
+            }
+        }
+    }
+    let pattern = SparsePattern::new(n, triplets.iter().map(|&(r, c, _)| (r, c)));
+    let mut a = SparseMatrix::zeros(Arc::new(pattern));
+    for (r, c, v) in triplets {
+        a.add(r, c, v);
+    }
+    a
+}
+
 /// The `2^D` corners of the reference cell `[0, 1]^D`, lexicographic.
 pub(super) fn corners<const D: usize>() -> Vec<[usize; D]> {
     (0..1 << D)
@@ -95,30 +133,7 @@ impl Elasticity {
         }
         let ke = element_stiffness::<D>(h);
         let corners = corners::<D>();
-        let mut triplets = Vec::new();
-        for element in 0..k.pow(D as u32) {
-            let origin: [usize; D] = std::array::from_fn(|a| element / k.pow(a as u32) % k);
-            let element_dofs: Vec<Option<usize>> = (corners.iter())
-                .flat_map(|v| {
-                    let node = flat(std::array::from_fn(|a| origin[a] + v[a]));
-                    (0..D).map(move |c| node * D + c)
-                })
-                .map(|g| dof[g])
-                .collect();
-            for (r, row) in element_dofs.iter().enumerate() {
-                for (c, col) in element_dofs.iter().enumerate() {
-                    if let (Some(row), Some(col)) = (row, col) {
-                        triplets.push((*row, *col, ke[r][c]));
-                    }
-                }
-            }
-        }
-        let n = unknowns.len();
-        let pattern = SparsePattern::new(n, triplets.iter().map(|&(r, c, _)| (r, c)));
-        let mut a = SparseMatrix::zeros(Arc::new(pattern));
-        for (r, c, v) in triplets {
-            a.add(r, c, v);
-        }
+        let a = assemble(k, D, &ke, &corners, flat, &dof, unknowns.len());
         let modes = NearNullspace::rigid_body::<D>(&unknowns, |node| {
             let idx = multi(node);
             std::array::from_fn(|a| idx[a] as f64 * h)

@@ -16,9 +16,7 @@
 //! undrained steps, where the pressure block is the stabilisation alone, to drained ones,
 //! where it is a Laplacian.
 
-use std::sync::Arc;
-
-use super::amg_tests::{POISSON, YOUNG, corners, element_stiffness};
+use super::amg_tests::{POISSON, YOUNG, assemble, corners, element_stiffness};
 use super::*;
 
 const E: f64 = 20e6;
@@ -124,30 +122,7 @@ impl Biot {
                     scale * scale * integral_n[q] * integral_n[r] / (volume * shear);
             }
         }
-        let mut triplets = Vec::new();
-        for element in 0..k.pow(D as u32) {
-            let origin: [usize; D] = std::array::from_fn(|a| element / k.pow(a as u32) % k);
-            let element_dofs: Vec<Option<usize>> = (corners.iter())
-                .flat_map(|v| {
-                    let node = flat(std::array::from_fn(|a| origin[a] + v[a]));
-                    (0..=D).map(move |c| node * (D + 1) + c)
-                })
-                .map(|g| dof[g])
-                .collect();
-            for (r, row) in element_dofs.iter().enumerate() {
-                for (c, col) in element_dofs.iter().enumerate() {
-                    if let (Some(row), Some(col)) = (row, col) {
-                        triplets.push((*row, *col, ke[r][c]));
-                    }
-                }
-            }
-        }
-        let n = unknowns.len();
-        let pattern = SparsePattern::new(n, triplets.iter().map(|&(r, c, _)| (r, c)));
-        let mut a = SparseMatrix::zeros(Arc::new(pattern));
-        for (r, c, v) in triplets {
-            a.add(r, c, v);
-        }
+        let a = assemble(k, D + 1, &ke, &corners, flat, &dof, unknowns.len());
         let split = BlockSplit::new::<D>(&unknowns, |node| {
             let idx = multi(node);
             std::array::from_fn(|a| idx[a] as f64 * h)
