@@ -1,6 +1,7 @@
 //! Coupled (u–p) scenes: `[pore_fluid]`, the hydraulic keys of the materials and
 //! `[solver.consolidation]`, built from the Terzaghi example and refused with the field named.
 
+use crate::traction::coupled_column;
 use loam_scene::{Scene, SolverPlan};
 use std::path::Path;
 
@@ -335,30 +336,14 @@ end_time = 86400.0
 /// lifts the skeleton: the total vertical stress stays zero, so `σ′_yy = α p` (tension).
 #[test]
 fn a_prescribed_inflow_through_the_base_drives_steady_seepage() {
-    let text = r#"
-[grid]
-lo = [0.0, 0.0]
-hi = [0.5, 2.0]
-cell_size = 0.125
-shape_function = "linear"
-
-[[materials]]
-name = "soil"
-model = "linear_elastic"
-density = 1.0
-youngs_modulus = 1.0e7
-poisson_ratio = 0.25
-hydraulic_conductivity = 9.81e-6
-
-[[bodies]]
-material = "soil"
-shape = { type = "box", lo = [0.0, 0.0], hi = [0.5, 2.0] }
-particles_per_cell = 2
-
-[boundaries]
-x_min = "slip"
-x_max = "slip"
-y_min = "fixed"
+    let text = coupled_column(
+        2.0,
+        "hydraulic_conductivity = 9.81e-6",
+        r#"
+[solver.consolidation]
+time_step = 1.0
+growth = 1.3
+end_time = 5000.0                # c_v t/H² = 180: steady
 
 [pore_fluid]
 drained = ["y_max"]
@@ -366,17 +351,9 @@ drained = ["y_max"]
 [[pore_fluid.inflow]]
 face = "y_min"
 rate = 1.0e-7
-
-[solver]
-type = "implicit"
-load_steps = 1
-
-[solver.consolidation]
-time_step = 1.0
-growth = 1.3
-end_time = 5000.0                # c_v t/H² = 180: steady
-"#;
-    let built = Scene::from_toml_str(text).unwrap().build::<2>().unwrap();
+"#,
+    );
+    let built = Scene::from_toml_str(&text).unwrap().build::<2>().unwrap();
     // One inflow per column of particles at the base, 0.0625 m of surface each.
     let inflow = &built.pore_fluid.as_ref().unwrap().inflow;
     assert_eq!(inflow.len(), 8);

@@ -4,9 +4,15 @@
 use loam_implicit::ImplicitSolver;
 use loam_scene::Scene;
 
-/// A column 0.5 m wide and `height` high of linear elastic soil (E = 10 MPa, ν = 0.25)
-/// between slip walls on a fixed base, with `extra` TOML appended.
-fn column(height: f64, extra: &str) -> String {
+/// A column 0.5 m wide and `height` high of linear elastic soil (E = 10 MPa, ν = 0.25) on
+/// cells of 0.125 m with linear shape functions, between slip walls on a fixed base, with
+/// `extra` TOML appended (and, for [`coupled_column`], more keys in its material).
+pub(crate) fn column(height: f64, extra: &str) -> String {
+    coupled_column(height, "", extra)
+}
+
+/// [`column`] with `material` added to the material's table (e.g. a hydraulic conductivity).
+pub(crate) fn coupled_column(height: f64, material: &str, extra: &str) -> String {
     format!(
         r#"
 [grid]
@@ -21,6 +27,7 @@ model = "linear_elastic"
 density = 1.0
 youngs_modulus = 1.0e7
 poisson_ratio = 0.25
+{material}
 
 [[bodies]]
 material = "soil"
