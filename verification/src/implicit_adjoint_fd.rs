@@ -19,7 +19,17 @@
 //! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
 //!   density (which now also sets the inertia); the loss tracks the tip's deflection and
-//!   velocity after every time step and the clamp's vertical reaction after the last.
+//!   velocity after every time step and the clamp's vertical reaction after the last;
+//! - `implicit_consolidation`, coupled u–p: a strip load on a saturated elastic layer under a
+//!   water table, applied undrained and held while the layer drains through its top surface
+//!   (a drained free surface) over 10 steps growing by 2 (the pressure stabilisation on);
+//!   unknowns E, ν, the hydraulic conductivity, one point of the strip's load and gravity;
+//!   the loss tracks the settlement under the strip and the pore pressures of two piezometers
+//!   under it after every step;
+//! - `implicit_consolidation_clay`, the same on prestressed Modified Cam-Clay (K0 = 0.6, OCR
+//!   = 1.5), which yields under the strip as it drains, and whose shear modulus, the
+//!   stabilisation's weight, follows its mean effective stress: unknowns λ, κ, the
+//!   conductivity, the OCR and K0.
 //!
 //! Observations are recorded from a run at the scene's values and the gradient is taken 5 %
 //! away from them (alternating signs), so the loss and its gradient are not zero. Full size
@@ -249,6 +259,48 @@ fn clay_footing() -> Result<Outcome, VerifyError> {
     )
 }
 
+/// The particle of `initial` nearest to `at`.
+fn nearest(initial: &Particles<f64, 2>, at: [f64; 2]) -> usize {
+    (0..initial.len())
+        .min_by(|&a, &b| {
+            let d = |p: usize| (initial.x[p][0] - at[0]).abs() + (initial.x[p][1] - at[1]).abs();
+            d(a).total_cmp(&d(b))
+        })
+        .expect("particles")
+}
+
+/// The strip load on a saturated layer (coupled u–p, scene `file`) with respect to
+/// `params`: the settlement under the strip's centre and the pore pressures of two
+/// piezometers under it after every step.
+fn consolidation(
+    label: &'static str,
+    file: &str,
+    params: Vec<ImplicitParam>,
+) -> Result<Outcome, VerifyError> {
+    let built = scenes::build::<2>(&scenes::scene(file));
+    let config = built
+        .implicit_config()
+        .expect("the scene's solver is implicit");
+    let initial = built.particles;
+    let surface = nearest(&initial, [0.0, 1.0]);
+    let piezometers = [nearest(&initial, [0.0, 0.6]), nearest(&initial, [0.0, 0.3])];
+    let mut quantities = Vec::new();
+    for step in 1..=config.load_steps {
+        quantities.push((step, Quantity::displacement(surface, 1), 1e-4));
+        for &particle in &piezometers {
+            quantities.push((step, Quantity::PorePressure { particle }, 100.0));
+        }
+    }
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params,
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem(label, &problem)
+}
+
 /// The cantilever in Newmark dynamics over the scene's 0.2 s in `steps` time steps: E, ν, the
 /// tip load, the density.
 fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
@@ -282,6 +334,28 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         j2_footing()?,
         newmark(newmark_steps)?,
         clay_footing()?,
+        consolidation(
+            "consolidation (u–p)",
+            "implicit_consolidation",
+            vec![
+                ImplicitParam::Material(0, MaterialField::Young),
+                ImplicitParam::Material(0, MaterialField::Poisson),
+                ImplicitParam::Conductivity(0),
+                ImplicitParam::PointLoad(0, 1),
+                ImplicitParam::Gravity(1),
+            ],
+        )?,
+        consolidation(
+            "clay consolidation (u–p)",
+            "implicit_consolidation_clay",
+            vec![
+                ImplicitParam::Material(0, MaterialField::Lambda),
+                ImplicitParam::Material(0, MaterialField::Kappa),
+                ImplicitParam::Conductivity(0),
+                ImplicitParam::Material(0, MaterialField::Ocr),
+                ImplicitParam::K0(0),
+            ],
+        )?,
     ];
     let mut metrics = Vec::new();
     let mut md = String::from(

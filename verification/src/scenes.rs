@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 31] = [
+pub const SCENES: [CaseScene; 33] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -70,6 +70,8 @@ pub const SCENES: [CaseScene; 31] = [
     case_scene!("implicit_cantilever"),
     case_scene!("implicit_footing"),
     case_scene!("implicit_clay_footing"),
+    case_scene!("implicit_consolidation"),
+    case_scene!("implicit_consolidation_clay"),
     case_scene!("implicit_cantilever_newmark"),
 ];
 

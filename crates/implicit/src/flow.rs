@@ -51,7 +51,7 @@
 //! need the pressure pattern one node wider, `StepSystem::new`.)
 
 use crate::dofs::NodeDof;
-use crate::kernel::{Frozen, particle_stress};
+use crate::kernel::stress_update;
 use crate::linear::SparseMatrix;
 use crate::system::{Inverted, Materials, StepSystem};
 use loam_core::tensor::{Tensor, Vector, det, inverse};
@@ -59,19 +59,32 @@ use loam_core::{Material, Scalar};
 use nalgebra::Matrix3;
 use num_dual::DualSVec64;
 
-/// The hydraulic properties of a porous material.
+/// The hydraulic properties of a porous material, in scalar type `T` (`f64` in the solver; a
+/// dual number where a gradient by them is taken).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hydraulic {
+pub struct Hydraulic<T = f64> {
     /// Mobility `κ = k/γ_w` (m²/(Pa·s)): the hydraulic conductivity `k` (m/s) over the unit
     /// weight of water `γ_w` (N/m³).
-    pub mobility: f64,
+    pub mobility: T,
     /// Biot coefficient `α` (1 for incompressible grains).
-    pub biot: f64,
+    pub biot: T,
     /// Storage `S = 1/M = n/K_w + (α − n)/K_s` (1/Pa); zero for incompressible water and
     /// grains.
-    pub storage: f64,
+    pub storage: T,
     /// How the mobility follows the volume change.
     pub permeability: Permeability,
+}
+
+impl Hydraulic<f64> {
+    /// The properties as constants of scalar type `T`.
+    pub fn lift<T: Scalar>(&self) -> Hydraulic<T> {
+        Hydraulic {
+            mobility: T::cst(self.mobility),
+            biot: T::cst(self.biot),
+            storage: T::cst(self.storage),
+            permeability: self.permeability,
+        }
+    }
 }
 
 /// How a material's mobility follows its volume change at large strain.
@@ -108,18 +121,30 @@ impl Permeability {
     }
 }
 
-/// The pore fluid of one particle, frozen over a step.
+/// The pore fluid of one particle, frozen over a step, in scalar type `T` (as [`Hydraulic`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FlowFrozen {
+pub struct FlowFrozen<T = f64> {
     /// Excess pore pressure at the start of the step, `p_eⁿ` (Pa).
-    pub excess: f64,
+    pub excess: T,
     /// Hydrostatic pressure at the start-of-step position, `p_h(xⁿ)` (Pa).
-    pub hydrostatic: f64,
+    pub hydrostatic: T,
     /// Stabilisation weight `w_p = Vⁿ_p / G_p` (m³/Pa; m²/Pa in 2D).
-    pub weight: f64,
+    pub weight: T,
     /// Leakage `κ A_p / ℓ_p` of a particle on a drained free surface (m³/(Pa·s); m²/(Pa·s)
     /// in 2D), zero elsewhere ([`SurfaceDrain`]).
-    pub leakage: f64,
+    pub leakage: T,
+}
+
+impl FlowFrozen<f64> {
+    /// The frozen data as constants of scalar type `T`.
+    pub fn lift<T: Scalar>(&self) -> FlowFrozen<T> {
+        FlowFrozen {
+            excess: T::cst(self.excess),
+            hydrostatic: T::cst(self.hydrostatic),
+            weight: T::cst(self.weight),
+            leakage: T::cst(self.leakage),
+        }
+    }
 }
 
 /// The pore fluid of a coupled step (module docs).
@@ -161,37 +186,58 @@ pub struct Coupled<T: Scalar, const D: usize> {
     pub excess: T,
 }
 
+/// The start-of-step state of a particle that the coupled kernel reads, in scalar type `T`
+/// (the solver's frozen `f64` values lifted, or duals where the adjoint differentiates by
+/// them).
+#[derive(Clone, Copy, Debug)]
+pub struct CoupledStart<'a, T: Scalar, const D: usize> {
+    /// Deformation gradient `Fⁿ`.
+    pub f_n: &'a Tensor<T, D>,
+    /// Constitutive history.
+    pub history: &'a loam_core::MaterialState<T>,
+    /// Reference volume `V⁰`.
+    pub volume0: f64,
+    /// The pore fluid's frozen data.
+    pub fluid: &'a FlowFrozen<T>,
+}
+
 /// The coupled kernel of one particle (module docs) for the trial `ΔF`, the interpolated
 /// pressure unknown `p̂` and its gradient `∇ⁿp̂`; `None` if `ΔF` inverts the particle.
 #[allow(clippy::too_many_arguments)]
 pub fn coupled_update<T: Scalar, const D: usize>(
     material: &Material<T>,
-    frozen: &Frozen<D>,
-    hydraulic: &Hydraulic,
-    fluid: &FlowFrozen,
+    start: &CoupledStart<'_, T, D>,
+    hydraulic: &Hydraulic<T>,
     dt: f64,
     scale: f64,
     delta_f: &Tensor<T, D>,
     p_hat: T,
     grad_p_hat: &Vector<T, D>,
 ) -> Option<Coupled<T, D>> {
-    let (s, tau, state) = particle_stress(material, frozen, delta_f)?;
+    let fluid = start.fluid;
+    let (s, tau, state) = stress_update(
+        material,
+        start.f_n,
+        start.history,
+        T::cst(start.volume0),
+        delta_f,
+    )?;
     let dj = det(delta_f);
-    let jn = det(&frozen.f_n);
-    let vn = frozen.volume0 * jn;
+    let jn = det(start.f_n);
+    let vn = jn * T::cst(start.volume0);
     let excess = p_hat * T::cst(scale);
-    let p = excess + T::cst(fluid.hydrostatic);
+    let p = excess + fluid.hydrostatic;
     let dfinv = inverse(delta_f)?;
-    let alpha = T::cst(hydraulic.biot);
-    let momentum = s - dfinv.transpose() * (alpha * p * dj * T::cst(frozen.volume0 * jn));
-    let volume = (alpha * (dj - T::one())
-        + T::cst(hydraulic.storage) * (excess - T::cst(fluid.excess)))
-        * T::cst(scale * vn)
-        + excess * T::cst(scale * dt * fluid.leakage);
-    let mobility = hydraulic.permeability.factor(dj * T::cst(jn))? * T::cst(hydraulic.mobility);
+    let alpha = hydraulic.biot;
+    let momentum = s - dfinv.transpose() * (alpha * p * dj * vn);
+    let volume = (alpha * (dj - T::one()) + hydraulic.storage * (excess - fluid.excess))
+        * vn
+        * T::cst(scale)
+        + excess * fluid.leakage * T::cst(scale * dt);
+    let mobility = hydraulic.permeability.factor(dj * jn)? * hydraulic.mobility;
     let flux = dfinv
         * (dfinv.transpose() * grad_p_hat)
-        * (dj * mobility * T::cst(scale * scale * dt * vn));
+        * (dj * mobility * vn * T::cst(scale * scale * dt));
     Some(Coupled {
         momentum,
         volume,
@@ -269,9 +315,13 @@ impl<const D: usize> StepSystem<D> {
         let fr = &self.frozen[p];
         coupled_update(
             &mats[fr.material],
-            fr,
-            &flow.hydraulic[fr.material],
-            &flow.particles[p],
+            &CoupledStart {
+                f_n: &fr.f_n.map(T::cst),
+                history: &fr.state.lift(),
+                volume0: fr.volume0,
+                fluid: &flow.particles[p].lift(),
+            },
+            &flow.hydraulic[fr.material].lift(),
             flow.dt,
             flow.scale,
             delta_f,

@@ -133,6 +133,28 @@ pub struct ObservationsSpec {
     /// Implicit: the observed reactions.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub reactions: Vec<ReactionSpec>,
+    /// Implicit, coupled: CSV of pore pressures after load steps (`step, piezometer,
+    /// pore_pressure`; Pa, compression positive).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pore_pressure: Option<PathBuf>,
+    /// Implicit, coupled: the standard deviation `σ` of every pore pressure (Pa; default 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pore_pressure_sigma: Option<f64>,
+    /// Implicit, coupled: the piezometers.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub piezometers: Vec<PiezometerSpec>,
+}
+
+/// `[[observations.piezometers]]` (coupled implicit scenes): a piezometer, which reads the
+/// pore pressure of the particle nearest to `at` in the initial state (as a run's
+/// `[[probes]]` do) and follows it as the soil deforms.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PiezometerSpec {
+    /// Its name in the pore-pressure CSV.
+    pub name: String,
+    /// Where it is (m), `D` numbers.
+    pub at: Vec<f64>,
 }
 
 /// `[[observations.reactions]]` (implicit scenes): the reaction force of a constraint
@@ -613,6 +635,9 @@ pub fn build<const D: usize>(
         ("reaction", o.reaction.is_some()),
         ("reaction_sigma", o.reaction_sigma.is_some()),
         ("reactions", !o.reactions.is_empty()),
+        ("pore_pressure", o.pore_pressure.is_some()),
+        ("pore_pressure_sigma", o.pore_pressure_sigma.is_some()),
+        ("piezometers", !o.piezometers.is_empty()),
     ] {
         if given {
             issue(

@@ -1,6 +1,7 @@
 //! An inversion file on an implicit scene (`[solver] type = "implicit"`): quasi-static
-//! load steps, parameters of the implicit path ([`ImplicitParam`]), observations of particle
-//! displacements and constraint reactions after chosen load steps
+//! load steps (the time steps of a coupled u–p scene), parameters of the implicit path
+//! ([`ImplicitParam`]), observations of particle displacements, constraint reactions and (in
+//! a coupled scene) piezometers' pore pressures after chosen load steps
 //! (`docs/inversion-format.md`).
 
 use super::Limits;
@@ -71,7 +72,14 @@ pub fn build<const D: usize>(
                 .into(),
         );
     }
+    let coupled = config.pore_fluid.is_some();
     match file.steps {
+        Some(_) if coupled => issue(
+            "steps".into(),
+            "a coupled (u–p) scene's steps are its [solver.consolidation] schedule's; set the \
+             steps there"
+                .into(),
+        ),
         Some(0) => issue("steps".into(), "expected at least 1 load step".into()),
         Some(steps) => config.load_steps = steps,
         None => {}
@@ -128,6 +136,7 @@ pub fn build<const D: usize>(
     for (field, sigma) in [
         ("displacement_sigma", o.displacement_sigma),
         ("reaction_sigma", o.reaction_sigma),
+        ("pore_pressure_sigma", o.pore_pressure_sigma),
     ] {
         if let Some(v) = sigma
             && !(v.is_finite() && v > 0.0)
@@ -171,11 +180,13 @@ pub fn build<const D: usize>(
             Some(_) => {}
         }
     }
+    let piezometers = piezometers(o, &built.particles, coupled, &mut issue);
     match &file.synthetic {
         Some(s) => {
             for field in observed_with_synthetic(&[
                 ("displacement", o.displacement.is_some()),
                 ("reaction", o.reaction.is_some()),
+                ("pore_pressure", o.pore_pressure.is_some()),
             ]) {
                 issue(field, SYNTHETIC_CLASH.into());
             }
@@ -205,11 +216,15 @@ pub fn build<const D: usize>(
                 );
             }
             check_ids(s, n, &mut issue);
-            if s.particles == 0 && s.ids.is_empty() && o.reactions.is_empty() {
+            if s.particles == 0
+                && s.ids.is_empty()
+                && o.reactions.is_empty()
+                && o.piezometers.is_empty()
+            {
                 issue(
                     "synthetic.particles".into(),
                     "nothing to observe: choose particles (`particles`, `ids`) or define \
-                     [[observations.reactions]]"
+                     [[observations.reactions]] or [[observations.piezometers]]"
                         .into(),
                 );
             }
@@ -218,10 +233,11 @@ pub fn build<const D: usize>(
             }
         }
         None => {
-            if o.displacement.is_none() && o.reaction.is_none() {
+            if o.displacement.is_none() && o.reaction.is_none() && o.pore_pressure.is_none() {
                 issue(
                     "observations".into(),
-                    "expected `displacement` or `reaction` (a CSV file), or a [synthetic] section"
+                    "expected `displacement`, `reaction` or `pore_pressure` (a CSV file), or a \
+                     [synthetic] section"
                         .into(),
                 );
             }
@@ -231,13 +247,19 @@ pub fn build<const D: usize>(
                     "the reaction file needs [[observations.reactions]]".into(),
                 );
             }
+            if o.pore_pressure.is_some() && o.piezometers.is_empty() {
+                issue(
+                    "observations.piezometers".into(),
+                    "the pore-pressure file needs [[observations.piezometers]]".into(),
+                );
+            }
         }
     }
     // The length of the run and the memory of its record, before a step is run.
     let rows = file.synthetic.as_ref().map_or(0, |s| {
         let every = s.every.unwrap_or(1).max(1);
         let first = s.first.unwrap_or(every);
-        let per_step = tracked_ids(n, s).len() * D + o.reactions.len();
+        let per_step = tracked_ids(n, s).len() * D + o.reactions.len() + o.piezometers.len();
         limits::observed_steps(first, every, config.load_steps) * per_step
     });
     let bytes = limits::implicit::<D>(config.load_steps, n, rows as f64);
@@ -258,10 +280,11 @@ pub fn build<const D: usize>(
         observations: ImplicitObservations::default(),
     };
     let steps = problem.config.load_steps;
-    let sigmas = (
-        o.displacement_sigma.unwrap_or(1.0),
-        o.reaction_sigma.unwrap_or(1.0),
-    );
+    let sigmas = Sigmas {
+        displacement: o.displacement_sigma.unwrap_or(1.0),
+        reaction: o.reaction_sigma.unwrap_or(1.0),
+        pore_pressure: o.pore_pressure_sigma.unwrap_or(1.0),
+    };
     let reactions: Vec<(usize, usize)> =
         o.reactions.iter().map(|r| (r.constraint, r.axis)).collect();
     problem.observations.items = match &file.synthetic {
@@ -281,7 +304,7 @@ pub fn build<const D: usize>(
                             particle,
                             component,
                         };
-                        items.push((step, quantity, sigmas.0));
+                        items.push((step, quantity, sigmas.displacement));
                     }
                 }
                 for &(constraint, component) in &reactions {
@@ -289,7 +312,11 @@ pub fn build<const D: usize>(
                         constraint,
                         component,
                     };
-                    items.push((step, quantity, sigmas.1));
+                    items.push((step, quantity, sigmas.reaction));
+                }
+                for &particle in &piezometers {
+                    let quantity = Quantity::PorePressure { particle };
+                    items.push((step, quantity, sigmas.pore_pressure));
                 }
             }
             (items.into_iter())
@@ -305,7 +332,7 @@ pub fn build<const D: usize>(
                 domain: (scene.grid.lo.clone(), scene.grid.hi.clone()),
                 cell: scene.grid.cell_size,
             };
-            read_observations::<D>(path, &file, &grid, sigmas, &reactions)?
+            read_observations::<D>(path, &file, &grid, &sigmas, &reactions, &piezometers)?
         }
     };
     let initial = file.parameters.iter().map(|p| p.initial).collect();
@@ -320,6 +347,7 @@ pub fn build<const D: usize>(
         problem: Model::Implicit {
             problem,
             scene_params,
+            piezometers,
         },
         truth,
         truth_initial: None,
@@ -366,15 +394,77 @@ fn solver_param<const D: usize>(
     Ok((named, solver))
 }
 
+/// The standard deviations of the observations, by kind.
+struct Sigmas {
+    displacement: f64,
+    reaction: f64,
+    pore_pressure: f64,
+}
+
+/// The particle each `[[observations.piezometers]]` entry reads: the nearest to its `at` in
+/// the initial state. Issues name the field (a piezometer on a dry scene, a position of the
+/// wrong length or outside every body's reach, a name given twice).
+fn piezometers<const D: usize>(
+    o: &super::file::ObservationsSpec,
+    particles: &Particles<f64, D>,
+    coupled: bool,
+    issue: &mut impl FnMut(String, String),
+) -> Vec<usize> {
+    if !coupled {
+        for (field, given) in [
+            ("piezometers", !o.piezometers.is_empty()),
+            ("pore_pressure", o.pore_pressure.is_some()),
+            ("pore_pressure_sigma", o.pore_pressure_sigma.is_some()),
+        ] {
+            if given {
+                issue(
+                    format!("observations.{field}"),
+                    "observes the pore pressure of a coupled scene; this scene has no \
+                     [pore_fluid]"
+                        .into(),
+                );
+            }
+        }
+        return Vec::new();
+    }
+    let mut names: Vec<&str> = Vec::new();
+    let mut out = Vec::new();
+    for (i, p) in o.piezometers.iter().enumerate() {
+        let at = |f: &str| format!("observations.piezometers[{i}].{f}");
+        if names.contains(&p.name.as_str()) {
+            issue(
+                at("name"),
+                format!("piezometer `{}` is defined twice", p.name),
+            );
+        }
+        names.push(&p.name);
+        if p.at.len() != D || p.at.iter().any(|v| !v.is_finite()) {
+            issue(at("at"), format!("expected {D} finite coordinates"));
+            continue;
+        }
+        let distance = |k: usize| {
+            (0..D)
+                .map(|a| (particles.x[k][a] - p.at[a]).powi(2))
+                .sum::<f64>()
+        };
+        match (0..particles.len()).min_by(|&a, &b| distance(a).total_cmp(&distance(b))) {
+            Some(k) => out.push(k),
+            None => issue(at("at"), "the scene has no particles".into()),
+        }
+    }
+    out
+}
+
 /// The observations of `[observations]`'s CSV files: per load step, every component of each
-/// listed particle's displacement (`σ = sigmas.0`) and each named reaction (`σ = sigmas.1`,
-/// `reactions[i]` = (constraint, axis) of reaction `i`).
+/// listed particle's displacement, each named reaction (`reactions[i]` = (constraint, axis)
+/// of reaction `i`) and each piezometer's pore pressure (`piezometers[i]` its particle).
 fn read_observations<const D: usize>(
     path: &Path,
     file: &InversionFile,
     grid: &observed::Grid,
-    sigmas: (f64, f64),
+    sigmas: &Sigmas,
     reactions: &[(usize, usize)],
+    piezometers: &[usize],
 ) -> Result<Vec<Observation>, Invalid> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let o = &file.observations;
@@ -401,7 +491,7 @@ fn read_observations<const D: usize>(
                                     component,
                                 },
                                 value: u[component],
-                                sigma: sigmas.0,
+                                sigma: sigmas.displacement,
                             });
                         }
                     }
@@ -425,12 +515,33 @@ fn read_observations<const D: usize>(
                                 component,
                             },
                             value: force,
-                            sigma: sigmas.1,
+                            sigma: sigmas.reaction,
                         });
                     }
                 }
             }
             Err(msg) => errors.push(Issue::new("observations.reaction", msg)),
+        }
+    }
+    if let Some(f) = &o.pore_pressure {
+        let names: Vec<String> = o.piezometers.iter().map(|p| p.name.clone()).collect();
+        match observed::read_pore_pressure(&dir.join(f), grid, &names) {
+            Ok(t) if t.contains_key(&0) => errors.push(initial_state("pore_pressure")),
+            Ok(t) => {
+                for (step, rows) in t {
+                    for (k, value) in rows {
+                        items.push(Observation {
+                            step,
+                            quantity: Quantity::PorePressure {
+                                particle: piezometers[k],
+                            },
+                            value,
+                            sigma: sigmas.pore_pressure,
+                        });
+                    }
+                }
+            }
+            Err(msg) => errors.push(Issue::new("observations.pore_pressure", msg)),
         }
     }
     if errors.is_empty() {
@@ -441,14 +552,17 @@ fn read_observations<const D: usize>(
 }
 
 /// The observations of an implicit inversion as the CSV files hold them: per load step, the
-/// displacement of every observed particle (all components) and the named reactions
-/// (indices into `[[observations.reactions]]`).
+/// displacement of every observed particle (all components), the named reactions (indices
+/// into `[[observations.reactions]]`) and the piezometers' pore pressures (indices into
+/// `[[observations.piezometers]]`, whose particles are `piezometers`).
 pub fn targets<const D: usize>(
     file: &InversionFile,
     observations: &ImplicitObservations,
-) -> (observed::Targets<D>, observed::Targets<1>) {
+    piezometers: &[usize],
+) -> Targets<D> {
     let mut displacements = observed::Targets::<D>::new();
     let mut reactions = observed::Targets::<1>::new();
+    let mut pressures = observed::Targets::<1>::new();
     for o in &observations.items {
         match o.quantity {
             Quantity::Displacement {
@@ -463,8 +577,13 @@ pub fn targets<const D: usize>(
                     row.1[component] = o.value;
                 }
             }
-            // An inversion file observes displacements and reactions only.
+            // An inversion file observes displacements, reactions and pore pressures.
             Quantity::Velocity { .. } => {}
+            Quantity::PorePressure { particle } => {
+                if let Some(k) = piezometers.iter().position(|&p| p == particle) {
+                    (pressures.entry(o.step).or_default()).push((k, Vector::from([o.value])));
+                }
+            }
             Quantity::Reaction {
                 constraint,
                 component,
@@ -477,5 +596,19 @@ pub fn targets<const D: usize>(
             }
         }
     }
-    (displacements, reactions)
+    Targets {
+        displacements,
+        reactions,
+        pressures,
+    }
+}
+
+/// An implicit inversion's observations by kind ([`targets`]).
+pub struct Targets<const D: usize> {
+    /// Particle displacements.
+    pub displacements: observed::Targets<D>,
+    /// Named reactions.
+    pub reactions: observed::Targets<1>,
+    /// Piezometers' pore pressures.
+    pub pressures: observed::Targets<1>,
 }

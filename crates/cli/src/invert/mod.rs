@@ -856,9 +856,25 @@ fn write_synthetic<const D: usize>(inv: &Inversion<D>, dir: &Path) -> Result<(),
     let err = |f: &Path, e: std::io::Error| format!("cannot write {}: {e}", f.display());
     let o = match &inv.problem {
         Model::Explicit(p) => &p.objective,
-        Model::Implicit { problem, .. } => {
-            let (displacements, reactions) =
-                implicit::targets::<D>(&inv.file, &problem.observations);
+        Model::Implicit {
+            problem,
+            piezometers,
+            ..
+        } => {
+            let implicit::Targets {
+                displacements,
+                reactions,
+                pressures,
+            } = implicit::targets::<D>(&inv.file, &problem.observations, piezometers);
+            if !pressures.is_empty() {
+                let f = dir.join("pore_pressure.csv");
+                let names: Vec<String> = (inv.file.observations.piezometers.iter())
+                    .map(|p| p.name.clone())
+                    .collect();
+                let columns = ["pore_pressure", "", ""];
+                observed::write(&f, &pressures, "piezometer", columns, Some(&names))
+                    .map_err(|e| err(&f, e))?;
+            }
             if !displacements.is_empty() {
                 let f = dir.join("displacement.csv");
                 observed::write(&f, &displacements, "id", ["ux", "uy", "uz"], None)

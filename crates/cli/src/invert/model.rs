@@ -19,6 +19,8 @@ pub enum Model<const D: usize> {
         /// The parameters as the scene names them (`point_loads[k]` a scene entry), for
         /// the recovered scene.
         scene_params: Vec<ImplicitParam>,
+        /// The particles the `[[observations.piezometers]]` read, in order.
+        piezometers: Vec<usize>,
     },
 }
 

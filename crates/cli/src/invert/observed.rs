@@ -287,6 +287,24 @@ pub fn read_reaction(
     Ok(depths(&rows))
 }
 
+/// Reads a pore-pressure CSV (`step|time, piezometer, pore_pressure`; Pa): per step, the
+/// index of each named piezometer (in `piezometers`) and its reading.
+///
+pub fn read_pore_pressure(
+    file: &Path,
+    grid: &Grid,
+    piezometers: &[String],
+) -> Result<BTreeMap<usize, Vec<(usize, f64)>>, String> {
+    let rows = read::<1>(
+        file,
+        grid,
+        ("piezometer", ["pore_pressure", "", ""]),
+        &named("piezometer", piezometers),
+        &any,
+    )?;
+    Ok(depths(&rows))
+}
+
 /// Reads a monitor-velocities file.
 pub fn read_velocity<const D: usize>(
     file: &Path,

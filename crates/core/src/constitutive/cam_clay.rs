@@ -417,21 +417,21 @@ impl ModifiedCamClay<f64> {
 /// The elastic strain `εₑ = ½ ln bₑ` of a point in `state`, its volumetric part
 /// `ε_v = −tr εₑ` (compression positive) and the mean effective stress `p = p_r exp(ε_v/κ̃)`.
 fn elastic_point<T: Scalar>(
-    real: &ModifiedCamClay<f64>,
+    model: &ModifiedCamClay<T>,
     state: &MaterialState<T>,
-) -> (Matrix3<f64>, f64, f64) {
-    let eps = symmetric_fn(&state.tensor.map(|x| x.re()), &Log) * 0.5;
+) -> (Matrix3<T>, T, T) {
+    let eps = symmetric_fn(&state.tensor, &Log) * T::cst(0.5);
     let eps_v = -eps.trace();
-    (eps, eps_v, real.pressure(eps_v))
+    (eps, eps_v, model.pressure(eps_v))
 }
 
 impl<T: Scalar> ModifiedCamClay<T> {
-    /// The elastic shear modulus `G(p)` of a point in `state` (real part), at its mean
-    /// effective stress `p = p_r exp(ε_v/κ̃)`.
-    pub fn shear_modulus_in(&self, state: &MaterialState<T>) -> f64 {
-        let real = self.real();
-        let (_, _, p) = elastic_point(&real, state);
-        real.shear_modulus(p)
+    /// The elastic shear modulus `G(p)` of a point in `state`, at its mean effective stress
+    /// `p = p_r exp(ε_v/κ̃)` (in the scalar type, so that its derivative by the constants and
+    /// the history is available).
+    pub fn shear_modulus_in(&self, state: &MaterialState<T>) -> T {
+        let (_, _, p) = elastic_point(self, state);
+        self.shear_modulus(p)
     }
 }
 
@@ -457,7 +457,7 @@ impl<T: Scalar> Constitutive<T> for ModifiedCamClay<T> {
     /// carry.
     fn p_wave_modulus_in(&self, state: &MaterialState<T>) -> f64 {
         let real = self.real();
-        let (eps, eps_v, p) = elastic_point(&real, state);
+        let (eps, eps_v, p) = elastic_point(&real, &state.map(|x| x.re()));
         let distortion = (eps + Matrix3::identity() * (eps_v / 3.0)).norm();
         let coupling = match real.shear {
             Shear::Modulus(_) => 0.0,

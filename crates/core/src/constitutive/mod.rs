@@ -499,18 +499,17 @@ impl<T: Scalar> Material<T> {
         (self.constitutive().p_wave_modulus() / self.density.re()).sqrt()
     }
 
-    /// The elastic shear modulus `G` of a point in `state` (real part): the Lamé `μ` of the
-    /// models with constant elasticity, `G(p′)` of [`ModifiedCamClay`], zero for a
-    /// [`Fluid`].
-    pub fn shear_modulus_in(&self, state: &MaterialState<T>) -> f64 {
+    /// The elastic shear modulus `G` of a point in `state`: the Lamé `μ` of the models with
+    /// constant elasticity, `G(p′)` of [`ModifiedCamClay`], zero for a [`Fluid`].
+    pub fn shear_modulus_in(&self, state: &MaterialState<T>) -> T {
         match &self.model {
-            Model::LinearElastic(m) => m.lame.mu.re(),
-            Model::NeoHookean(m) => m.lame.mu.re(),
-            Model::Hencky(m) => m.lame.mu.re(),
-            Model::J2(m) => m.lame.mu.re(),
-            Model::Fluid(_) => 0.0,
-            Model::DruckerPrager(m) => m.lame.mu.re(),
-            Model::MohrCoulomb(m) => m.lame.mu.re(),
+            Model::LinearElastic(m) => m.lame.mu,
+            Model::NeoHookean(m) => m.lame.mu,
+            Model::Hencky(m) => m.lame.mu,
+            Model::J2(m) => m.lame.mu,
+            Model::Fluid(_) => T::zero(),
+            Model::DruckerPrager(m) => m.lame.mu,
+            Model::MohrCoulomb(m) => m.lame.mu,
             Model::ModifiedCamClay(m) => m.shear_modulus_in(state),
         }
     }

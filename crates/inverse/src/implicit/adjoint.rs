@@ -84,6 +84,9 @@ fn reverse_from<const D: usize>(
     params: &[ImplicitParam],
     first: usize,
 ) -> Result<Vec<f64>, AdjointError> {
+    if config.pore_fluid.is_some() {
+        return super::coupled::reverse(config, initial, run, observations, params, first);
+    }
     let solver = ImplicitSolver::new(config.clone(), initial)?;
     let n = initial.len();
     let nodes = config.grid.num_nodes();
@@ -286,7 +289,8 @@ fn reverse_from<const D: usize>(
                         ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
                             lin.load_share(&cot)[a]
                         }
-                        ImplicitParam::PointLoad(..) => continue,
+                        // The solid alone has no pore fluid (a coupled run takes its own pass).
+                        ImplicitParam::PointLoad(..) | ImplicitParam::Conductivity(_) => continue,
                         // Through the initial history, below, and the balancing forces.
                         ImplicitParam::K0(_) => match balance_rates[j].get(p) {
                             Some(rate) => lin.balance_share(&cot).dot(rate),

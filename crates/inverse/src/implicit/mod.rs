@@ -20,6 +20,7 @@
 
 pub mod adjoint;
 pub mod check;
+pub mod coupled;
 mod identify;
 pub mod inertia;
 pub mod kernel;
@@ -72,17 +73,16 @@ impl<const D: usize> ImplicitProblem<D> {
     /// # Errors
     /// A parameter or an observation that does not fit (named by its field).
     pub fn validate(&self) -> Result<(), AdjointError> {
-        self.check_dry()?;
+        self.check_supported()?;
         for p in &self.params {
             p.value(&self.config, &self.initial)?;
         }
         self.observations.validate(&self.config, &self.initial)
     }
 
-    /// Refuses a coupled (u–p) run (the reverse pass replays the steps of the solid alone)
-    /// and force-controlled constraints (its seeds and parameters know prescribed
+    /// Refuses force-controlled constraints (the seeds and parameters know prescribed
     /// displacements only).
-    fn check_dry(&self) -> Result<(), AdjointError> {
+    fn check_supported(&self) -> Result<(), AdjointError> {
         if let Some(i) = self
             .config
             .constraints
@@ -96,15 +96,7 @@ impl<const D: usize> ImplicitProblem<D> {
                     .into(),
             });
         }
-        match self.config.pore_fluid {
-            Some(_) => Err(AdjointError::Unsupported {
-                what: "[pore_fluid]".into(),
-                why: "the implicit adjoint replays the steps of the solid alone, not yet the \
-                      coupled u–p steps of a saturated soil"
-                    .into(),
-            }),
-            None => Ok(()),
-        }
+        Ok(())
     }
 
     /// The parameters' values in the scene.
@@ -126,7 +118,7 @@ impl<const D: usize> ImplicitProblem<D> {
         &self,
         theta: &[f64],
     ) -> Result<(ImplicitConfig<D>, Particles<f64, D>), AdjointError> {
-        self.check_dry()?;
+        self.check_supported()?;
         let mut config = self.config.clone();
         let mut particles = self.initial.clone();
         for (p, &v) in self.params.iter().zip(theta) {

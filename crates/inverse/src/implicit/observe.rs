@@ -31,6 +31,12 @@ pub enum Quantity {
         /// Axis (a prescribed component of the constraint).
         component: usize,
     },
+    /// The pore pressure `p = p_h(x_p) + p_e` (Pa, compression positive: what a piezometer
+    /// at the particle reads) of particle `particle` in a coupled (u–p) run.
+    PorePressure {
+        /// Particle id.
+        particle: usize,
+    },
 }
 
 impl Quantity {
@@ -128,6 +134,26 @@ impl ImplicitObservations {
                 return Err(bad("value", "must be finite".into()));
             }
             let component = match o.quantity {
+                Quantity::PorePressure { particle } => {
+                    if config.pore_fluid.is_none() {
+                        return Err(bad(
+                            "quantity",
+                            "a pore pressure is observed in a coupled run only (the scene has \
+                             no [pore_fluid])"
+                                .into(),
+                        ));
+                    }
+                    if particle >= particles.len() {
+                        return Err(bad(
+                            "particle",
+                            format!(
+                                "particle {particle} does not exist ({} particles)",
+                                particles.len()
+                            ),
+                        ));
+                    }
+                    0
+                }
                 Quantity::Displacement {
                     particle,
                     component,
@@ -197,6 +223,7 @@ impl ImplicitObservations {
                 constraint,
                 component,
             } => run.reactions[o.step - 1][constraint][component],
+            Quantity::PorePressure { particle } => run.pore_pressures[o.step][particle],
         }
     }
 

@@ -8,6 +8,7 @@ use loam_core::constitutive::{HISTORY_LEN, MaterialState};
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::ImplicitConfig;
+use loam_implicit::flow::Hydraulic;
 use nalgebra::Matrix3;
 use num_dual::Dual64;
 use std::fmt;
@@ -32,6 +33,9 @@ pub enum ImplicitParam {
     /// (`materials[k].k0`; see [`ImplicitParam::k0_rates`]): it moves their initial stress,
     /// the history that carries it and, where the scene balances it, the balancing forces.
     K0(usize),
+    /// The hydraulic conductivity `k` (m/s) of material `k` in a coupled (u–p) run
+    /// (`materials[k].hydraulic_conductivity`; the mobility is `k/γ_w`).
+    Conductivity(usize),
 }
 
 impl fmt::Display for ImplicitParam {
@@ -39,6 +43,7 @@ impl fmt::Display for ImplicitParam {
         match *self {
             Self::Material(k, field) => write!(f, "materials[{k}].{}", field.name()),
             Self::K0(k) => write!(f, "materials[{k}].k0"),
+            Self::Conductivity(k) => write!(f, "materials[{k}].hydraulic_conductivity"),
             Self::Gravity(a) => write!(f, "gravity[{a}]"),
             Self::PointLoad(k, a) => write!(f, "point_loads[{k}].force[{a}]"),
             Self::Displacement(k, a) => write!(f, "constraints[{k}].displacement[{a}]"),
@@ -58,7 +63,8 @@ impl FromStr for ImplicitParam {
                 .collect();
             format!(
                 "unknown parameter `{s}`; expected `materials[k].<constant>` (a constant of the \
-                 material's model: {}), `materials[k].k0`, `gravity[a]`, \
+                 material's model: {}), `materials[k].k0`, \
+                 `materials[k].hydraulic_conductivity`, `gravity[a]`, \
                  `point_loads[k].force[a]` or `constraints[k].displacement[a]`",
                 constants.join(", ")
             )
@@ -89,6 +95,9 @@ impl FromStr for ImplicitParam {
             let field = rest.strip_prefix('.').ok_or_else(expected)?;
             if field == "k0" {
                 return Ok(Self::K0(k));
+            }
+            if field == "hydraulic_conductivity" {
+                return Ok(Self::Conductivity(k));
             }
             return MaterialField::named(field)
                 .filter(|f| f.implicit())
@@ -139,6 +148,10 @@ impl ImplicitParam {
                     .ok_or_else(|| self.error(no_such_constant(m)))
             }
             Self::K0(k) => self.k0_rates(config, particles, k).map(|r| r.k0),
+            Self::Conductivity(k) => {
+                let (fluid, h) = self.hydraulic(config, k)?;
+                Ok(h.mobility * fluid.unit_weight)
+            }
             Self::Gravity(a) => self.component::<D>(a).map(|a| config.gravity[a]),
             Self::PointLoad(k, a) => {
                 let a = self.component::<D>(a)?;
@@ -211,8 +224,51 @@ impl ImplicitParam {
             Self::Gravity(a) => config.gravity[a] = value,
             Self::PointLoad(k, a) => config.point_loads[k].force[a] = value,
             Self::Displacement(k, a) => config.constraints[k].displacement[a] = Some(value),
+            Self::Conductivity(k) => {
+                if !(value > 0.0 && value.is_finite()) {
+                    return Err(self.error(format!("must be positive, got {value}")));
+                }
+                if let Some(fluid) = config.pore_fluid.as_mut() {
+                    fluid.hydraulic[k].mobility = value / fluid.unit_weight;
+                }
+            }
         }
         Ok(())
+    }
+
+    /// The pore fluid of a coupled run and material `k`'s hydraulic properties.
+    ///
+    /// # Errors
+    /// A run without a pore fluid or a material it does not have.
+    fn hydraulic<'a, const D: usize>(
+        &self,
+        config: &'a ImplicitConfig<D>,
+        k: usize,
+    ) -> Result<(&'a loam_implicit::flow::PoreFluid<D>, &'a Hydraulic), AdjointError> {
+        let fluid = config.pore_fluid.as_ref().ok_or_else(|| {
+            self.error("the scene has no [pore_fluid]: a hydraulic conductivity needs one")
+        })?;
+        let h = fluid.hydraulic.get(k).ok_or_else(|| {
+            self.error(format!(
+                "no such material: the scene has {}",
+                fluid.hydraulic.len()
+            ))
+        })?;
+        Ok((fluid, h))
+    }
+
+    /// Material `k`'s hydraulic properties lifted to `Dual64`, with the mobility seeded
+    /// (`dκ/dk = 1/γ_w`) when this is its conductivity.
+    pub fn seeded_hydraulic<const D: usize>(
+        &self,
+        fluid: &loam_implicit::flow::PoreFluid<D>,
+        k: usize,
+    ) -> Hydraulic<Dual64> {
+        let mut h = fluid.hydraulic[k].lift::<Dual64>();
+        if *self == Self::Conductivity(k) {
+            h.mobility.eps = 1.0 / fluid.unit_weight;
+        }
+        h
     }
 
     /// `ds_p/dθ` of the initial particle states ([`super::kernel::ParticleState::components`]
@@ -374,6 +430,7 @@ mod tests {
             ImplicitParam::Gravity(1),
             ImplicitParam::PointLoad(2, 0),
             ImplicitParam::Displacement(0, 1),
+            ImplicitParam::Conductivity(2),
         ] {
             assert_eq!(p.to_string().parse::<ImplicitParam>(), Ok(p));
         }

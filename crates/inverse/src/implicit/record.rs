@@ -26,6 +26,8 @@ pub struct SubStep<const D: usize> {
     pub history: Vec<MaterialState<f64>>,
     /// Velocities at its start (constant in a quasi-static run).
     pub v: Vec<Vector<f64, D>>,
+    /// Pore pressures at its start (a coupled run's; empty otherwise).
+    pub pore_pressure: Vec<f64>,
     /// Converged unknowns `Δu`.
     pub solution: Vec<f64>,
 }
@@ -40,6 +42,9 @@ pub struct Trajectory<const D: usize> {
     pub positions: Vec<Vec<Vector<f64, D>>>,
     /// Particle velocities after each load step (entry 0: the initial velocities).
     pub velocities: Vec<Vec<Vector<f64, D>>>,
+    /// Particle pore pressures after each load step (entry 0: the initial ones; zeros in a
+    /// run without a pore fluid).
+    pub pore_pressures: Vec<Vec<f64>>,
     /// Per load step (entry `k − 1` for step `k`), the reaction of every constraint.
     pub reactions: Vec<Vec<Vector<f64, D>>>,
     /// Cut sub-steps taken (accepted sub-steps minus load steps).
@@ -57,6 +62,7 @@ impl<const D: usize> SubStep<D> {
         p.f.clone_from(&self.f);
         p.state.clone_from(&self.history);
         p.v.clone_from(&self.v);
+        p.pore_pressure.clone_from(&self.pore_pressure);
         p
     }
 
@@ -134,6 +140,7 @@ pub fn run_recorded<const D: usize>(
         substeps: Vec::new(),
         positions: vec![initial.x.clone()],
         velocities: vec![initial.v.clone()],
+        pore_pressures: vec![initial.pore_pressure.clone()],
         reactions: Vec::new(),
         cuts: 0,
         iterations: 0,
@@ -149,6 +156,7 @@ pub fn run_recorded<const D: usize>(
                 f: a.start.f.clone(),
                 history: a.start.state.clone(),
                 v: a.start.v.clone(),
+                pore_pressure: a.start.pore_pressure.clone(),
                 solution: a.solution.to_vec(),
             });
         };
@@ -159,6 +167,7 @@ pub fn run_recorded<const D: usize>(
         out.iterations += report.iterations();
         out.positions.push(particles.x.clone());
         out.velocities.push(particles.v.clone());
+        out.pore_pressures.push(particles.pore_pressure.clone());
         out.reactions.push(report.constraint_forces);
     }
     out.cuts = out.substeps.len() - solver.config().load_steps;
@@ -213,13 +222,22 @@ impl<'a, const D: usize> Replay<'a, D> {
             load_factor: if self.config.dynamics.is_some() {
                 1.0
             } else {
-                self.sub.to
+                self.load_factor()
             },
             gravity_factor: if self.config.dynamics.is_some() || self.config.gravity_in_full {
                 1.0
             } else {
-                self.sub.to
+                self.load_factor()
             },
+        }
+    }
+
+    /// The load factor at the end of the sub-step: its progress, or in a coupled run the
+    /// schedule's load factor there.
+    fn load_factor(&self) -> f64 {
+        match &self.config.pore_fluid {
+            Some(fluid) => fluid.schedule.at(self.sub.to).1,
+            None => self.sub.to,
         }
     }
 

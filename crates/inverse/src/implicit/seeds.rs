@@ -14,6 +14,8 @@ pub struct StepSeeds<const D: usize> {
     /// `ParticleState::components` (`a` for the displacement along axis `a`: `x_p − x_p⁰`
     /// moves with `x_p`).
     pub states: Vec<(usize, usize, f64)>,
+    /// `(particle, ∂L/∂p_p)` of the observed pore pressures (coupled runs).
+    pub pressures: Vec<(usize, f64)>,
     /// Per grid node (flat index), `r̄_a` summed over the observed reactions whose constraint
     /// prescribes component `a` of that node: a reaction is `Σ` of the internal force
     /// `f_int,i,a` over the nodes `i` of its box, before any folding of ghost nodes.
@@ -29,6 +31,7 @@ impl<const D: usize> StepSeeds<D> {
         step: usize,
     ) -> Self {
         let mut states = Vec::new();
+        let mut pressures = Vec::new();
         let mut reactions = vec![Vector::<f64, D>::zeros(); config.constraints.len()];
         let mut any_reaction = false;
         for (o, &w) in observations.items.iter().zip(weights) {
@@ -51,11 +54,13 @@ impl<const D: usize> StepSeeds<D> {
                     reactions[constraint][component] += w;
                     any_reaction = true;
                 }
+                Quantity::PorePressure { particle } => pressures.push((particle, w)),
             }
         }
         let reaction_weights = any_reaction.then(|| Self::node_weights(config, &reactions));
         Self {
             states,
+            pressures,
             reaction_weights,
         }
     }

@@ -60,6 +60,9 @@ pub fn model_tangents<const D: usize>(
     observations: &ImplicitObservations,
     param: ImplicitParam,
 ) -> Result<Vec<f64>, AdjointError> {
+    if config.pore_fluid.is_some() {
+        return super::coupled::model_tangents(config, initial, run, observations, param);
+    }
     let solver = ImplicitSolver::new(config.clone(), initial)?;
     let n = initial.len();
     let materials: Vec<Material<Dual64>> = (config.materials.iter().enumerate())
@@ -248,6 +251,8 @@ pub fn model_tangents<const D: usize>(
                         unit[constraint][component] = 1.0;
                         reaction_derivative(&moved, &StepSeeds::node_weights(config, &unit))
                     }
+                    // Observed in coupled runs only (validated), which take the coupled pass.
+                    Quantity::PorePressure { .. } => 0.0,
                 };
             }
         }

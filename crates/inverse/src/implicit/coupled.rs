@@ -1,0 +1,841 @@
+//! The coupled (u–p) step of a saturated soil in both passes of the implicit adjoint.
+//!
+//! A coupled sub-step maps each particle's state `sₚ = (xₚ, Fₚ, hₚ, vₚ, mₚ)` and excess pore
+//! pressure `p_eₚ` to their end values, through the nodal unknowns `(Δu_i, p̂_i)` that solve
+//! `R = 0` ([`loam_implicit::flow`]): per particle ([`particle_step`], generic over the
+//! scalar, the solver's own kernel [`coupled_update`] inside)
+//!
+//! ```text
+//! mixture rows  f_i = V⁰ (τ′ − α Jⁿ ΔJ p I) ΔF⁻ᵀ ∇N_i − q N_i          p = s p̂ + p_h(xₚ)
+//! fluid rows    g_i = volume N_i + flux · ∇N_i − Δt s Q N_i             (s the row scale)
+//! end state     xₚ' = xₚ + Σ N_i Δu_i,  Fₚ' = ΔF Fₚ,  hₚ',  p_eₚ' = s p̂
+//! ```
+//!
+//! plus the pressure stabilisation, which couples the particles of one grid cell (a patch
+//! `P`): `Σ_{p∈P} s wₚ (Δpₚ − m) N_i(xₚ)` with `wₚ = Vₚⁿ/Gₚ`, `Δpₚ = p_eₚ' − p_eₚ` and
+//! `m = Σ w Δp / Σ w`. Everything but the stabilisation's mean is one particle's; the
+//! stabilisation's share of `ψ = Σ_i b_i · (stabilisation)_i` is
+//! `Σ_p s wₚ (Δpₚ − m)(Bₚ − B̄)` with `Bₚ = Σ_i b_i N_i(xₚ)` and `B̄ = Σ w B / Σ w` (because
+//! `Σ_p wₚ (Δpₚ − m) = 0`), and its gradient by one particle's inputs is that of its own
+//! term with `m` and `B̄` held: `∂/∂Δpₚ = s wₚ (Bₚ − B̄)`, `∂/∂Bₚ = s wₚ (Δpₚ − m)`,
+//! `∂/∂wₚ = s (Δpₚ − m)(Bₚ − B̄)`, exactly the sums' partials. So the whole step is a sum of
+//! per-particle terms once each patch's `(m, B̄)` is known.
+//!
+//! Both passes evaluate the one kernel:
+//!
+//! - the reverse pass ([`reverse`]) weights a particle's outputs into the scalar
+//!   `ψₚ = Σ_i [a_i·f_i + b_i g_i] + s̄'ₚ·sₚ' + p̄'ₚ p_eₚ' + (stabilisation)`, with `a = r̄ − λ_u`
+//!   (`r̄` the observed reactions) and `b = −λ_p` from `Jᵀλ = ∂ψ/∂(Δu, p̂)|_{λ=0}`, and takes
+//!   its gradient by the particle's inputs (state, excess and stencil unknowns) with
+//!   multi-lane duals, [`LANES`] inputs at a time; each parameter's share is one `Dual64`
+//!   evaluation with the parameter seeded;
+//! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
+//!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
+//!
+//! The row scale `s = G_ref/h` is held in both: the physical solution does not depend on it
+//! (it scales the pressure unknowns and the fluid rows alike), so it carries no derivative.
+
+use super::kernel::{Loads, ParticleState, Setting, lift_loads, state_len};
+use super::observe::{ImplicitObservations, Quantity};
+use super::params::ImplicitParam;
+use super::record::{Replay, SubStep, Trajectory};
+use super::seeds::StepSeeds;
+use crate::error::AdjointError;
+use crate::params::MaterialField;
+use loam_core::stencil::particle_half_width;
+use loam_core::tensor::{Tensor, Vector, det};
+use loam_core::{Material, Particles, Scalar, Stencil};
+use loam_implicit::flow::{CoupledStart, FlowFrozen, Hydraulic, PoreFluid, coupled_update};
+use loam_implicit::kernel::delta_f;
+use loam_implicit::system::StepSystem;
+use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
+use nalgebra::SVector;
+use num_dual::{Derivative, Dual64, DualSVec64};
+use rayon::prelude::*;
+
+/// Inputs differentiated per evaluation of the reverse pass's gradients.
+pub const LANES: usize = 16;
+
+/// What one particle sees of the pore fluid in a sub-step, besides its state.
+#[derive(Clone, Copy, Debug)]
+pub struct FluidSetting<'a, const D: usize> {
+    /// The run's pore fluid (water table, unit weight of water).
+    pub fluid: &'a PoreFluid<D>,
+    /// Time step `Δt` (s).
+    pub dt: f64,
+    /// Row scale `s = G_ref/h`.
+    pub scale: f64,
+    /// `A_p/ℓ_p` of a particle on a drained free surface (zero elsewhere).
+    pub conductance: f64,
+    /// Volume rate `Q` of water fed through the particle (zero elsewhere).
+    pub inflow: f64,
+}
+
+impl<const D: usize> FluidSetting<'_, D> {
+    /// The hydrostatic pressure `p_h(x) = γ_w (z_w − x_D)` below the water table, zero above
+    /// it or without one.
+    fn hydrostatic<T: Scalar>(&self, x: &Vector<T, D>) -> T {
+        match self.fluid.water_table {
+            Some(z) if z > x[D - 1].re() => (T::cst(z) - x[D - 1]) * T::cst(self.fluid.unit_weight),
+            _ => T::zero(),
+        }
+    }
+
+    /// `∂p_h/∂x_D` at `x`.
+    fn hydrostatic_slope(&self, x: &Vector<f64, D>) -> f64 {
+        match self.fluid.water_table {
+            Some(z) if z > x[D - 1] => -self.fluid.unit_weight,
+            _ => 0.0,
+        }
+    }
+}
+
+/// One stencil node's share of a coupled particle step.
+#[derive(Clone, Copy, Debug)]
+pub struct CoupledNode<T, const D: usize> {
+    /// Flat grid index.
+    pub flat: usize,
+    /// `N_i(xₚ)`.
+    pub weight: T,
+    /// Mixture row: internal force `V⁰ (τ′ − α J p I) ΔF⁻ᵀ ∇N_i`.
+    pub internal: Vector<T, D>,
+    /// Mixture row: external force `q N_i`.
+    pub external: Vector<T, D>,
+    /// Fluid row: `volume N_i + flux · ∇N_i` (scaled).
+    pub fluid: T,
+    /// Fluid row, external side: the inflow `Δt s Q N_i`.
+    pub inflow: T,
+}
+
+/// A particle's part of a coupled sub-step (module docs).
+#[derive(Clone, Debug)]
+pub struct CoupledParticle<T, const D: usize> {
+    /// Per stencil node.
+    pub nodes: Vec<CoupledNode<T, D>>,
+    /// End state.
+    pub end: ParticleState<T, D>,
+    /// End excess pore pressure `p_e' = s p̂` (Pa).
+    pub excess: T,
+    /// `Δp = p_e' − p_e`.
+    pub increment: T,
+    /// Stabilisation weight `w = Vⁿ/G`.
+    pub stabilisation: T,
+}
+
+/// The particle's part of a coupled sub-step for the nodal unknowns `u(flat, c)` (`c < D`:
+/// displacement increments; `c = D`: the pressure unknown); `None` where the particle inverts.
+#[allow(clippy::too_many_arguments)]
+pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
+    setting: &Setting<'_, D>,
+    fluid: &FluidSetting<'_, D>,
+    material: &Material<T>,
+    hydraulic: &Hydraulic<T>,
+    state: &ParticleState<T, D>,
+    excess: T,
+    loads: &Loads<T, D>,
+    u: impl Fn(usize, usize) -> T,
+) -> Option<CoupledParticle<T, D>> {
+    let grid = setting.grid;
+    let hw = particle_half_width(
+        setting.shape,
+        grid.h,
+        &setting.half_width0.map(T::cst),
+        &state.f,
+    );
+    let stencil = Stencil::new(setting.shape, grid, &state.x, &hw);
+    let g = delta_f::<T, T, D>(&stencil, &u);
+    let mut p_hat = T::zero();
+    let mut grad = Vector::<T, D>::zeros();
+    stencil.for_each(|n| {
+        let p = u(n.flat, D);
+        p_hat += n.weight * p;
+        grad += n.gradient * p;
+    });
+    let shear = material.shear_modulus_in(&state.history);
+    let frozen = FlowFrozen {
+        excess,
+        hydrostatic: fluid.hydrostatic(&state.x),
+        weight: det(&state.f) * T::cst(setting.volume0)
+            / if shear.re() > 0.0 {
+                shear
+            } else {
+                T::cst(f64::MIN_POSITIVE)
+            },
+        leakage: hydraulic.mobility * T::cst(fluid.conductance),
+    };
+    let c = coupled_update(
+        material,
+        &CoupledStart {
+            f_n: &state.f,
+            history: &state.history,
+            volume0: setting.volume0,
+            fluid: &frozen,
+        },
+        hydraulic,
+        fluid.dt,
+        fluid.scale,
+        &g,
+        p_hat,
+        &grad,
+    )?;
+    let q = loads.gravity * (state.mass * T::cst(setting.gravity_factor))
+        + loads.point * T::cst(setting.load_factor)
+        + loads.balance;
+    let inflow = T::cst(fluid.dt * fluid.scale * fluid.inflow);
+    let mut x = state.x;
+    let mut nodes = Vec::with_capacity(stencil.len());
+    stencil.for_each(|n| {
+        for a in 0..D {
+            x[a] += n.weight * u(n.flat, a);
+        }
+        nodes.push(CoupledNode {
+            flat: n.flat,
+            weight: n.weight,
+            internal: c.momentum * n.gradient,
+            external: q * n.weight,
+            fluid: c.volume * n.weight + c.flux.dot(&n.gradient),
+            inflow: inflow * n.weight,
+        });
+    });
+    Some(CoupledParticle {
+        nodes,
+        end: ParticleState {
+            x,
+            f: g * state.f,
+            history: c.state,
+            v: state.v,
+            mass: state.mass,
+        },
+        excess: c.excess,
+        increment: c.excess - excess,
+        stabilisation: frozen.weight,
+    })
+}
+
+/// The weights of a particle's outputs in `ψₚ` (module docs).
+#[derive(Clone, Copy, Debug)]
+pub struct CoupledCotangent<'a, const D: usize> {
+    /// `a_i` on the mixture rows' internal force, per grid node.
+    pub internal: &'a [Vector<f64, D>],
+    /// `c_i` on the mixture rows' external force, per grid node.
+    pub external: &'a [Vector<f64, D>],
+    /// `b_i` on the fluid rows (and `−b_i` on their inflow), per grid node.
+    pub fluid: &'a [f64],
+    /// `s̄'` of the end state ([`ParticleState::components`] order).
+    pub end: &'a [f64],
+    /// `p̄'` of the end excess pressure.
+    pub excess: f64,
+    /// The particle's patch: `(m, B̄)` (module docs).
+    pub patch: (f64, f64),
+    /// Row scale `s`.
+    pub scale: f64,
+}
+
+impl<const D: usize> CoupledCotangent<'_, D> {
+    /// `ψₚ` of a particle's step.
+    pub fn psi<T: Scalar>(&self, step: &CoupledParticle<T, D>) -> T {
+        let mut psi = T::zero();
+        let mut b_p = T::zero();
+        for n in &step.nodes {
+            let (a, c, b) = (
+                self.internal[n.flat],
+                self.external[n.flat],
+                self.fluid[n.flat],
+            );
+            for k in 0..D {
+                psi += n.internal[k] * T::cst(a[k]) + n.external[k] * T::cst(c[k]);
+            }
+            psi += (n.fluid - n.inflow) * T::cst(b);
+            b_p += n.weight * T::cst(b);
+        }
+        let e = &step.end;
+        let f = e.f.transpose();
+        let values = (e.x.iter())
+            .chain(f.iter())
+            .copied()
+            .chain(e.history.components())
+            .chain(e.v.iter().copied())
+            .chain(std::iter::once(e.mass));
+        for (v, w) in values.zip(self.end) {
+            if *w != 0.0 {
+                psi += v * T::cst(*w);
+            }
+        }
+        let (m, b_bar) = self.patch;
+        psi + step.excess * T::cst(self.excess)
+            + step.stabilisation
+                * (step.increment - T::cst(m))
+                * (b_p - T::cst(b_bar))
+                * T::cst(self.scale)
+    }
+}
+
+/// Everything fixed about one particle in one coupled sub-step.
+struct Local<'a, const D: usize> {
+    setting: Setting<'a, D>,
+    fluid: FluidSetting<'a, D>,
+    state: ParticleState<f64, D>,
+    excess: f64,
+    loads: Loads<f64, D>,
+    material: usize,
+    /// The stencil's nodes (flat indices) in the kernel's order.
+    flats: Vec<usize>,
+}
+
+impl<const D: usize> Local<'_, D> {
+    /// Inputs: the state's components, the excess, then `D + 1` unknowns per stencil node.
+    fn inputs(&self, system: &StepSystem<D>, x: &[f64]) -> Vec<f64> {
+        let mut z = self.state.components();
+        z.push(self.excess);
+        for &f in &self.flats {
+            z.extend((0..=D).map(|c| system.dofs.value(f, c, x)));
+        }
+        z
+    }
+
+    /// Index of the first unknown among the inputs.
+    const UNKNOWNS: usize = state_len(D) + 1;
+
+    /// The step with the inputs `z` in scalar `T` and the material and hydraulic properties
+    /// given.
+    fn step<T: Scalar + From<f64>>(
+        &self,
+        z: &[T],
+        material: &Material<T>,
+        hydraulic: &Hydraulic<T>,
+        loads: &Loads<T, D>,
+    ) -> Option<CoupledParticle<T, D>> {
+        let h0 = D + D * D;
+        let hl = loam_core::constitutive::HISTORY_LEN;
+        let state = ParticleState {
+            x: Vector::<T, D>::from_fn(|a, _| z[a]),
+            f: Tensor::<T, D>::from_fn(|r, c| z[D + r * D + c]),
+            history: loam_core::MaterialState::from_components(|k| z[h0 + k]),
+            v: Vector::<T, D>::from_fn(|a, _| z[h0 + hl + a]),
+            mass: z[h0 + hl + D],
+        };
+        let u = |flat: usize, c: usize| match self.flats.iter().position(|&f| f == flat) {
+            Some(k) => z[Self::UNKNOWNS + k * (D + 1) + c],
+            None => T::zero(),
+        };
+        particle_step(
+            &self.setting,
+            &self.fluid,
+            material,
+            hydraulic,
+            &state,
+            z[state_len(D)],
+            loads,
+            u,
+        )
+    }
+
+    /// `∂ψₚ/∂z_k` for the inputs `k` in `range`, [`LANES`] at a time.
+    fn gradient(
+        &self,
+        z: &[f64],
+        range: std::ops::Range<usize>,
+        mats: &[Material<DualSVec64<LANES>>],
+        hydraulic: &Hydraulic<DualSVec64<LANES>>,
+        cot: &CoupledCotangent<'_, D>,
+    ) -> Option<Vec<f64>> {
+        let mut out = vec![0.0; z.len()];
+        let loads = Loads {
+            gravity: self.loads.gravity.map(DualSVec64::from_re),
+            point: self.loads.point.map(DualSVec64::from_re),
+            balance: self.loads.balance.map(DualSVec64::from_re),
+        };
+        for first in range.clone().step_by(LANES) {
+            let seeded: Vec<DualSVec64<LANES>> = (z.iter().enumerate())
+                .map(|(k, &v)| {
+                    if k >= first && k < (first + LANES).min(range.end) {
+                        let mut e = SVector::<f64, LANES>::zeros();
+                        e[k - first] = 1.0;
+                        DualSVec64::new(v, Derivative::some(e))
+                    } else {
+                        DualSVec64::from_re(v)
+                    }
+                })
+                .collect();
+            let psi = cot.psi(&self.step(&seeded, &mats[self.material], hydraulic, &loads)?);
+            if let Some(e) = psi.eps.0.as_ref() {
+                for k in first..(first + LANES).min(range.end) {
+                    out[k] = e[k - first];
+                }
+            }
+        }
+        Some(out)
+    }
+}
+
+/// The per-particle settings of a coupled sub-step.
+fn locals<'a, const D: usize>(
+    replay: &'a Replay<'a, D>,
+    fluid: &'a PoreFluid<D>,
+    initial: &'a Particles<f64, D>,
+) -> Vec<Local<'a, D>> {
+    let system = &replay.system;
+    let flow = system.flow.as_ref().expect("a coupled step");
+    let mut conductance = vec![0.0; initial.len()];
+    for d in &fluid.drains {
+        conductance[d.particle] += d.conductance;
+    }
+    let mut inflow = vec![0.0; initial.len()];
+    for q in &fluid.inflow {
+        inflow[q.particle] += q.rate;
+    }
+    (0..initial.len())
+        .map(|p| {
+            let mut flats = Vec::new();
+            system.frozen[p].stencil.for_each(|n| flats.push(n.flat));
+            Local {
+                setting: replay.setting(p),
+                fluid: FluidSetting {
+                    fluid,
+                    dt: flow.dt,
+                    scale: flow.scale,
+                    conductance: conductance[p],
+                    inflow: inflow[p],
+                },
+                state: replay.state(p),
+                excess: flow.particles[p].excess,
+                loads: replay.loads(p),
+                material: initial.material[p] as usize,
+                flats,
+            }
+        })
+        .collect()
+}
+
+/// Per particle, `(m, B̄)` of its patch for the fluid weights `b` (module docs); with the
+/// stabilisation off, `(Δpₚ, Bₚ)` (its term and its gradient vanish).
+fn patch_constants<const D: usize>(
+    system: &StepSystem<D>,
+    steps: &[CoupledParticle<f64, D>],
+    b: &[f64],
+) -> Vec<(f64, f64)> {
+    let flow = system.flow.as_ref().expect("a coupled step");
+    let b_of =
+        |s: &CoupledParticle<f64, D>| -> f64 { s.nodes.iter().map(|n| n.weight * b[n.flat]).sum() };
+    let mut out: Vec<(f64, f64)> = steps.iter().map(|s| (s.increment, b_of(s))).collect();
+    for patch in &flow.patches {
+        let (mut w, mut wp, mut wb) = (0.0, 0.0, 0.0);
+        for &p in patch {
+            let s = &steps[p];
+            w += s.stabilisation;
+            wp += s.stabilisation * s.increment;
+            wb += s.stabilisation * out[p].1;
+        }
+        for &p in patch {
+            out[p] = (wp / w, wb / w);
+        }
+    }
+    out
+}
+
+/// The parameters' lifts for one particle: its material and hydraulic properties and its
+/// loads as `Dual64`, with `param` seeded where it acts on them.
+struct Seeded<const D: usize> {
+    material: Material<Dual64>,
+    hydraulic: Hydraulic<Dual64>,
+    loads: Loads<Dual64, D>,
+}
+
+impl<const D: usize> Seeded<D> {
+    fn new(
+        param: ImplicitParam,
+        config: &ImplicitConfig<D>,
+        fluid: &PoreFluid<D>,
+        local: &Local<'_, D>,
+        p: usize,
+        balance_rate: &[Vector<f64, D>],
+    ) -> Self {
+        let k = local.material;
+        let material = param
+            .seeded_material(k, &config.materials[k])
+            .unwrap_or_else(|| config.materials[k].lift());
+        let mut loads = lift_loads(&local.loads);
+        match param {
+            ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
+            ImplicitParam::PointLoad(j, a) if config.point_loads[j].particle == p => {
+                loads.point[a].eps = 1.0
+            }
+            _ => {}
+        }
+        if let Some(rate) = balance_rate.get(p) {
+            for a in 0..D {
+                loads.balance[a].eps = rate[a];
+            }
+        }
+        Self {
+            material,
+            hydraulic: param.seeded_hydraulic(fluid, k),
+            loads,
+        }
+    }
+}
+
+/// The reverse pass of a coupled run over its sub-steps `first..` ([`super::adjoint`] for
+/// the equations; module docs for the coupled step).
+///
+/// # Errors
+/// A sub-step whose system cannot be rebuilt or whose adjoint system cannot be solved.
+pub fn reverse<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    params: &[ImplicitParam],
+    first: usize,
+) -> Result<Vec<f64>, AdjointError> {
+    let fluid = config.pore_fluid.as_ref().expect("a coupled run");
+    let solver = ImplicitSolver::new(config.clone(), initial)?;
+    let n = initial.len();
+    let nodes = config.grid.num_nodes();
+    let weights = observations.residual_weights(run);
+    let mats: Vec<Material<DualSVec64<LANES>>> =
+        config.materials.iter().map(|m| m.lift()).collect();
+    let balance_rates: Vec<Vec<Vector<f64, D>>> = (params.iter())
+        .map(|q| q.balance_tangent(config, initial))
+        .collect::<Result<_, _>>()?;
+    let zeros = vec![Vector::<f64, D>::zeros(); nodes];
+    let no_fluid = vec![0.0; nodes];
+    let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
+    let mut sbar = vec![vec![0.0; state_len(D)]; n];
+    let mut ebar = vec![0.0; n];
+    let mut grad = vec![0.0; params.len()];
+    for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
+        let seeds = SubStep::ends_step(&run.substeps, i)
+            .then(|| StepSeeds::new(config, observations, &weights, sub.step));
+        let replay = Replay::new(&solver, initial, sub)?;
+        let system = &replay.system;
+        let local = locals(&replay, fluid, initial);
+        for &(p, k, w) in seeds.iter().flat_map(|s| &s.states) {
+            sbar[p][k] += w;
+        }
+        // A pore pressure p_h(x') + p_e' after the step.
+        for &(p, w) in seeds.iter().flat_map(|s| &s.pressures) {
+            let end = &run.positions[sub.step][p];
+            ebar[p] += w;
+            sbar[p][D - 1] += w * local[p].fluid.hydrostatic_slope(end);
+        }
+        system.prepare(&mut linear);
+        let inverted = |particle| {
+            AdjointError::Implicit(ImplicitError::InvalidState {
+                step: sub.step,
+                particle,
+            })
+        };
+        let a_r = (seeds.as_ref())
+            .and_then(|s| s.reaction_weights.as_deref())
+            .unwrap_or(&zeros);
+        let inputs: Vec<Vec<f64>> = (local.par_iter())
+            .map(|l| l.inputs(system, &sub.solution))
+            .collect();
+        let hydraulic: Vec<Hydraulic<DualSVec64<LANES>>> =
+            fluid.hydraulic.iter().map(Hydraulic::lift).collect();
+        // Right-hand side: ∂ψ/∂(Δu, p̂) with λ = 0.
+        let by_unknowns: Vec<Option<Vec<f64>>> = (0..n)
+            .into_par_iter()
+            .map(|p| {
+                let cot = CoupledCotangent {
+                    internal: a_r,
+                    external: &zeros,
+                    fluid: &no_fluid,
+                    end: &sbar[p],
+                    excess: ebar[p],
+                    patch: (0.0, 0.0),
+                    scale: local[p].fluid.scale,
+                };
+                let l = &local[p];
+                let z = &inputs[p];
+                l.gradient(
+                    z,
+                    Local::<D>::UNKNOWNS..z.len(),
+                    &mats,
+                    &hydraulic[l.material],
+                    &cot,
+                )
+            })
+            .collect();
+        let mut rhs = vec![0.0; system.len()];
+        for (p, g) in by_unknowns.into_iter().enumerate() {
+            let g = g.ok_or_else(|| inverted(p))?;
+            scatter(system, &local[p].flats, &g, &mut rhs);
+        }
+        let mut lambda = vec![0.0; system.len()];
+        if rhs.iter().any(|v| *v != 0.0) {
+            let k = system
+                .tangent_local(&sub.solution, solver.materials())
+                .map_err(|e| inverted(e.particle))?;
+            linear
+                .solve_transpose(&k, &rhs, &mut lambda)
+                .map_err(|source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "adjoint",
+                    source,
+                })?;
+        }
+        // Nodal weights: a = r̄ − λ_u, c = λ_u, b = −λ_p.
+        let mut internal = a_r.to_vec();
+        let mut external = zeros.clone();
+        let mut fluid_w = vec![0.0; nodes];
+        for node in 0..nodes {
+            for c in 0..=D {
+                if let NodeDof::Free { dof, sign } = system.dofs.get(node, c) {
+                    if c < D {
+                        internal[node][c] -= sign * lambda[dof];
+                        external[node][c] += sign * lambda[dof];
+                    } else {
+                        fluid_w[node] -= sign * lambda[dof];
+                    }
+                }
+            }
+        }
+        let real: Vec<Option<CoupledParticle<f64, D>>> = (0..n)
+            .into_par_iter()
+            .map(|p| {
+                let l = &local[p];
+                let hydraulic = &fluid.hydraulic[l.material];
+                l.step(
+                    &inputs[p],
+                    &config.materials[l.material],
+                    hydraulic,
+                    &l.loads,
+                )
+            })
+            .collect();
+        let real: Vec<CoupledParticle<f64, D>> = (real.into_iter().enumerate())
+            .map(|(p, s)| s.ok_or_else(|| inverted(p)))
+            .collect::<Result<_, _>>()?;
+        let patches = patch_constants(system, &real, &fluid_w);
+        let rates: Vec<Option<Vec<Vector<f64, D>>>> = params
+            .iter()
+            .map(|q| match *q {
+                ImplicitParam::Displacement(k, a) => replay.prescribed_rate(k, a).map(Some),
+                _ => Ok(None),
+            })
+            .collect::<Result<_, _>>()?;
+        let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
+            .into_par_iter()
+            .map(|p| {
+                let l = &local[p];
+                let z = &inputs[p];
+                let cot = CoupledCotangent {
+                    internal: &internal,
+                    external: &external,
+                    fluid: &fluid_w,
+                    end: &sbar[p],
+                    excess: ebar[p],
+                    patch: patches[p],
+                    scale: l.fluid.scale,
+                };
+                let g = l.gradient(z, 0..z.len(), &mats, &hydraulic[l.material], &cot)?;
+                let mut shares = vec![0.0; params.len()];
+                for (j, q) in params.iter().enumerate() {
+                    shares[j] = match *q {
+                        // Through the masses (the initial state's tangent).
+                        ImplicitParam::Material(_, MaterialField::Density) => continue,
+                        ImplicitParam::Displacement(..) => {
+                            let rate = rates[j].as_ref().expect("rates of displacements");
+                            (l.flats.iter().enumerate())
+                                .map(|(k, &f)| {
+                                    (0..D)
+                                        .map(|a| {
+                                            rate[f][a] * g[Local::<D>::UNKNOWNS + k * (D + 1) + a]
+                                        })
+                                        .sum::<f64>()
+                                })
+                                .sum()
+                        }
+                        _ => {
+                            let s = Seeded::new(*q, config, fluid, l, p, &balance_rates[j]);
+                            let z: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
+                            cot.psi(&l.step(&z, &s.material, &s.hydraulic, &s.loads)?)
+                                .eps
+                        }
+                    };
+                }
+                Some((g, shares))
+            })
+            .collect();
+        for (p, r) in per_particle.into_iter().enumerate() {
+            let (g, shares) = r.ok_or_else(|| inverted(p))?;
+            sbar[p].copy_from_slice(&g[..state_len(D)]);
+            ebar[p] = g[state_len(D)];
+            grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
+        }
+    }
+    for (g, q) in grad.iter_mut().zip(params) {
+        for (p, t) in q.initial_tangent(config, initial) {
+            *g += t.iter().zip(&sbar[p]).map(|(a, b)| a * b).sum::<f64>();
+        }
+    }
+    Ok(grad)
+}
+
+/// Adds a particle's gradient by its stencil unknowns (`g`, inputs order) to `out` on the
+/// free unknowns.
+fn scatter<const D: usize>(system: &StepSystem<D>, flats: &[usize], g: &[f64], out: &mut [f64]) {
+    for (k, &f) in flats.iter().enumerate() {
+        for c in 0..=D {
+            if let NodeDof::Free { dof, sign } = system.dofs.get(f, c) {
+                out[dof] += sign * g[Local::<D>::UNKNOWNS + k * (D + 1) + c];
+            }
+        }
+    }
+}
+
+/// `dm_k/dθ` of every observed quantity of a coupled run by forward-mode duals (module
+/// docs; [`super::tangent::model_tangents`] for a run of the solid alone).
+///
+/// # Errors
+/// As [`reverse`].
+pub fn model_tangents<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    param: ImplicitParam,
+) -> Result<Vec<f64>, AdjointError> {
+    let fluid = config.pore_fluid.as_ref().expect("a coupled run");
+    let solver = ImplicitSolver::new(config.clone(), initial)?;
+    let n = initial.len();
+    let mut sdot = vec![vec![0.0; state_len(D)]; n];
+    for (p, t) in param.initial_tangent(config, initial) {
+        sdot[p] = t;
+    }
+    let mut edot = vec![0.0; n];
+    let balance_rate = param.balance_tangent(config, initial)?;
+    let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
+    let mut tangents = vec![0.0; observations.items.len()];
+    for (i, sub) in run.substeps.iter().enumerate() {
+        let replay = Replay::new(&solver, initial, sub)?;
+        let system = &replay.system;
+        let flow = system.flow.as_ref().expect("a coupled step");
+        let local = locals(&replay, fluid, initial);
+        system.prepare(&mut linear);
+        let inverted = |particle| {
+            AdjointError::Implicit(ImplicitError::InvalidState {
+                step: sub.step,
+                particle,
+            })
+        };
+        let rate = match param {
+            ImplicitParam::Displacement(k, a) => Some(replay.prescribed_rate(k, a)?),
+            _ => None,
+        };
+        // Every particle's step with the free unknowns' derivative parts `free`.
+        let evaluate = |free: &[f64]| -> Result<Vec<CoupledParticle<Dual64, D>>, AdjointError> {
+            let steps: Vec<Option<CoupledParticle<Dual64, D>>> = (0..n)
+                .into_par_iter()
+                .map(|p| {
+                    let l = &local[p];
+                    let s = Seeded::new(param, config, fluid, l, p, &balance_rate);
+                    let mut z: Vec<Dual64> = (l.state.components().iter().zip(&sdot[p]))
+                        .map(|(&v, &t)| Dual64::new(v, t))
+                        .collect();
+                    z.push(Dual64::new(l.excess, edot[p]));
+                    for &f in &l.flats {
+                        for c in 0..=D {
+                            let eps = match system.dofs.get(f, c) {
+                                NodeDof::Free { dof, sign } => sign * free[dof],
+                                _ if c < D => rate.as_ref().map_or(0.0, |r| r[f][c]),
+                                _ => 0.0,
+                            };
+                            z.push(Dual64::new(system.dofs.value(f, c, &sub.solution), eps));
+                        }
+                    }
+                    l.step(&z, &s.material, &s.hydraulic, &s.loads)
+                })
+                .collect();
+            (steps.into_iter().enumerate())
+                .map(|(p, s)| s.ok_or_else(|| inverted(p)))
+                .collect()
+        };
+        // Ṙ with the unknowns held, the stabilisation's included, then J u̇ = −Ṙ.
+        let held = evaluate(&vec![0.0; system.len()])?;
+        let mut r_dot = vec![0.0; system.len()];
+        let mut add = |flat: usize, c: usize, v: f64| {
+            if let NodeDof::Free { dof, sign } = system.dofs.get(flat, c) {
+                r_dot[dof] -= sign * v;
+            }
+        };
+        for s in &held {
+            for node in &s.nodes {
+                for a in 0..D {
+                    add(node.flat, a, (node.internal[a] - node.external[a]).eps);
+                }
+                add(node.flat, D, (node.fluid - node.inflow).eps);
+            }
+        }
+        for patch in &flow.patches {
+            let (mut w, mut wp) = (Dual64::from_re(0.0), Dual64::from_re(0.0));
+            for &p in patch {
+                w += held[p].stabilisation;
+                wp += held[p].stabilisation * held[p].increment;
+            }
+            let mean = wp / w;
+            for &p in patch {
+                let r = held[p].stabilisation
+                    * (held[p].increment - mean)
+                    * Dual64::from_re(flow.scale);
+                for node in &held[p].nodes {
+                    add(node.flat, D, (r * node.weight).eps);
+                }
+            }
+        }
+        let mut u_dot = vec![0.0; system.len()];
+        if !system.is_empty() {
+            let k = system
+                .tangent_local(&sub.solution, solver.materials())
+                .map_err(|e| inverted(e.particle))?;
+            linear
+                .solve(&k, &r_dot, &mut u_dot)
+                .map_err(|source| AdjointError::Linear {
+                    step: sub.step,
+                    what: "tangent",
+                    source,
+                })?;
+        }
+        let moved = evaluate(&u_dot)?;
+        for (p, s) in moved.iter().enumerate() {
+            sdot[p] = s.end.tangent();
+            edot[p] = s.excess.eps;
+        }
+        if SubStep::ends_step(&run.substeps, i) {
+            let observed =
+                (observations.items.iter().zip(&mut tangents)).filter(|(o, _)| o.step == sub.step);
+            for (o, t) in observed {
+                *t = match o.quantity {
+                    Quantity::Displacement {
+                        particle,
+                        component,
+                    } => sdot[particle][component],
+                    Quantity::Velocity { .. } => 0.0,
+                    Quantity::PorePressure { particle } => {
+                        let end = &run.positions[sub.step][particle];
+                        edot[particle]
+                            + local[particle].fluid.hydrostatic_slope(end) * sdot[particle][D - 1]
+                    }
+                    Quantity::Reaction {
+                        constraint,
+                        component,
+                    } => {
+                        let mut unit = vec![Vector::<f64, D>::zeros(); config.constraints.len()];
+                        unit[constraint][component] = 1.0;
+                        let w = StepSeeds::node_weights(config, &unit);
+                        (moved.iter().flat_map(|s| &s.nodes))
+                            .map(|node| {
+                                (0..D)
+                                    .map(|a| w[node.flat][a] * node.internal[a].eps)
+                                    .sum::<f64>()
+                            })
+                            .sum()
+                    }
+                };
+            }
+        }
+    }
+    Ok(tangents)
+}
