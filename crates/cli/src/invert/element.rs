@@ -804,7 +804,11 @@ pub fn gradient(inv: &ElementInversion, check: bool) -> Outcome {
         "parameter", "value", "dL/dθ (forward)"
     );
     for (name, k) in &rows {
-        println!("  {name:width$}  {:>14.8}  {:>18.10e}", theta[*k], grad[*k]);
+        println!(
+            "  {name:width$}  {:>14}  {:>18.10e}",
+            super::number(theta[*k], 8),
+            grad[*k]
+        );
     }
     match inv.problem.identifiability(theta) {
         Ok(g) => print_identifiability(&inv.names, inv.problem.observations(), &g),

@@ -33,7 +33,7 @@ use loam_inverse::{
     Adam, AdjointError, Control, Evaluation, GaussNewtonModel, Lbfgs, LevenbergMarquardt,
     Optimiser, Variable,
 };
-use model::{CheckRow, Model};
+use model::{CheckRow, Cost, Model};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -288,7 +288,13 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         inv.path.display(),
         inv.problem.run_length()
     );
-    if let Some(c) = cost {
+    if let Cost::Implicit { forward, reverse } = cost {
+        println!(
+            "  forward run {forward:.2} s, reverse pass {reverse:.2} s (adjoint/forward {:.2})",
+            reverse / forward
+        );
+    }
+    if let Cost::Explicit(c) = cost {
         let p = c.phases;
         println!(
             "  forward pass {:.2} s, recomputation {:.2} s, reverse steps {:.2} s; \
@@ -307,7 +313,11 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
         "parameter", "value", "dL/dθ (adjoint)"
     );
     for (name, k) in &rows {
-        println!("  {name:width$}  {:>14.8}  {:>18.10e}", theta[*k], grad[*k]);
+        println!(
+            "  {name:width$}  {:>14}  {:>18.10e}",
+            number(theta[*k], 8),
+            grad[*k]
+        );
     }
     for (f, (start, len)) in field_blocks(&inv).into_iter().enumerate() {
         println!(
@@ -784,6 +794,16 @@ fn no_decrease(first: &Entry, loss: f64, free: f64) -> Result<String, String> {
     ))
 }
 
+/// `v` with `digits` decimals, in scientific notation where fixed decimals would hide its
+/// digits (a hydraulic conductivity of 1e-8 m/s) or run long (|v| ≥ 1e9).
+pub(crate) fn number(v: f64, digits: usize) -> String {
+    if v == 0.0 || (1e-3..1e9).contains(&v.abs()) {
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.digits$e}")
+    }
+}
+
 /// A loss that is not finite at the first guess: invalid input (exit 2), naming the file.
 fn first_loss(path: &Path, loss: f64) -> Result<(), Outcome> {
     if loss.is_finite() {
@@ -833,7 +853,7 @@ fn print_line(inv: &dyn Inverse, history: &History, e: &Entry) {
     };
     let left = inv.stop().max_iterations.saturating_sub(e.iteration) as f64 * per;
     let params: Vec<String> = (inv.names().iter().zip(&e.parameters))
-        .map(|(n, v)| format!("{n} = {v:.6}"))
+        .map(|(n, v)| format!("{n} = {}", number(*v, 6)))
         .chain(
             (e.field_errors.iter().enumerate())
                 .map(|(k, r)| format!("velocity_field[{k}] error {:.2} %", 100.0 * r)),
@@ -959,13 +979,17 @@ fn finish(
     for (k, name) in inv.names().iter().enumerate() {
         match inv.truth() {
             Some(t) => println!(
-                "  {name}: {:.6} (truth {}, error {:.3e}, first guess {})",
-                theta[k],
-                t[k],
+                "  {name}: {} (truth {}, error {:.3e}, first guess {})",
+                number(theta[k], 6),
+                number(t[k], 6),
                 theta[k] - t[k],
-                initial[k]
+                number(initial[k], 6)
             ),
-            None => println!("  {name}: {:.6} (first guess {})", theta[k], initial[k]),
+            None => println!(
+                "  {name}: {} (first guess {})",
+                number(theta[k], 6),
+                number(initial[k], 6)
+            ),
         }
     }
     if let Err(e) = inv.report_recovered(&theta) {

@@ -24,6 +24,20 @@ pub enum Model<const D: usize> {
     },
 }
 
+/// What a gradient took.
+pub enum Cost {
+    /// The explicit path's adjoint: segments, memory, time by part.
+    Explicit(GradientCost),
+    /// The implicit path's: seconds of the forward run (with its record) and of the reverse
+    /// pass.
+    Implicit {
+        /// Forward run (s).
+        forward: f64,
+        /// Reverse pass (s).
+        reverse: f64,
+    },
+}
+
 impl<const D: usize> Model<D> {
     /// `L(θ)` and `dL/dθ` by the discrete adjoint.
     ///
@@ -36,20 +50,22 @@ impl<const D: usize> Model<D> {
         }
     }
 
-    /// [`Model::gradient`], with what the explicit path's adjoint took (segments, memory,
-    /// time by part; `None` on the implicit path).
+    /// [`Model::gradient`], with what the adjoint took.
     ///
     /// # Errors
     /// As [`Model::gradient`].
-    pub fn gradient_and_cost(
-        &self,
-        theta: &[f64],
-    ) -> Result<(f64, Vec<f64>, Option<GradientCost>), AdjointError> {
+    pub fn gradient_and_cost(&self, theta: &[f64]) -> Result<(f64, Vec<f64>, Cost), AdjointError> {
         match self {
             Self::Explicit(p) => p
                 .gradient_and_cost(theta)
-                .map(|(loss, g, cost)| (loss, g, Some(cost))),
-            Self::Implicit { .. } => self.gradient(theta).map(|(loss, g)| (loss, g, None)),
+                .map(|(loss, g, cost)| (loss, g, Cost::Explicit(cost))),
+            Self::Implicit { problem, .. } => problem.gradient(theta).map(|g| {
+                let cost = Cost::Implicit {
+                    forward: g.forward_seconds,
+                    reverse: g.reverse_seconds,
+                };
+                (g.loss, g.gradient, cost)
+            }),
         }
     }
 

@@ -146,6 +146,7 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
     let beam = repo("verification/scenes/implicit_cantilever.toml");
     let footing = repo("examples/inverse/footing_clay.toml");
     let dam = repo("examples/inverse/dambreak_small.toml");
+    let layer = repo("examples/inverse/consolidation_layer.toml");
     let on = |scene: &Path| format!("scene = \"{}\"\n", scene.display());
     let young = "[[parameters]]\nname = \"materials[0].young\"\ninitial = 1.2e6\ntruth = 1.0e6\n";
     let synth = "[synthetic]\nids = [31]\n";
@@ -212,7 +213,7 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
         (
             format!("{}{young}", on(&footing)),
             "observations",
-            "expected `displacement` or `reaction`",
+            "expected `displacement`, `reaction` or `pore_pressure`",
         ),
         (
             format!(
@@ -263,6 +264,45 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
             "observations.displacement",
             "u.csv line 3: displacement",
         ),
+        // Pore-pressure observations and parameters on a scene without a pore fluid, and a
+        // coupled scene's malformed piezometers and steps.
+        (
+            format!(
+                "{}{young}{synth}[[observations.piezometers]]\nname = \"p\"\nat = [1.0, 1.0]\n",
+                on(&beam)
+            ),
+            "observations.piezometers",
+            "has no [pore_fluid]",
+        ),
+        (
+            format!(
+                "{}{synth}[[parameters]]\nname = \"materials[0].hydraulic_conductivity\"\ninitial = 1e-8\ntruth = 1e-8\n",
+                on(&beam)
+            ),
+            "parameters[0].name",
+            "has no [pore_fluid]",
+        ),
+        (
+            format!("{}steps = 3\n{young}{synth}", on(&layer)),
+            "steps",
+            "[solver.consolidation] schedule",
+        ),
+        (
+            format!(
+                "{}{young}[observations]\npore_pressure = \"p.csv\"\n",
+                on(&layer)
+            ),
+            "observations.piezometers",
+            "needs [[observations.piezometers]]",
+        ),
+        (
+            format!(
+                "{}{young}{synth}[[observations.piezometers]]\nname = \"p\"\nat = [0.0]\n",
+                on(&layer)
+            ),
+            "observations.piezometers[0].at",
+            "expected 2 finite coordinates",
+        ),
     ];
     std::fs::write(
         dir.path().join("obs.csv"),
@@ -275,6 +315,79 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
     )
     .unwrap();
     assert_refused(dir.path(), &cases);
+}
+
+/// A coupled (u–p) scene: the piezometers' pore pressures of a synthetic run, written as
+/// `pore_pressure.csv` and read back, give the synthetic loss and gradient (zero loss at the
+/// truth), and `--check` confirms the adjoint through the consolidation steps against the
+/// forward-mode dual run (the command fails otherwise).
+#[test]
+fn pore_pressure_observations_round_trip_and_their_gradient_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo("examples/inverse/consolidation_layer.toml");
+    let head = format!(
+        "scene = \"{}\"\n[[parameters]]\nname = \"materials[0].hydraulic_conductivity\"\ninitial = 2e-8\ntruth = 1e-8\n",
+        scene.display()
+    );
+    let piezometers = "[observations]\npore_pressure_sigma = 100.0\n[[observations.piezometers]]\nname = \"upper\"\nat = [0.0, 1.5]\n[[observations.piezometers]]\nname = \"lower\"\nat = [0.0, 0.75]\n";
+    let synthetic = dir.path().join("synthetic.toml");
+    let synthetic_text = format!("{head}{piezometers}[synthetic]\n[stop]\nmax_iterations = 0\n");
+    std::fs::write(&synthetic, &synthetic_text).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = loam(&[
+        "invert",
+        synthetic.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let csv = std::fs::read_to_string(out_dir.join("pore_pressure.csv")).unwrap();
+    assert!(
+        csv.starts_with("step,piezometer,pore_pressure\n1,upper,"),
+        "{csv}"
+    );
+    // Two piezometers after each of the 26 steps.
+    assert_eq!(csv.lines().count(), 1 + 2 * 26, "{csv}");
+    let from_csv = dir.path().join("csv.toml");
+    let observed = piezometers.replacen(
+        "pore_pressure_sigma = 100.0\n",
+        &format!(
+            "pore_pressure_sigma = 100.0\npore_pressure = \"{}\"\n",
+            out_dir.join("pore_pressure.csv").display()
+        ),
+        1,
+    );
+    std::fs::write(&from_csv, format!("{head}{observed}")).unwrap();
+    let a = text(&loam(&["gradient", synthetic.to_str().unwrap()]));
+    let b = text(&loam(&["gradient", from_csv.to_str().unwrap()]));
+    let line = |s: &str, start: &str| {
+        s.lines()
+            .find(|l| l.trim_start().starts_with(start) || l.contains(start))
+            .map(str::to_owned)
+            .unwrap_or_default()
+    };
+    let loss = |s: &str| {
+        line(s, "L = ")
+            .split("L = ")
+            .nth(1)
+            .and_then(|l| l.split(' ').next())
+            .unwrap_or_default()
+            .to_owned()
+    };
+    assert_eq!(loss(&a), loss(&b), "{a}\n{b}");
+    let grad = "materials[0].hydraulic_conductivity";
+    assert_eq!(line(&a, grad), line(&b, grad), "{a}\n{b}");
+    std::fs::write(
+        &from_csv,
+        std::fs::read_to_string(&from_csv)
+            .unwrap()
+            .replace("initial = 2e-8", "initial = 1e-8"),
+    )
+    .unwrap();
+    let at_truth = text(&loam(&["gradient", from_csv.to_str().unwrap()]));
+    assert!(at_truth.contains("L = 0.0000000000e0"), "{at_truth}");
+    let out = loam(&["gradient", synthetic.to_str().unwrap(), "--check"]);
+    assert!(out.status.success(), "{}", text(&out));
 }
 
 /// An implicit inversion stopped after 2 iterations and resumed to 5 ends where a run of 5
