@@ -53,7 +53,7 @@
 use crate::dofs::NodeDof;
 use crate::kernel::stress_update;
 use crate::linear::SparseMatrix;
-use crate::system::{Inverted, Materials, StepSystem};
+use crate::system::{Inverted, Materials, Placed, StepSystem};
 use loam_core::tensor::{Tensor, Vector, det, inverse};
 use loam_core::{Material, Scalar};
 use nalgebra::Matrix3;
@@ -255,8 +255,9 @@ pub const fn coupled_lanes(d: usize) -> usize {
 }
 
 /// The derivative of the coupled kernel's outputs (`momentum` row-major, `volume`, `flux`)
-/// with respect to its inputs (`ΔF` row-major, `p̂`, `∇ⁿp̂`), `L × L` row-major.
-pub type CoupledTangent = Vec<f64>;
+/// with respect to its inputs (`ΔF` row-major, `p̂`, `∇ⁿp̂`), `L × L` row-major
+/// (`L` = [`coupled_lanes`]).
+pub type CoupledTangent<const L: usize> = [[f64; L]; L];
 
 impl<const D: usize> StepSystem<D> {
     /// Adds the water the inflows bring over the step, `Δt Σ Q N_i(xⁿ)`, to the external side
@@ -465,13 +466,18 @@ impl<const D: usize> StepSystem<D> {
         c: f64,
         k: &mut SparseMatrix,
     ) {
-        for (&fi, ui) in nodes.iter().zip(u) {
-            let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, D) else {
-                continue;
-            };
-            for (&fj, vj) in nodes.iter().zip(v) {
-                if let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, D) {
-                    k.values[self.slot(row, col)] += c * sr * sc * ui * vj;
+        let placed: Vec<Option<Placed>> = nodes
+            .iter()
+            .map(|&f| match self.dofs.get(f, D) {
+                NodeDof::Free { dof, sign } => Some(self.place(dof, sign)),
+                _ => None,
+            })
+            .collect();
+        for (row, ui) in placed.iter().zip(u) {
+            let Some(row) = row else { continue };
+            for (col, vj) in placed.iter().zip(v) {
+                if let Some(col) = col {
+                    k.values[self.slot_placed(row, col)] += c * row.sign * col.sign * ui * vj;
                 }
             }
         }
@@ -487,14 +493,15 @@ impl<const D: usize> StepSystem<D> {
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
+        let mut entries = Vec::new();
         match D {
             2 => self.chunked(
                 |p| self.coupled_local::<7>(p, x, &materials.dual7),
-                |p, a| self.scatter_coupled_local(p, &a, &mut k),
+                |p, a| self.scatter_coupled_local(p, a.as_flattened(), &mut k, &mut entries),
             )?,
             3 => self.chunked(
                 |p| self.coupled_local::<13>(p, x, &materials.dual13),
-                |p, a| self.scatter_coupled_local(p, &a, &mut k),
+                |p, a| self.scatter_coupled_local(p, a.as_flattened(), &mut k, &mut entries),
             )?,
             _ => unreachable!("D is 2 or 3"),
         }
@@ -508,7 +515,7 @@ impl<const D: usize> StepSystem<D> {
         p: usize,
         x: &[f64],
         mats: &[Material<DualSVec64<L>>],
-    ) -> Option<CoupledTangent> {
+    ) -> Option<CoupledTangent<L>> {
         debug_assert_eq!(L, coupled_lanes(D));
         let (g, p_hat, grad) = self.coupled_inputs(p, x);
         let seed = |v: f64, lane: usize| {
@@ -523,17 +530,15 @@ impl<const D: usize> StepSystem<D> {
         let lanes = |v: &DualSVec64<L>| -> [f64; L] {
             std::array::from_fn(|l| v.eps.0.as_ref().map_or(0.0, |e| e[l]))
         };
-        let mut out = Vec::with_capacity(L * L);
-        for a in 0..D {
-            for b in 0..D {
-                out.extend(lanes(&c.momentum[(a, b)]));
+        Some(std::array::from_fn(|o| {
+            if o < D * D {
+                lanes(&c.momentum[(o / D, o % D)])
+            } else if o == D * D {
+                lanes(&c.volume)
+            } else {
+                lanes(&c.flux[o - D * D - 1])
             }
-        }
-        out.extend(lanes(&c.volume));
-        for d in 0..D {
-            out.extend(lanes(&c.flux[d]));
-        }
-        Some(out)
+        }))
     }
 
     /// The coupled tangent by block-colour seeding (the reference, as
@@ -628,28 +633,36 @@ impl<const D: usize> StepSystem<D> {
     }
 
     /// Adds one particle's `K_{(i,r),(j,c)} = Σ_{o,z} B_i(r)_o A_{oz} B_j(c)_z` (the kernel's
-    /// derivative `A` between the shape-function weights `B` of the row and column unknowns).
-    fn scatter_coupled_local(&self, p: usize, a: &CoupledTangent, k: &mut SparseMatrix) {
+    /// derivative `A`, `L × L` row-major, between the shape-function weights `B` of the row
+    /// and column unknowns); `entries` is scratch space.
+    fn scatter_coupled_local(
+        &self,
+        p: usize,
+        a: &[f64],
+        k: &mut SparseMatrix,
+        entries: &mut Vec<(Placed, Weights)>,
+    ) {
         let l = coupled_lanes(D);
+        debug_assert_eq!(a.len(), l * l);
         let fields = D + 1;
-        let st = &self.frozen[p].stencil;
-        // Per stencil node and component: its unknown (with sign) and its weights over the
-        // kernel's inputs, which are also those over its outputs: `∂_d N` on `ΔF_cd` for a
-        // displacement component `c`, `N` on `p̂` and `∂_d N` on `∇p̂_d` for the pressure.
-        let mut entries: Vec<(Option<(usize, f64)>, Weights)> =
-            Vec::with_capacity(st.len() * fields);
-        st.for_each(|n| {
+        // Per stencil node and component with an unknown: the unknown, placed in the
+        // sparsity, and its weights over the kernel's inputs, which are also those over its
+        // outputs: `∂_d N` on `ΔF_cd` for a displacement component `c`, `N` on `p̂` and
+        // `∂_d N` on `∇p̂_d` for the pressure.
+        entries.clear();
+        self.frozen[p].stencil.for_each(|n| {
             for c in 0..fields {
-                let dof = match self.dofs.get(n.flat, c) {
-                    NodeDof::Free { dof, sign } => Some((dof, sign)),
-                    _ => None,
-                };
-                entries.push((dof, Weights::of::<D>(c, n.weight, &n.gradient)));
+                if let NodeDof::Free { dof, sign } = self.dofs.get(n.flat, c) {
+                    entries.push((
+                        self.place(dof, sign),
+                        Weights::of::<D>(c, n.weight, &n.gradient),
+                    ));
+                }
             }
         });
-        let mut v = vec![0.0; l];
-        for (col_dof, bj) in &entries {
-            let Some((col, sc)) = *col_dof else { continue };
+        let mut v = [0.0; coupled_lanes(3)];
+        let v = &mut v[..l];
+        for (col, bj) in entries.iter() {
             // A B_j(c): one column of outputs.
             v.iter_mut().for_each(|x| *x = 0.0);
             for (&z, &bz) in bj.index[..bj.len].iter().zip(&bj.value) {
@@ -657,13 +670,11 @@ impl<const D: usize> StepSystem<D> {
                     *vo += a[o * l + z] * bz;
                 }
             }
-            for (row_dof, bi) in &entries {
-                if let Some((row, sr)) = *row_dof {
-                    let kv: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
-                        .map(|(&o, &b)| b * v[o])
-                        .sum();
-                    k.values[self.slot(row, col)] += sr * sc * kv;
-                }
+            for (row, bi) in entries.iter() {
+                let kv: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
+                    .map(|(&o, &b)| b * v[o])
+                    .sum();
+                k.values[self.slot_placed(row, col)] += row.sign * col.sign * kv;
             }
         }
     }
