@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 /// Particles per parallel chunk: local results of a chunk are computed in parallel and then
 /// scattered serially in particle order, so the assembly is deterministic.
-const CHUNK: usize = 1024;
+pub(crate) const CHUNK: usize = 1024;
 
 /// A trial state that inverts a particle (`det ΔF ≤ 0`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
