@@ -53,11 +53,12 @@
 use crate::dofs::NodeDof;
 use crate::kernel::stress_update;
 use crate::linear::SparseMatrix;
-use crate::system::{Inverted, Materials, StepSystem};
+use crate::system::{CHUNK, Inverted, Materials, Placed, StepSystem};
 use loam_core::tensor::{Tensor, Vector, det, inverse};
 use loam_core::{Material, Scalar};
 use nalgebra::Matrix3;
 use num_dual::DualSVec64;
+use rayon::prelude::*;
 
 /// The hydraulic properties of a porous material, in scalar type `T` (`f64` in the solver; a
 /// dual number where a gradient by them is taken).
@@ -255,8 +256,9 @@ pub const fn coupled_lanes(d: usize) -> usize {
 }
 
 /// The derivative of the coupled kernel's outputs (`momentum` row-major, `volume`, `flux`)
-/// with respect to its inputs (`ΔF` row-major, `p̂`, `∇ⁿp̂`), `L × L` row-major.
-pub type CoupledTangent = Vec<f64>;
+/// with respect to its inputs (`ΔF` row-major, `p̂`, `∇ⁿp̂`), `L × L` row-major
+/// (`L` = [`coupled_lanes`]).
+pub type CoupledTangent<const L: usize> = [[f64; L]; L];
 
 impl<const D: usize> StepSystem<D> {
     /// Adds the water the inflows bring over the step, `Δt Σ Q N_i(xⁿ)`, to the external side
@@ -428,50 +430,65 @@ impl<const D: usize> StepSystem<D> {
     }
 
     /// Assembles the stabilisation's tangent into `k` (see
-    /// [`StepSystem::add_stabilisation_tangent`]).
+    /// [`StepSystem::add_stabilisation_tangent`]): per patch, a dense block over the nodes
+    /// of its particles' stencils, added to `k` once.
     fn assemble_stabilisation(&self, k: &mut SparseMatrix) {
         let flow = self.fluid();
         let s2 = flow.scale * flow.scale;
+        let mut nodes: Vec<usize> = Vec::new();
+        let mut a: Vec<f64> = Vec::new();
+        let mut local: Vec<(usize, f64)> = Vec::new();
+        let mut dense: Vec<f64> = Vec::new();
         for patch in &flow.patches {
-            let mut a: Vec<(usize, f64)> = Vec::new();
+            nodes.clear();
+            a.clear();
+            for &p in patch {
+                self.frozen[p].stencil.for_each(|n| {
+                    if !nodes.contains(&n.flat) {
+                        nodes.push(n.flat);
+                        a.push(0.0);
+                    }
+                });
+            }
+            let m = nodes.len();
+            dense.clear();
+            dense.resize(m * m, 0.0);
             let mut total = 0.0;
             for &p in patch {
                 let w = flow.particles[p].weight;
                 total += w;
-                let st = &self.frozen[p].stencil;
-                let (mut nodes, mut weights) =
-                    (Vec::with_capacity(st.len()), Vec::with_capacity(st.len()));
-                st.for_each(|n| {
-                    nodes.push(n.flat);
-                    weights.push(n.weight);
-                    match a.iter_mut().find(|(f, _)| *f == n.flat) {
-                        Some((_, v)) => *v += w * n.weight,
-                        None => a.push((n.flat, w * n.weight)),
-                    }
+                local.clear();
+                self.frozen[p].stencil.for_each(|n| {
+                    let i = nodes.iter().position(|&f| f == n.flat).expect("collected");
+                    a[i] += w * n.weight;
+                    local.push((i, n.weight));
                 });
-                self.add_pressure_block(&nodes, &weights, &weights, s2 * w, k);
+                let c = s2 * w;
+                for &(i, wi) in &local {
+                    for &(j, wj) in &local {
+                        dense[i * m + j] += c * wi * wj;
+                    }
+                }
             }
-            let (nodes, values): (Vec<usize>, Vec<f64>) = a.into_iter().unzip();
-            self.add_pressure_block(&nodes, &values, &values, -s2 / total, k);
-        }
-    }
-
-    /// `k_{ij} += c u_i v_j` on the pressure unknowns of `nodes`.
-    fn add_pressure_block(
-        &self,
-        nodes: &[usize],
-        u: &[f64],
-        v: &[f64],
-        c: f64,
-        k: &mut SparseMatrix,
-    ) {
-        for (&fi, ui) in nodes.iter().zip(u) {
-            let NodeDof::Free { dof: row, sign: sr } = self.dofs.get(fi, D) else {
-                continue;
-            };
-            for (&fj, vj) in nodes.iter().zip(v) {
-                if let NodeDof::Free { dof: col, sign: sc } = self.dofs.get(fj, D) {
-                    k.values[self.slot(row, col)] += c * sr * sc * ui * vj;
+            let c = -s2 / total;
+            for (i, ai) in a.iter().enumerate() {
+                for (j, aj) in a.iter().enumerate() {
+                    dense[i * m + j] += c * ai * aj;
+                }
+            }
+            let placed: Vec<Option<Placed>> = nodes
+                .iter()
+                .map(|&f| match self.dofs.get(f, D) {
+                    NodeDof::Free { dof, sign } => Some(self.place(dof, sign)),
+                    _ => None,
+                })
+                .collect();
+            for (row, block) in placed.iter().zip(dense.chunks_exact(m)) {
+                let Some(row) = row else { continue };
+                for (col, v) in placed.iter().zip(block) {
+                    if let Some(col) = col {
+                        k.values[self.slot_placed(row, col)] += row.sign * col.sign * v;
+                    }
                 }
             }
         }
@@ -488,18 +505,86 @@ impl<const D: usize> StepSystem<D> {
     ) -> Result<SparseMatrix, Inverted> {
         let mut k = SparseMatrix::zeros(self.pattern.clone());
         match D {
-            2 => self.chunked(
-                |p| self.coupled_local::<7>(p, x, &materials.dual7),
-                |p, a| self.scatter_coupled_local(p, &a, &mut k),
-            )?,
-            3 => self.chunked(
-                |p| self.coupled_local::<13>(p, x, &materials.dual13),
-                |p, a| self.scatter_coupled_local(p, &a, &mut k),
-            )?,
+            2 => self.assemble_coupled_local::<7>(x, &materials.dual7, &mut k)?,
+            3 => self.assemble_coupled_local::<13>(x, &materials.dual13, &mut k)?,
             _ => unreachable!("D is 2 or 3"),
         }
         self.add_stabilisation_tangent(&mut k);
         Ok(k)
+    }
+
+    /// Adds every particle's part of the coupled tangent to `k`. The kernel's derivatives are
+    /// taken in parallel chunks of [`CHUNK`] particles; within a chunk, the particles whose
+    /// stencils cover the same nodes (the same unknowns) are summed into one dense block,
+    /// in particle order, which is then added to `k` once: the sparse look-ups are made per
+    /// group of particles rather than per particle, and the order of every sum is fixed.
+    fn assemble_coupled_local<const L: usize>(
+        &self,
+        x: &[f64],
+        mats: &[Material<DualSVec64<L>>],
+        k: &mut SparseMatrix,
+    ) -> Result<(), Inverted> {
+        let n = self.frozen.len();
+        let fields = D + 1;
+        let mut local: Vec<Option<CoupledTangent<L>>> = Vec::new();
+        let mut order: Vec<usize> = Vec::new();
+        let mut placed: Vec<Placed> = Vec::new();
+        let mut weights: Vec<Weights> = Vec::new();
+        let mut dense: Vec<f64> = Vec::new();
+        let base = |p: usize| self.frozen[p].stencil.base;
+        for start in (0..n).step_by(CHUNK) {
+            let end = (start + CHUNK).min(n);
+            (start..end)
+                .into_par_iter()
+                .map(|p| self.coupled_local::<L>(p, x, mats))
+                .collect_into_vec(&mut local);
+            if let Some(i) = local.iter().position(Option::is_none) {
+                return Err(Inverted {
+                    particle: start + i,
+                });
+            }
+            order.clear();
+            order.extend(start..end);
+            order.sort_by_key(|&p| base(p));
+            for group in order.chunk_by(|&a, &b| base(a) == base(b)) {
+                // The unknowns of the group's nodes, placed once.
+                placed.clear();
+                self.frozen[group[0]].stencil.for_each(|node| {
+                    for c in 0..fields {
+                        if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, c) {
+                            placed.push(self.place(dof, sign));
+                        }
+                    }
+                });
+                let m = placed.len();
+                dense.clear();
+                dense.resize(m * m, 0.0);
+                for &p in group {
+                    let a = local[p - start].as_ref().expect("checked above");
+                    self.coupled_local_weights(p, &mut weights);
+                    add_local_block(a, &placed, &weights, &mut dense);
+                }
+                for (col, block) in placed.iter().zip(dense.chunks_exact(m)) {
+                    for (row, kv) in placed.iter().zip(block) {
+                        k.values[self.slot_placed(row, col)] += kv;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The weights ([`Weights`]) of every node component of particle `p`'s stencil that is
+    /// an unknown, in stencil order, into `weights`.
+    fn coupled_local_weights(&self, p: usize, weights: &mut Vec<Weights>) {
+        weights.clear();
+        self.frozen[p].stencil.for_each(|n| {
+            for c in 0..=D {
+                if let NodeDof::Free { .. } = self.dofs.get(n.flat, c) {
+                    weights.push(Weights::of::<D>(c, n.weight, &n.gradient));
+                }
+            }
+        });
     }
 
     /// The kernel's derivative for particle `p` with all `L` inputs seeded.
@@ -508,7 +593,7 @@ impl<const D: usize> StepSystem<D> {
         p: usize,
         x: &[f64],
         mats: &[Material<DualSVec64<L>>],
-    ) -> Option<CoupledTangent> {
+    ) -> Option<CoupledTangent<L>> {
         debug_assert_eq!(L, coupled_lanes(D));
         let (g, p_hat, grad) = self.coupled_inputs(p, x);
         let seed = |v: f64, lane: usize| {
@@ -523,17 +608,15 @@ impl<const D: usize> StepSystem<D> {
         let lanes = |v: &DualSVec64<L>| -> [f64; L] {
             std::array::from_fn(|l| v.eps.0.as_ref().map_or(0.0, |e| e[l]))
         };
-        let mut out = Vec::with_capacity(L * L);
-        for a in 0..D {
-            for b in 0..D {
-                out.extend(lanes(&c.momentum[(a, b)]));
+        Some(std::array::from_fn(|o| {
+            if o < D * D {
+                lanes(&c.momentum[(o / D, o % D)])
+            } else if o == D * D {
+                lanes(&c.volume)
+            } else {
+                lanes(&c.flux[o - D * D - 1])
             }
-        }
-        out.extend(lanes(&c.volume));
-        for d in 0..D {
-            out.extend(lanes(&c.flux[d]));
-        }
-        Some(out)
+        }))
     }
 
     /// The coupled tangent by block-colour seeding (the reference, as
@@ -626,45 +709,38 @@ impl<const D: usize> StepSystem<D> {
         }
         Ok(())
     }
+}
 
-    /// Adds one particle's `K_{(i,r),(j,c)} = Σ_{o,z} B_i(r)_o A_{oz} B_j(c)_z` (the kernel's
-    /// derivative `A` between the shape-function weights `B` of the row and column unknowns).
-    fn scatter_coupled_local(&self, p: usize, a: &CoupledTangent, k: &mut SparseMatrix) {
-        let l = coupled_lanes(D);
-        let fields = D + 1;
-        let st = &self.frozen[p].stencil;
-        // Per stencil node and component: its unknown (with sign) and its weights over the
-        // kernel's inputs, which are also those over its outputs: `∂_d N` on `ΔF_cd` for a
-        // displacement component `c`, `N` on `p̂` and `∂_d N` on `∇p̂_d` for the pressure.
-        let mut entries: Vec<(Option<(usize, f64)>, Weights)> =
-            Vec::with_capacity(st.len() * fields);
-        st.for_each(|n| {
-            for c in 0..fields {
-                let dof = match self.dofs.get(n.flat, c) {
-                    NodeDof::Free { dof, sign } => Some((dof, sign)),
-                    _ => None,
-                };
-                entries.push((dof, Weights::of::<D>(c, n.weight, &n.gradient)));
+/// Adds one particle's `K_{(i,r),(j,c)} = Σ_{o,z} B_i(r)_o A_{oz} B_j(c)_z` (the kernel's
+/// derivative `A`, `L × L` row-major, between the shape-function weights `B` of the row and
+/// column unknowns, signs included) to the dense block `dense` over the unknowns `placed`,
+/// column by column. The weights of a node component over the kernel's inputs are also
+/// those over its outputs: `∂_d N` on `ΔF_cd` for a displacement component `c`, `N` on `p̂`
+/// and `∂_d N` on `∇p̂_d` for the pressure.
+fn add_local_block<const L: usize>(
+    a: &CoupledTangent<L>,
+    placed: &[Placed],
+    weights: &[Weights],
+    dense: &mut [f64],
+) {
+    let mut v = [0.0; L];
+    for ((col, bj), block) in placed
+        .iter()
+        .zip(weights)
+        .zip(dense.chunks_exact_mut(placed.len()))
+    {
+        // A B_j(c): one column of outputs.
+        v.iter_mut().for_each(|x| *x = 0.0);
+        for (&z, &bz) in bj.index[..bj.len].iter().zip(&bj.value) {
+            for (vo, ao) in v.iter_mut().zip(a) {
+                *vo += ao[z] * bz;
             }
-        });
-        let mut v = vec![0.0; l];
-        for (col_dof, bj) in &entries {
-            let Some((col, sc)) = *col_dof else { continue };
-            // A B_j(c): one column of outputs.
-            v.iter_mut().for_each(|x| *x = 0.0);
-            for (&z, &bz) in bj.index[..bj.len].iter().zip(&bj.value) {
-                for (o, vo) in v.iter_mut().enumerate() {
-                    *vo += a[o * l + z] * bz;
-                }
-            }
-            for (row_dof, bi) in &entries {
-                if let Some((row, sr)) = *row_dof {
-                    let kv: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
-                        .map(|(&o, &b)| b * v[o])
-                        .sum();
-                    k.values[self.slot(row, col)] += sr * sc * kv;
-                }
-            }
+        }
+        for ((row, bi), kv) in placed.iter().zip(weights).zip(block) {
+            let s: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
+                .map(|(&o, &b)| b * v[o])
+                .sum();
+            *kv += row.sign * col.sign * s;
         }
     }
 }

@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 /// Particles per parallel chunk: local results of a chunk are computed in parallel and then
 /// scattered serially in particle order, so the assembly is deterministic.
-const CHUNK: usize = 1024;
+pub(crate) const CHUNK: usize = 1024;
 
 /// A trial state that inverts a particle (`det ΔF ≤ 0`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -393,6 +393,23 @@ impl Structure {
 
 const NO_SLOT: u32 = u32::MAX;
 
+/// An unknown placed in a step's sparsity ([`StepSystem::place`]): the position of its
+/// entry in column `c` is `slots[c.column + row]`, the offset tables' index split into a
+/// row part and a column part.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Placed {
+    /// The unknown.
+    pub dof: usize,
+    /// Its sign at the node component it was placed for.
+    pub sign: f64,
+    /// Whether it is shared by a group of nodes (its entries are looked up in the pattern).
+    tied: bool,
+    /// `key · fields + component`, its part of the index as a row.
+    row: isize,
+    /// `(dof · offsets + key_centre − key) · fields`, its part as a column.
+    column: isize,
+}
+
 impl<const D: usize> StepSystem<D> {
     /// Builds the system: `frozen` particles, the unknown map and the external force
     /// `f_ext = Σ_p (m_p g + f_p) N_i(x_pⁿ)` (gravity and particle point loads at the end of
@@ -513,6 +530,34 @@ impl<const D: usize> StepSystem<D> {
         let (kc, _) = st.owner_key[col];
         let k = (kr - kc + st.key_centre) as usize;
         let s = st.slots[(col * st.offsets + k) * st.fields + rc];
+        debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
+        s as usize
+    }
+
+    /// Unknown `dof` with what [`StepSystem::slot_placed`] needs to find its entries
+    /// without going through the unknown tables again.
+    #[inline]
+    pub(crate) fn place(&self, dof: usize, sign: f64) -> Placed {
+        let st = &*self.structure;
+        let tied = !st.tied.is_empty() && st.tied[dof];
+        let (key, comp) = st.owner_key[dof];
+        let fields = st.fields as isize;
+        Placed {
+            dof,
+            sign,
+            tied,
+            row: key * fields + comp as isize,
+            column: (dof as isize * st.offsets as isize + st.key_centre - key) * fields,
+        }
+    }
+
+    /// [`StepSystem::slot`] of two placed unknowns: one look-up in the slot table.
+    #[inline]
+    pub(crate) fn slot_placed(&self, row: &Placed, col: &Placed) -> usize {
+        if row.tied || col.tied {
+            return self.slot(row.dof, col.dof);
+        }
+        let s = self.structure.slots[(col.column + row.row) as usize];
         debug_assert_ne!(s, NO_SLOT, "tangent entry outside the pattern");
         s as usize
     }
