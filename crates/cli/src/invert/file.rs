@@ -891,6 +891,7 @@ pub fn build<const D: usize>(
         None => {
             let dir = path.parent().unwrap_or(Path::new(""));
             let at = observed::Grid {
+                times: None,
                 dt,
                 steps,
                 particles: problem.initial.len(),

@@ -42,6 +42,7 @@ pub fn build<const D: usize>(
     let mut issues = Vec::new();
     let mut issue = |at: String, msg: String| issues.push(Issue::new(at, msg));
     let mut config = built.implicit_config().expect("an implicit scene");
+    let unit = built.time_unit().seconds();
     let n = built.particles.len();
     let o = &file.observations;
     for (field, given) in [
@@ -324,8 +325,12 @@ pub fn build<const D: usize>(
                 .collect()
         }
         None => {
-            // A `time` column reads as the load factor `step / load_steps`.
+            // A `time` column reads as the load factor `step / load_steps`, or in a coupled
+            // scene as the schedule's time (in the scene's time unit) at the end of a step.
+            let times = (problem.config.pore_fluid.as_ref())
+                .map(|f| f.schedule.time[1..].iter().map(|t| t / unit).collect());
             let grid = observed::Grid {
+                times,
                 dt: 1.0 / steps as f64,
                 steps,
                 particles: n,

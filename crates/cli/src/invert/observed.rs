@@ -8,9 +8,12 @@
 //! per station and observed step, `station` a name of `[[observations.stations]]`. A time
 //! must fall on a step (`t = n Δt` within 10⁻³ Δt).
 //!
-//! Implicit runs: particle displacements `step,id,ux,uy` (`uz`) and reactions
-//! `step,reaction,force`, `reaction` a name of `[[observations.reactions]]`, `step` a load
-//! step (a `time` column is the load factor `step / load_steps`).
+//! Implicit runs: particle displacements `step,id,ux,uy` (`uz`), reactions
+//! `step,reaction,force`, `reaction` a name of `[[observations.reactions]]`, and pore
+//! pressures `step,piezometer,pore_pressure`, `piezometer` a name of
+//! `[[observations.piezometers]]`; `step` a load step (a `time` column is the load factor
+//! `step / load_steps`, or in a coupled run the consolidation schedule's time at the end of
+//! a step, in the scene's `time_unit`).
 //! Blank lines and lines starting with `#` are skipped, and so is a byte-order mark (as a
 //! spreadsheet saving "CSV UTF-8" writes) before the header.
 
@@ -23,6 +26,10 @@ use std::path::Path;
 pub struct Grid {
     /// The fixed time step.
     pub dt: f64,
+    /// Where the steps are not uniform (a coupled run's consolidation schedule), the time at
+    /// the end of each step `1..=steps`, in the unit of the file's `time` column; a `time`
+    /// then names the step that ends there.
+    pub times: Option<Vec<f64>>,
     /// Steps of the run.
     pub steps: usize,
     /// Particles in the scene.
@@ -34,6 +41,29 @@ pub struct Grid {
 }
 
 impl Grid {
+    /// The step of a non-uniform schedule that ends at time `t` (`times`, [`Grid::times`]),
+    /// within 1e-6 of the step's length; 0 for `t = 0`, the initial state.
+    fn scheduled_step(&self, times: &[f64], t: f64) -> Result<usize, String> {
+        if t == 0.0 {
+            return Ok(0);
+        }
+        let mut previous = 0.0;
+        for (k, &end) in times.iter().enumerate() {
+            if (t - end).abs() <= 1e-6 * (end - previous).abs().max(f64::MIN_POSITIVE) {
+                return Ok(k + 1);
+            }
+            previous = end;
+        }
+        let shown: Vec<String> = times.iter().take(8).map(|v| format!("{v:.6e}")).collect();
+        Err(format!(
+            "time {t} is not the end of a step of the consolidation schedule, whose {} steps \
+             end at {}{} (in the scene's time_unit)",
+            times.len(),
+            shown.join(", "),
+            if times.len() > 8 { ", …" } else { "" }
+        ))
+    }
+
     /// The position `x` (m), or why it cannot be one: particles stay on the grid, so a
     /// position more than a cell outside the domain is not one of theirs (positions in
     /// millimetres, say).
@@ -160,14 +190,19 @@ fn read<const D: usize>(
             let t: f64 = cells[0]
                 .parse()
                 .map_err(|_| fail(line, format!("`{}` is not a time", cells[0])))?;
-            let n = (t / grid.dt).round();
-            if !(n >= 0.0 && (t - n * grid.dt).abs() <= 1e-3 * grid.dt) {
-                return Err(fail(
-                    line,
-                    format!("time {t} is not on a step of Δt = {}", grid.dt),
-                ));
+            match &grid.times {
+                Some(times) => grid.scheduled_step(times, t).map_err(|m| fail(line, m))?,
+                None => {
+                    let n = (t / grid.dt).round();
+                    if !(n >= 0.0 && (t - n * grid.dt).abs() <= 1e-3 * grid.dt) {
+                        return Err(fail(
+                            line,
+                            format!("time {t} is not on a step of Δt = {}", grid.dt),
+                        ));
+                    }
+                    n as usize
+                }
             }
-            n as usize
         } else {
             cells[0]
                 .parse()
@@ -373,6 +408,7 @@ mod tests {
     fn grid() -> Grid {
         Grid {
             dt: 1e-3,
+            times: None,
             steps: 20,
             particles: 8,
             domain: (vec![-4.0, -4.0], vec![4.0, 4.0]),
@@ -386,6 +422,32 @@ mod tests {
         let file = dir.path().join("tracked.csv");
         std::fs::write(&file, text).unwrap();
         read_tracked::<2>(&file, &grid()).unwrap_err()
+    }
+
+    /// A coupled run's schedule (steps ending at 0, 0.5, 1.5 and 3.5 days): a `time` names
+    /// the step that ends there, to 1e-6 of its length; a time between two ends is refused
+    /// with the steps' times.
+    #[test]
+    fn times_of_a_schedule_name_the_step_that_ends_there() {
+        let mut g = grid();
+        g.times = Some(vec![0.0, 0.5, 1.5, 3.5]);
+        g.steps = 4;
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("p.csv");
+        let names = ["upper".to_owned()];
+        let read = |text: &str| {
+            std::fs::write(&file, text).unwrap();
+            read_pore_pressure(&file, &g, &names)
+        };
+        let t =
+            read("time,piezometer,pore_pressure\n1.5,upper,10.0\n3.5000001,upper,5.0\n").unwrap();
+        assert_eq!(t[&3], vec![(0, 10.0)]);
+        assert_eq!(t[&4], vec![(0, 5.0)]);
+        let err = read("time,piezometer,pore_pressure\n1.0,upper,10.0\n").unwrap_err();
+        assert!(
+            err.contains("line 2") && err.contains("not the end of a step") && err.contains("1.5"),
+            "{err}"
+        );
     }
 
     #[test]
