@@ -252,13 +252,7 @@ fn reverse_from<const D: usize>(
             end: &no_end,
             inertia: None,
         };
-        let rates: Vec<Option<Vec<Vector<f64, D>>>> = params
-            .iter()
-            .map(|q| match *q {
-                ImplicitParam::Displacement(k, a) => replay.prescribed_rate(k, a).map(Some),
-                _ => Ok(None),
-            })
-            .collect::<Result<_, _>>()?;
+        let rates = replay.prescribed_rates(params)?;
         let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
             .into_par_iter()
             .map(|p| {

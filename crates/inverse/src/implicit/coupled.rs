@@ -42,9 +42,8 @@ use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
 use crate::error::AdjointError;
 use crate::params::MaterialField;
-use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector, det};
-use loam_core::{Material, Particles, Scalar, Stencil};
+use loam_core::{Material, Particles, Scalar};
 use loam_implicit::flow::{CoupledStart, FlowFrozen, Hydraulic, PoreFluid, coupled_update};
 use loam_implicit::kernel::delta_f;
 use loam_implicit::system::StepSystem;
@@ -135,14 +134,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     loads: &Loads<T, D>,
     u: impl Fn(usize, usize) -> T,
 ) -> Option<CoupledParticle<T, D>> {
-    let grid = setting.grid;
-    let hw = particle_half_width(
-        setting.shape,
-        grid.h,
-        &setting.half_width0.map(T::cst),
-        &state.f,
-    );
-    let stencil = Stencil::new(setting.shape, grid, &state.x, &hw);
+    let stencil = setting.stencil(state);
     let g = delta_f::<T, T, D>(&stencil, &u);
     let mut p_hat = T::zero();
     let mut grad = Vector::<T, D>::zeros();
@@ -609,13 +601,7 @@ pub fn reverse<const D: usize>(
             .map(|(p, s)| s.ok_or_else(|| inverted(p)))
             .collect::<Result<_, _>>()?;
         let patches = patch_constants(system, &real, &fluid_w);
-        let rates: Vec<Option<Vec<Vector<f64, D>>>> = params
-            .iter()
-            .map(|q| match *q {
-                ImplicitParam::Displacement(k, a) => replay.prescribed_rate(k, a).map(Some),
-                _ => Ok(None),
-            })
-            .collect::<Result<_, _>>()?;
+        let rates = replay.prescribed_rates(params)?;
         let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
             .into_par_iter()
             .map(|p| {
@@ -785,19 +771,7 @@ pub fn model_tangents<const D: usize>(
                 }
             }
         }
-        let mut u_dot = vec![0.0; system.len()];
-        if !system.is_empty() {
-            let k = system
-                .tangent_local(&sub.solution, solver.materials())
-                .map_err(|e| inverted(e.particle))?;
-            linear
-                .solve(&k, &r_dot, &mut u_dot)
-                .map_err(|source| AdjointError::Linear {
-                    step: sub.step,
-                    what: "tangent",
-                    source,
-                })?;
-        }
+        let u_dot = super::tangent::solve_tangent(&solver, &replay, &mut linear, &r_dot)?;
         let moved = evaluate(&u_dot)?;
         for (p, s) in moved.iter().enumerate() {
             sdot[p] = s.end.tangent();

@@ -116,6 +116,20 @@ pub struct Setting<'a, const D: usize> {
     pub gravity_factor: f64,
 }
 
+impl<const D: usize> Setting<'_, D> {
+    /// The stencil of a particle in `state`: at its position, with the cpGIMP half-width
+    /// following its deformation gradient.
+    pub fn stencil<T: Scalar>(&self, state: &ParticleState<T, D>) -> Stencil<T, D> {
+        let hw = particle_half_width(
+            self.shape,
+            self.grid.h,
+            &self.half_width0.map(T::cst),
+            &state.f,
+        );
+        Stencil::new(self.shape, self.grid, &state.x, &hw)
+    }
+}
+
 /// One stencil node's share of a particle's step.
 #[derive(Clone, Copy, Debug)]
 pub struct NodeShare<T, const D: usize> {
@@ -159,14 +173,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     loads: &Loads<T, D>,
     du: impl Fn(usize, usize) -> T,
 ) -> Option<ParticleStep<T, D>> {
-    let grid = setting.grid;
-    let hw = particle_half_width(
-        setting.shape,
-        grid.h,
-        &setting.half_width0.map(T::cst),
-        &state.f,
-    );
-    let stencil = Stencil::new(setting.shape, grid, &state.x, &hw);
+    let stencil = setting.stencil(state);
     let g = delta_f::<T, T, D>(&stencil, &du);
     let (s, _, history) = stress_update(
         material,

@@ -133,6 +133,17 @@ impl ImplicitObservations {
             if !o.value.is_finite() {
                 return Err(bad("value", "must be finite".into()));
             }
+            let missing = |particle: usize| {
+                (particle >= particles.len()).then(|| {
+                    bad(
+                        "particle",
+                        format!(
+                            "particle {particle} does not exist ({} particles)",
+                            particles.len()
+                        ),
+                    )
+                })
+            };
             let component = match o.quantity {
                 Quantity::PorePressure { particle } => {
                     if config.pore_fluid.is_none() {
@@ -143,14 +154,8 @@ impl ImplicitObservations {
                                 .into(),
                         ));
                     }
-                    if particle >= particles.len() {
-                        return Err(bad(
-                            "particle",
-                            format!(
-                                "particle {particle} does not exist ({} particles)",
-                                particles.len()
-                            ),
-                        ));
+                    if let Some(e) = missing(particle) {
+                        return Err(e);
                     }
                     0
                 }
@@ -162,14 +167,8 @@ impl ImplicitObservations {
                     particle,
                     component,
                 } => {
-                    if particle >= particles.len() {
-                        return Err(bad(
-                            "particle",
-                            format!(
-                                "particle {particle} does not exist ({} particles)",
-                                particles.len()
-                            ),
-                        ));
+                    if let Some(e) = missing(particle) {
+                        return Err(e);
                     }
                     component
                 }

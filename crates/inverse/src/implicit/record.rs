@@ -270,6 +270,24 @@ impl<'a, const D: usize> Replay<'a, D> {
         }
     }
 
+    /// Per parameter, [`Replay::prescribed_rate`] of a constraint's displacement (`None` for
+    /// every other kind).
+    ///
+    /// # Errors
+    /// As [`Replay::new`].
+    pub fn prescribed_rates(
+        &self,
+        params: &[super::ImplicitParam],
+    ) -> Result<Vec<Option<Vec<Vector<f64, D>>>>, AdjointError> {
+        params
+            .iter()
+            .map(|q| match *q {
+                super::ImplicitParam::Displacement(k, a) => self.prescribed_rate(k, a).map(Some),
+                _ => Ok(None),
+            })
+            .collect()
+    }
+
     /// Per grid node and component, `d(prescribed Δu)/dθ` for `θ` the displacement of
     /// component `a` of constraint `k` (zero on every other node component): the prescribed
     /// increments are linear in the constraints' displacements, so they are those of a

@@ -181,19 +181,7 @@ pub fn model_tangents<const D: usize>(
             }
             None => None,
         };
-        let mut u_dot = vec![0.0; system.len()];
-        if !system.is_empty() {
-            let k = system
-                .tangent_local(&sub.solution, solver.materials())
-                .map_err(|e| inverted(e.particle))?;
-            linear
-                .solve(&k, &r_dot, &mut u_dot)
-                .map_err(|source| AdjointError::Linear {
-                    step: sub.step,
-                    what: "tangent",
-                    source,
-                })?;
-        }
+        let u_dot = solve_tangent(&solver, &replay, &mut linear, &r_dot)?;
         let moved = evaluate(&u_dot, false)?;
         for (p, s) in moved.iter().enumerate() {
             sdot[p] = s.end.tangent();
@@ -258,6 +246,38 @@ pub fn model_tangents<const D: usize>(
         }
     }
     Ok(tangents)
+}
+
+/// `Δu̇` from `J Δu̇ = ṙ` (`ṙ = −Ṙ`) with the sub-step's tangent at its converged unknowns.
+///
+/// # Errors
+/// A particle that inverts at the solution, or a tangent that cannot be solved.
+pub(super) fn solve_tangent<const D: usize>(
+    solver: &ImplicitSolver<D>,
+    replay: &Replay<'_, D>,
+    linear: &mut LinearSolver,
+    r_dot: &[f64],
+) -> Result<Vec<f64>, AdjointError> {
+    let (system, sub) = (&replay.system, replay.sub);
+    let mut u_dot = vec![0.0; system.len()];
+    if !system.is_empty() {
+        let k = system
+            .tangent_local(&sub.solution, solver.materials())
+            .map_err(|e| {
+                AdjointError::Implicit(ImplicitError::InvalidState {
+                    step: sub.step,
+                    particle: e.particle,
+                })
+            })?;
+        linear
+            .solve(&k, r_dot, &mut u_dot)
+            .map_err(|source| AdjointError::Linear {
+                step: sub.step,
+                what: "tangent",
+                source,
+            })?;
+    }
+    Ok(u_dot)
 }
 
 /// `Σ_i r̄_i · ḟ_int,i`: the derivative of the observed reactions' share of the loss.
