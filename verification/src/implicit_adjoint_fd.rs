@@ -171,12 +171,7 @@ fn check_cantilever(
 fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
     let (config, initial) = setup("implicit_cantilever", load_steps);
     let tip = config.point_loads[0].particle;
-    let mid = (0..initial.len())
-        .min_by(|&a, &b| {
-            let d = |p: usize| (initial.x[p][0] - 1.25).abs() + (initial.x[p][1] - 2.0).abs();
-            d(a).total_cmp(&d(b))
-        })
-        .expect("particles");
+    let mid = nearest(&initial, [1.25, 2.0]);
     let mut quantities = Vec::new();
     for step in 1..=load_steps {
         for particle in [tip, mid] {
@@ -199,12 +194,7 @@ fn footing(
 ) -> Result<Outcome, VerifyError> {
     let load_steps = 4;
     let (config, initial) = setup(file, load_steps);
-    let side = (0..initial.len())
-        .min_by(|&a, &b| {
-            let d = |p: usize| (initial.x[p][0] - 0.8).abs() + (initial.x[p][1] - 1.0).abs();
-            d(a).total_cmp(&d(b))
-        })
-        .expect("particles");
+    let side = nearest(&initial, [0.8, 1.0]);
     let load = Quantity::Reaction {
         constraint: 0,
         component: 1,
