@@ -13,9 +13,9 @@
 
 mod tangent;
 
-use crate::Outcome;
 use loam_benches::{explicit_scene, implicit_scene};
 use loam_core::Scalar;
+use loam_driver::Outcome;
 use loam_explicit::Solver;
 use loam_implicit::ImplicitSolver;
 use std::path::Path;
@@ -185,7 +185,7 @@ pub struct GpuBench {
     /// Profiled steps after the timed ones.
     pub profile: Option<usize>,
     /// P2G, where not the adapter's choice.
-    pub p2g: Option<crate::run::gpu::P2g>,
+    pub p2g: Option<loam_driver::run::gpu::P2g>,
 }
 
 /// Runs the named benches (all when empty) and prints a table; `steps` overrides the
@@ -387,7 +387,7 @@ fn gpu_benches(
         );
         return Outcome::BadInput;
     }
-    let device = match crate::run::gpu::device(options.p2g) {
+    let device = match loam_driver::run::gpu::device(options.p2g) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("error: {e}");

@@ -8,13 +8,9 @@
 //! Unix tools.
 
 mod bench;
-mod check;
-mod fos;
-mod invert;
-mod material;
-mod preflight;
-mod run;
 mod verify;
+
+use loam_driver::{Outcome, check, fos, invert, material, preflight, run};
 
 use clap::{Parser, Subcommand};
 // The CPU commands (`gradient`, `invert`, `verify`) run on the rayon pool with its other
@@ -223,18 +219,6 @@ impl Device {
             Self::Gpu => loam_scene::Device::Gpu,
         }
     }
-}
-
-/// The outcome of a command: which exit code, after the command printed its own messages.
-pub enum Outcome {
-    /// Everything passed.
-    Ok,
-    /// A run or a check of results failed (exit 1).
-    Failed,
-    /// The input was invalid (exit 2).
-    BadInput,
-    /// A signal stopped the run (exit 130).
-    Interrupted,
 }
 
 /// The most worker threads `--threads` accepts: far above the cores of any machine loam

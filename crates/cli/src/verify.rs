@@ -1,6 +1,6 @@
 //! `loam verify`: run verification cases and report each metric against its tolerance.
 
-use crate::Outcome;
+use loam_driver::Outcome;
 use loam_verification::{Bound, Case, Device, Metric, Size, case, cases};
 use std::path::Path;
 use std::time::Instant;
@@ -58,7 +58,7 @@ pub fn verify(
         return Outcome::BadInput;
     }
     let (device, out) = if gpu {
-        match crate::run::gpu::device(None) {
+        match loam_driver::run::gpu::device(None) {
             Ok(g) => (Device::Gpu(Box::new(g)), out.join("gpu")),
             Err(e) => {
                 eprintln!("error: {e}");
