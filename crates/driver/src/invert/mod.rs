@@ -17,6 +17,7 @@ mod implicit;
 mod limits;
 mod model;
 mod observed;
+mod study;
 mod units;
 
 use crate::Outcome;
@@ -37,10 +38,45 @@ use model::{CheckRow, Cost, Model};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+pub use study::{Failure, Study};
 
-/// Reads the inversion file and sets it up: for the scene's dimension (with the adjoint's
-/// memory budget `memory` in bytes, `--memory`, within `limits`) for a scene's inversion,
-/// or for element tests ([`element`]: a file with `[[tests]]`); then runs the matching `then`.
+/// An inversion file read and set up: a scene's inversion in 2D or 3D, or element tests.
+enum SetUp {
+    /// A 2D scene's inversion.
+    Two(Inversion<2>),
+    /// A 3D scene's inversion.
+    Three(Inversion<3>),
+    /// Element tests ([`element`]: a file with `[[tests]]`).
+    Element(ElementInversion),
+}
+
+impl SetUp {
+    /// Reads the inversion file and sets it up for the scene's dimension (with the adjoint's
+    /// memory budget `memory` in bytes, `--memory`, within `limits`), or for element tests.
+    fn read(path: &Path, memory: Option<u64>, limits: Limits) -> Result<Self, Invalid> {
+        if element::is_element_inversion(path) {
+            return Ok(Self::Element(element::build(path, memory)?));
+        }
+        let f: file::InversionFile = file::read(path)?;
+        let (scene_path, scene) = file::scene_of(path, &f)?;
+        Ok(match scene.dim() {
+            2 => Self::Two(file::build(path, f, scene_path, scene, memory, limits)?),
+            _ => Self::Three(file::build(path, f, scene_path, scene, memory, limits)?),
+        })
+    }
+
+    /// The inversion, whatever it runs.
+    fn inverse(&self) -> &dyn Inverse {
+        match self {
+            Self::Two(i) => i,
+            Self::Three(i) => i,
+            Self::Element(i) => i,
+        }
+    }
+}
+
+/// Reads the inversion file and sets it up ([`SetUp::read`]), then runs the matching `then`;
+/// an invalid file is reported and is [`Outcome::BadInput`].
 fn with_inversion(
     path: &Path,
     memory: Option<u64>,
@@ -49,21 +85,15 @@ fn with_inversion(
     then3: impl FnOnce(Inversion<3>) -> Outcome,
     then_element: impl FnOnce(ElementInversion) -> Outcome,
 ) -> Outcome {
-    let setup = || -> Result<Outcome, Invalid> {
-        if element::is_element_inversion(path) {
-            return Ok(then_element(element::build(path, memory)?));
+    match SetUp::read(path, memory, limits) {
+        Ok(SetUp::Two(i)) => then2(i),
+        Ok(SetUp::Three(i)) => then3(i),
+        Ok(SetUp::Element(i)) => then_element(i),
+        Err(Invalid(msg)) => {
+            eprintln!("error: {msg}");
+            Outcome::BadInput
         }
-        let f: file::InversionFile = file::read(path)?;
-        let (scene_path, scene) = file::scene_of(path, &f)?;
-        Ok(match scene.dim() {
-            2 => then2(file::build(path, f, scene_path, scene, memory, limits)?),
-            _ => then3(file::build(path, f, scene_path, scene, memory, limits)?),
-        })
-    };
-    setup().unwrap_or_else(|Invalid(msg)| {
-        eprintln!("error: {msg}");
-        Outcome::BadInput
-    })
+    }
 }
 
 /// A point evaluated: `L`, `dL/dθ` and, when asked for, the Gauss–Newton matrix in `θ`
@@ -264,6 +294,12 @@ pub fn gradient(path: &Path, check: bool, memory: Option<u64>, limits: Limits) -
 /// A failed run, reported.
 fn failed(path: &Path, e: AdjointError) -> Outcome {
     eprintln!("error: {}: {e}", path.display());
+    outcome_of(&e)
+}
+
+/// The outcome of a run that failed with `e`: invalid input (a parameter out of its range,
+/// a feature the adjoint lacks, a memory budget too small) or a failed run.
+fn outcome_of(e: &AdjointError) -> Outcome {
     match e {
         AdjointError::Parameter { .. }
         | AdjointError::Unsupported { .. }
