@@ -60,6 +60,13 @@ impl Study {
         self.0.inverse().truth()
     }
 
+    /// The relative L2 error against the truth of each velocity field at `theta`,
+    /// `‖v(θ) − v_true‖ / ‖v_true‖` over the field's particles, where the file's `[synthetic]`
+    /// run gives the truth (empty otherwise): the error `loam invert` prints per iteration.
+    pub fn field_errors(&self, theta: &[f64]) -> Vec<f64> {
+        self.0.inverse().field_errors(theta)
+    }
+
     /// `L(θ)` and `dL/dθ` at `theta` (every unknown), by the discrete adjoint: the values
     /// `loam gradient` prints at the file's first guess. `theta` of the wrong length or with
     /// a value that is not finite is invalid input, named as `theta[k]`.
