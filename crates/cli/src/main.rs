@@ -129,6 +129,10 @@ enum Command {
         /// the segment length of least memory, or the file's `segment`).
         #[arg(long, value_name = "SIZE", value_parser = parse_size)]
         memory: Option<u64>,
+        /// Also write the loss, the parameters and dL/dθ to this JSON file, every number to
+        /// the last bit (the printed table rounds them to 11 digits).
+        #[arg(long, value_name = "PATH")]
+        json: Option<PathBuf>,
     },
     /// Back-analysis: recover the parameters of an inversion file by optimisation, writing
     /// the history (CSV, JSON, plots), the recovered scene and a checkpoint.
@@ -329,7 +333,8 @@ fn main() -> ExitCode {
             file,
             check,
             memory,
-        } => hold(|| invert::gradient(&file, check, memory, inversion)),
+            json,
+        } => hold(|| invert::gradient(&file, check, memory, json.as_deref(), inversion)),
         Command::Invert {
             file,
             out,

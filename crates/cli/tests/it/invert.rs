@@ -43,16 +43,42 @@ fn history(dir: &Path) -> serde_json::Value {
         .expect("json")
 }
 
+/// `--check` passes; `--json` holds the printed loss and gradient to the last bit: the
+/// table prints 11 significant digits, so each printed value is within 5e-11 relative of
+/// the file's.
 #[test]
 fn gradient_check_agrees_with_the_dual_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("gradient.json");
     let out = loam(&[
         "gradient",
         example("friction.toml").to_str().unwrap(),
         "--check",
+        "--json",
+        json.to_str().unwrap(),
     ]);
     let all = text(&out);
     // The command fails when the adjoint and the dual derivative differ by more than 1e-8.
     assert!(out.status.success(), "{all}");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("--json wrote")).unwrap();
+    let close = |printed: &str, exact: &serde_json::Value| {
+        let (p, e) = (printed.parse::<f64>().unwrap(), exact.as_f64().unwrap());
+        assert!((p - e).abs() <= 5e-11 * e.abs(), "printed {p}, json {e}");
+    };
+    let loss = all.split("L = ").nth(1).and_then(|l| l.split(' ').next());
+    close(loss.expect("the loss line"), &doc["loss"]);
+    for (k, p) in doc["parameters"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(p["name"], format!("friction[{k}]"));
+        assert_eq!(p["gradient"], doc["gradient"][k]);
+        let row = all
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("friction[{k}] ")));
+        let printed = row
+            .and_then(|r| r.split_whitespace().nth(2))
+            .expect("the table row");
+        close(printed, &p["gradient"]);
+    }
     for p in [
         "friction[0]",
         "friction[1]",

@@ -779,7 +779,7 @@ const CHECK_LEGEND: &str = "  checks: dual = the loss evaluated in Dual64 with t
 
 /// `loam gradient` on element tests: the loss and its gradient at the first guess (forward
 /// mode), the Gauss–Newton identifiability, and with `check` the checks of every parameter.
-pub fn gradient(inv: &ElementInversion, check: bool) -> Outcome {
+pub fn gradient(inv: &ElementInversion, check: bool, json: Option<&Path>) -> Outcome {
     let theta = &inv.initial;
     let start = Instant::now();
     let (loss, grad) = match inv.problem.gauss_newton(theta) {
@@ -797,6 +797,12 @@ pub fn gradient(inv: &ElementInversion, check: bool) -> Outcome {
         inv.tests.len(),
         start.elapsed().as_secs_f64()
     );
+    if let Some(json) = json
+        && let Err(outcome) =
+            super::write_gradient_json(json, &inv.path, loss, &inv.names, theta, &grad)
+    {
+        return outcome;
+    }
     let rows: Vec<(String, usize)> = inv.names.iter().cloned().zip(0..).collect();
     let width = inv.names.iter().map(String::len).max().unwrap_or(0).max(9);
     println!(

@@ -279,16 +279,53 @@ pub fn check(path: &Path, limits: Limits) -> Outcome {
     })
 }
 
-/// `loam gradient FILE [--check] [--memory SIZE]`.
-pub fn gradient(path: &Path, check: bool, memory: Option<u64>, limits: Limits) -> Outcome {
+/// `loam gradient FILE [--check] [--memory SIZE] [--json PATH]`.
+pub fn gradient(
+    path: &Path,
+    check: bool,
+    memory: Option<u64>,
+    json: Option<&Path>,
+    limits: Limits,
+) -> Outcome {
     with_inversion(
         path,
         memory,
         limits,
-        |i| gradient_dim(i, check),
-        |i| gradient_dim(i, check),
-        |i| element::gradient(&i, check),
+        |i| gradient_dim(i, check, json),
+        |i| gradient_dim(i, check, json),
+        |i| element::gradient(&i, check, json),
     )
+}
+
+/// Writes `loam gradient --json PATH`: the file, `L`, and per named parameter its value and
+/// `dL/dθ`, then every unknown's value and `dL/dθ` (`theta`, `gradient`: the named
+/// parameters first, then any velocity field's weights), each number written so that it
+/// reads back to the same bits.
+fn write_gradient_json(
+    json: &Path,
+    path: &Path,
+    loss: f64,
+    names: &[String],
+    theta: &[f64],
+    grad: &[f64],
+) -> Result<(), Outcome> {
+    let parameters: Vec<serde_json::Value> = (names.iter().zip(theta.iter().zip(grad)))
+        .map(
+            |(name, (value, g))| serde_json::json!({ "name": name, "value": value, "gradient": g }),
+        )
+        .collect();
+    let doc = serde_json::json!({
+        "file": path.display().to_string(),
+        "loss": loss,
+        "parameters": parameters,
+        "theta": theta,
+        "gradient": grad,
+    });
+    let text = serde_json::to_string_pretty(&doc).expect("numbers and strings serialise");
+    write_atomic(json, &text).map_err(|e| {
+        eprintln!("error: --json {}: {e}", json.display());
+        Outcome::Failed
+    })
 }
 
 /// A failed run, reported.
@@ -308,7 +345,7 @@ fn outcome_of(e: &AdjointError) -> Outcome {
     }
 }
 
-fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
+fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool, json: Option<&Path>) -> Outcome {
     let theta = &inv.initial;
     let start = Instant::now();
     let (loss, grad, cost) = match inv.problem.gradient_and_cost(theta) {
@@ -341,6 +378,11 @@ fn gradient_dim<const D: usize>(inv: Inversion<D>, check: bool) -> Outcome {
             c.segment,
             c.memory.div_ceil(1_000_000)
         );
+    }
+    if let Some(json) = json
+        && let Err(outcome) = write_gradient_json(json, &inv.path, loss, &inv.names, theta, &grad)
+    {
+        return outcome;
     }
     let rows = rows(&inv);
     let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(9);
