@@ -503,12 +503,24 @@ impl<const D: usize> StepSystem<D> {
         x: &[f64],
         materials: &Materials,
     ) -> Result<SparseMatrix, Inverted> {
-        let mut k = SparseMatrix::zeros(self.pattern.clone());
         match D {
-            2 => self.assemble_coupled_local::<7>(x, &materials.dual7, &mut k)?,
-            3 => self.assemble_coupled_local::<13>(x, &materials.dual13, &mut k)?,
+            2 => self.coupled_tangent_from::<7>(|p| self.coupled_local(p, x, &materials.dual7)),
+            3 => self.coupled_tangent_from::<13>(|p| self.coupled_local(p, x, &materials.dual13)),
             _ => unreachable!("D is 2 or 3"),
         }
+    }
+
+    /// The coupled tangent from every particle's kernel derivative `A_p` ([`CoupledTangent`],
+    /// given by `local(p)`; `None`: particle `p` is inverted), chained with the shape
+    /// functions, `K_{(i,r),(j,c)} = Σ_p Σ_{o,z} B_i(r)_o A_p,oz B_j(c)_z`, plus the
+    /// stabilisation.
+    pub fn coupled_tangent_from<const L: usize>(
+        &self,
+        local: impl Fn(usize) -> Option<CoupledTangent<L>> + Sync,
+    ) -> Result<SparseMatrix, Inverted> {
+        debug_assert_eq!(L, coupled_lanes(D));
+        let mut k = SparseMatrix::zeros(self.pattern.clone());
+        self.assemble_coupled_local::<L>(local, &mut k)?;
         self.add_stabilisation_tangent(&mut k);
         Ok(k)
     }
@@ -520,8 +532,7 @@ impl<const D: usize> StepSystem<D> {
     /// group of particles rather than per particle, and the order of every sum is fixed.
     fn assemble_coupled_local<const L: usize>(
         &self,
-        x: &[f64],
-        mats: &[Material<DualSVec64<L>>],
+        kernel: impl Fn(usize) -> Option<CoupledTangent<L>> + Sync,
         k: &mut SparseMatrix,
     ) -> Result<(), Inverted> {
         let n = self.frozen.len();
@@ -536,7 +547,7 @@ impl<const D: usize> StepSystem<D> {
             let end = (start + CHUNK).min(n);
             (start..end)
                 .into_par_iter()
-                .map(|p| self.coupled_local::<L>(p, x, mats))
+                .map(&kernel)
                 .collect_into_vec(&mut local);
             if let Some(i) = local.iter().position(Option::is_none) {
                 return Err(Inverted {

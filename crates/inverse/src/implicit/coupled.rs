@@ -26,8 +26,13 @@
 //! - the reverse pass ([`reverse`]) weights a particle's outputs into the scalar
 //!   `ψₚ = Σ_i [a_i·f_i + b_i g_i] + s̄'ₚ·sₚ' + p̄'ₚ p_eₚ' + (stabilisation)`, with `a = r̄ − λ_u`
 //!   (`r̄` the observed reactions) and `b = −λ_p` from `Jᵀλ = ∂ψ/∂(Δu, p̂)|_{λ=0}`, and takes
-//!   its gradient by the particle's inputs (state, excess and stencil unknowns) with
-//!   multi-lane duals, [`LANES`] inputs at a time; each parameter's share is one `Dual64`
+//!   its gradient by the particle's inputs with multi-lane duals. The unknowns enter a
+//!   particle only through the stencil sums `(ΔF, p̂, ∇ⁿp̂, Δx)` ([`StencilSums`]), so the
+//!   duals seed those (and the state components the step reads, and the excess), and the
+//!   gradient by the unknowns follows by the chain rule through the shape functions. With
+//!   `λ = 0` one evaluation per particle, its `(ΔF, p̂, ∇ⁿp̂)` seeded, gives both the
+//!   right-hand side and the kernel's derivative that `J` is assembled from; the final
+//!   gradient takes [`LANES`] inputs at a time; each parameter's share is one `Dual64`
 //!   evaluation with the parameter seeded;
 //! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
 //!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
@@ -35,7 +40,7 @@
 //! The row scale `s = G_ref/h` is held in both: the physical solution does not depend on it
 //! (it scales the pressure unknowns and the fluid rows alike), so it carries no derivative.
 
-use super::kernel::{Loads, ParticleState, Setting, lift_loads, state_len};
+use super::kernel::{Loads, ParticleState, Setting, carries_history, lift_loads, state_len};
 use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
 use super::record::{Replay, SubStep, Trajectory};
@@ -43,8 +48,10 @@ use super::seeds::StepSeeds;
 use crate::error::AdjointError;
 use crate::params::MaterialField;
 use loam_core::tensor::{Tensor, Vector, det};
-use loam_core::{Material, Particles, Scalar};
-use loam_implicit::flow::{CoupledStart, FlowFrozen, Hydraulic, PoreFluid, coupled_update};
+use loam_core::{Material, Particles, Scalar, Stencil};
+use loam_implicit::flow::{
+    CoupledStart, CoupledTangent, FlowFrozen, Hydraulic, PoreFluid, coupled_lanes, coupled_update,
+};
 use loam_implicit::kernel::delta_f;
 use loam_implicit::system::StepSystem;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
@@ -119,10 +126,53 @@ pub struct CoupledParticle<T, const D: usize> {
     pub increment: T,
     /// Stabilisation weight `w = Vⁿ/G`.
     pub stabilisation: T,
+    /// The kernel's rows, [`CoupledTangent`] order: the momentum `V⁰ (τ′ − α Jⁿ ΔJ p I) ΔF⁻ᵀ`
+    /// row by row, the volume term, the flux.
+    pub rows: Vec<T>,
 }
 
-/// The particle's part of a coupled sub-step for the nodal unknowns `u(flat, c)` (`c < D`:
-/// displacement increments; `c = D`: the pressure unknown); `None` where the particle inverts.
+/// The sums over a particle's stencil through which the nodal unknowns `u(flat, c)` enter
+/// its step, each linear in them:
+///
+/// ```text
+/// ΔF = I + Σ_i Δu_i ⊗ ∇N_i,   p̂ = Σ_i N_i p̂_i,   ∇ⁿp̂ = Σ_i p̂_i ∇N_i,   Δx = Σ_i N_i Δu_i
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct StencilSums<T: Scalar, const D: usize> {
+    /// `ΔF`.
+    pub delta_f: Tensor<T, D>,
+    /// `p̂`.
+    pub p_hat: T,
+    /// `∇ⁿp̂`.
+    pub grad_p_hat: Vector<T, D>,
+    /// `Δx`.
+    pub dx: Vector<T, D>,
+}
+
+impl<T: Scalar + From<f64>, const D: usize> StencilSums<T, D> {
+    /// The sums over `stencil` for the unknowns `u(flat, c)` (`c < D`: displacement
+    /// increments; `c = D`: the pressure unknown).
+    pub fn of(stencil: &Stencil<T, D>, u: impl Fn(usize, usize) -> T) -> Self {
+        let mut sums = Self {
+            delta_f: delta_f::<T, T, D>(stencil, &u),
+            p_hat: T::zero(),
+            grad_p_hat: Vector::<T, D>::zeros(),
+            dx: Vector::<T, D>::zeros(),
+        };
+        stencil.for_each(|n| {
+            let p = u(n.flat, D);
+            sums.p_hat += n.weight * p;
+            sums.grad_p_hat += n.gradient * p;
+            for a in 0..D {
+                sums.dx[a] += n.weight * u(n.flat, a);
+            }
+        });
+        sums
+    }
+}
+
+/// The particle's part of a coupled sub-step with the stencil sums that `sums` gives for its
+/// stencil ([`StencilSums::of`] for the nodal unknowns); `None` where the particle inverts.
 #[allow(clippy::too_many_arguments)]
 pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     setting: &Setting<'_, D>,
@@ -132,17 +182,15 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     state: &ParticleState<T, D>,
     excess: T,
     loads: &Loads<T, D>,
-    u: impl Fn(usize, usize) -> T,
+    sums: impl FnOnce(&Stencil<T, D>) -> StencilSums<T, D>,
 ) -> Option<CoupledParticle<T, D>> {
     let stencil = setting.stencil(state);
-    let g = delta_f::<T, T, D>(&stencil, &u);
-    let mut p_hat = T::zero();
-    let mut grad = Vector::<T, D>::zeros();
-    stencil.for_each(|n| {
-        let p = u(n.flat, D);
-        p_hat += n.weight * p;
-        grad += n.gradient * p;
-    });
+    let StencilSums {
+        delta_f: g,
+        p_hat,
+        grad_p_hat: grad,
+        dx,
+    } = sums(&stencil);
     let shear = material.shear_modulus_in(&state.history);
     let frozen = FlowFrozen {
         excess,
@@ -174,12 +222,8 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         + loads.point * T::cst(setting.load_factor)
         + loads.balance;
     let inflow = T::cst(fluid.dt * fluid.scale * fluid.inflow);
-    let mut x = state.x;
     let mut nodes = Vec::with_capacity(stencil.len());
     stencil.for_each(|n| {
-        for a in 0..D {
-            x[a] += n.weight * u(n.flat, a);
-        }
         nodes.push(CoupledNode {
             flat: n.flat,
             weight: n.weight,
@@ -192,7 +236,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     Some(CoupledParticle {
         nodes,
         end: ParticleState {
-            x,
+            x: state.x + dx,
             f: g * state.f,
             history: c.state,
             v: state.v,
@@ -201,6 +245,10 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         excess: c.excess,
         increment: c.excess - excess,
         stabilisation: frozen.weight,
+        rows: (c.momentum.transpose().iter().copied())
+            .chain(std::iter::once(c.volume))
+            .chain(c.flux.iter().copied())
+            .collect(),
     })
 }
 
@@ -270,8 +318,12 @@ struct Local<'a, const D: usize> {
     excess: f64,
     loads: Loads<f64, D>,
     material: usize,
+    /// Whether the material reads and updates its history ([`carries_history`]).
+    carries: bool,
     /// The stencil's nodes (flat indices) in the kernel's order.
     flats: Vec<usize>,
+    /// `(N_i, ∇N_i)` of the stencil's nodes at the start state, in the same order.
+    shape: Vec<(f64, Vector<f64, D>)>,
 }
 
 impl<const D: usize> Local<'_, D> {
@@ -285,8 +337,30 @@ impl<const D: usize> Local<'_, D> {
         z
     }
 
-    /// Index of the first unknown among the inputs.
+    /// Index of the first unknown among the inputs, and of the first stencil sum among the
+    /// differentiated inputs (`ΔF` row by row, `p̂`, `∇ⁿp̂`: [`coupled_lanes`] of them).
     const UNKNOWNS: usize = state_len(D) + 1;
+
+    /// The unknowns of input vector `z` as `u(flat, c)`.
+    fn unknowns<'s, T: Scalar>(&'s self, z: &'s [T]) -> impl Fn(usize, usize) -> T + 's {
+        move |flat: usize, c: usize| match self.flats.iter().position(|&f| f == flat) {
+            Some(k) => z[Self::UNKNOWNS + k * (D + 1) + c],
+            None => T::zero(),
+        }
+    }
+
+    /// The state of input vector `z`.
+    fn state_of<T: Scalar>(z: &[T]) -> ParticleState<T, D> {
+        let h0 = D + D * D;
+        let hl = loam_core::constitutive::HISTORY_LEN;
+        ParticleState {
+            x: Vector::<T, D>::from_fn(|a, _| z[a]),
+            f: Tensor::<T, D>::from_fn(|r, c| z[D + r * D + c]),
+            history: loam_core::MaterialState::from_components(|k| z[h0 + k]),
+            v: Vector::<T, D>::from_fn(|a, _| z[h0 + hl + a]),
+            mass: z[h0 + hl + D],
+        }
+    }
 
     /// The step with the inputs `z` in scalar `T` and the material and hydraulic properties
     /// given.
@@ -297,66 +371,120 @@ impl<const D: usize> Local<'_, D> {
         hydraulic: &Hydraulic<T>,
         loads: &Loads<T, D>,
     ) -> Option<CoupledParticle<T, D>> {
-        let h0 = D + D * D;
-        let hl = loam_core::constitutive::HISTORY_LEN;
-        let state = ParticleState {
-            x: Vector::<T, D>::from_fn(|a, _| z[a]),
-            f: Tensor::<T, D>::from_fn(|r, c| z[D + r * D + c]),
-            history: loam_core::MaterialState::from_components(|k| z[h0 + k]),
-            v: Vector::<T, D>::from_fn(|a, _| z[h0 + hl + a]),
-            mass: z[h0 + hl + D],
-        };
-        let u = |flat: usize, c: usize| match self.flats.iter().position(|&f| f == flat) {
-            Some(k) => z[Self::UNKNOWNS + k * (D + 1) + c],
-            None => T::zero(),
-        };
+        let u = self.unknowns(z);
         particle_step(
             &self.setting,
             &self.fluid,
             material,
             hydraulic,
-            &state,
+            &Self::state_of(z),
             z[state_len(D)],
             loads,
-            u,
+            |stencil| StencilSums::of(stencil, u),
         )
     }
 
-    /// `∂ψₚ/∂z_k` for the inputs `k` in `range`, [`LANES`] at a time.
-    fn gradient(
+    /// The differentiated inputs of the final pass: the state's components that the step
+    /// reads (not the velocity, nor the history of a material that carries none), the
+    /// excess and the stencil sums.
+    fn lanes(&self) -> Vec<usize> {
+        let h0 = D + D * D;
+        let hl = loam_core::constitutive::HISTORY_LEN;
+        (0..h0)
+            .chain((h0..h0 + hl).filter(|_| self.carries))
+            .chain([state_len(D) - 1, state_len(D)])
+            .chain(Self::UNKNOWNS..Self::UNKNOWNS + coupled_lanes(D))
+            .collect()
+    }
+
+    /// `∂ψₚ/∂z` (inputs order) by the chain rule through the stencil sums: the inputs `lanes`
+    /// (state components and excess by index, stencil sums from [`Local::UNKNOWNS`]) are
+    /// differentiated with `L`-lane duals, `L` at a time, the unknowns held in the stencil sums;
+    /// then `∂ψ/∂Δu_ic = Σ_d ∂ψ/∂ΔF_cd ∂_d N_i + x̄'_c N_i` (the end position
+    /// `x' = x + Δx` is read by `ψ` alone), `∂ψ/∂p̂_i = ∂ψ/∂p̂ N_i + ∂ψ/∂∇ⁿp̂ · ∇N_i`, and the
+    /// inputs that pass through unchanged (velocity; history of a material that carries
+    /// none) take their end weights.
+    ///
+    /// Returns the gradient and the step of the last chunk.
+    fn gradient<const L: usize>(
         &self,
         z: &[f64],
-        range: std::ops::Range<usize>,
-        mats: &[Material<DualSVec64<LANES>>],
-        hydraulic: &Hydraulic<DualSVec64<LANES>>,
+        lanes: &[usize],
+        mats: &[Material<DualSVec64<L>>],
+        hydraulic: &Hydraulic<DualSVec64<L>>,
         cot: &CoupledCotangent<'_, D>,
-    ) -> Option<Vec<f64>> {
-        let mut out = vec![0.0; z.len()];
+    ) -> Option<(Vec<f64>, CoupledParticle<DualSVec64<L>, D>)> {
         let loads = Loads {
             gravity: self.loads.gravity.map(DualSVec64::from_re),
             point: self.loads.point.map(DualSVec64::from_re),
             balance: self.loads.balance.map(DualSVec64::from_re),
         };
-        for first in range.clone().step_by(LANES) {
-            let seeded: Vec<DualSVec64<LANES>> = (z.iter().enumerate())
+        let sums = Self::UNKNOWNS;
+        let mut dz = vec![0.0; sums + coupled_lanes(D)];
+        let mut last = None;
+        for chunk in lanes.chunks(L) {
+            let seed = |k: usize| -> DualSVec64<L> {
+                let mut e = SVector::<f64, L>::zeros();
+                if let Some(l) = chunk.iter().position(|&j| j == k) {
+                    e[l] = 1.0;
+                }
+                DualSVec64::new(0.0, Derivative::some(e))
+            };
+            let seeded: Vec<DualSVec64<L>> = (z[..sums].iter().enumerate())
                 .map(|(k, &v)| {
-                    if k >= first && k < (first + LANES).min(range.end) {
-                        let mut e = SVector::<f64, LANES>::zeros();
-                        e[k - first] = 1.0;
-                        DualSVec64::new(v, Derivative::some(e))
+                    if chunk.contains(&k) {
+                        DualSVec64::from_re(v) + seed(k)
                     } else {
                         DualSVec64::from_re(v)
                     }
                 })
                 .collect();
-            let psi = cot.psi(&self.step(&seeded, &mats[self.material], hydraulic, &loads)?);
+            let u = self.unknowns(z);
+            let step = particle_step(
+                &self.setting,
+                &self.fluid,
+                &mats[self.material],
+                hydraulic,
+                &Self::state_of(&seeded),
+                seeded[state_len(D)],
+                &loads,
+                |stencil| {
+                    let mut s = StencilSums::of(stencil, |f, c| DualSVec64::from_re(u(f, c)));
+                    for r in 0..D {
+                        for c in 0..D {
+                            s.delta_f[(r, c)] += seed(sums + r * D + c);
+                        }
+                        s.grad_p_hat[r] += seed(sums + D * D + 1 + r);
+                    }
+                    s.p_hat += seed(sums + D * D);
+                    s
+                },
+            )?;
+            let psi = cot.psi(&step);
             if let Some(e) = psi.eps.0.as_ref() {
-                for k in first..(first + LANES).min(range.end) {
-                    out[k] = e[k - first];
+                for (l, &k) in chunk.iter().enumerate() {
+                    dz[k] = e[l];
                 }
             }
+            last = Some(step);
         }
-        Some(out)
+        let mut out = vec![0.0; z.len()];
+        out[..sums].copy_from_slice(&dz[..sums]);
+        let h0 = D + D * D;
+        let hl = loam_core::constitutive::HISTORY_LEN;
+        let through = (h0..h0 + hl).filter(|_| !self.carries);
+        for k in through.chain(h0 + hl..h0 + hl + D) {
+            out[k] = cot.end[k];
+        }
+        let d = &dz[sums..];
+        for (k, (w, g)) in self.shape.iter().enumerate() {
+            let o = &mut out[sums + k * (D + 1)..sums + (k + 1) * (D + 1)];
+            for c in 0..D {
+                o[c] = (0..D).map(|e| d[c * D + e] * g[e]).sum::<f64>() + cot.end[c] * w;
+            }
+            o[D] = d[D * D] * w + (0..D).map(|e| d[D * D + 1 + e] * g[e]).sum::<f64>();
+        }
+        Some((out, last?))
     }
 }
 
@@ -365,6 +493,7 @@ fn locals<'a, const D: usize>(
     replay: &'a Replay<'a, D>,
     fluid: &'a PoreFluid<D>,
     initial: &'a Particles<f64, D>,
+    materials: &[Material<f64>],
 ) -> Vec<Local<'a, D>> {
     let system = &replay.system;
     let flow = system.flow.as_ref().expect("a coupled step");
@@ -378,10 +507,16 @@ fn locals<'a, const D: usize>(
     }
     (0..initial.len())
         .map(|p| {
-            let mut flats = Vec::new();
-            system.frozen[p].stencil.for_each(|n| flats.push(n.flat));
+            let setting = replay.setting(p);
+            let state = replay.state(p);
+            let (mut flats, mut shape) = (Vec::new(), Vec::new());
+            setting.stencil(&state).for_each(|n| {
+                flats.push(n.flat);
+                shape.push((n.weight, n.gradient));
+            });
+            let material = initial.material[p] as usize;
             Local {
-                setting: replay.setting(p),
+                setting,
                 fluid: FluidSetting {
                     fluid,
                     dt: flow.dt,
@@ -389,34 +524,43 @@ fn locals<'a, const D: usize>(
                     conductance: conductance[p],
                     inflow: inflow[p],
                 },
-                state: replay.state(p),
+                state,
                 excess: flow.particles[p].excess,
                 loads: replay.loads(p),
-                material: initial.material[p] as usize,
+                material,
+                carries: carries_history(&materials[material]),
                 flats,
+                shape,
             }
         })
         .collect()
 }
 
-/// Per particle, `(m, B̄)` of its patch for the fluid weights `b` (module docs); with the
-/// stabilisation off, `(Δpₚ, Bₚ)` (its term and its gradient vanish).
+/// Per particle, `(m, B̄)` of its patch for the fluid weights `b` (module docs), from each
+/// particle's `(Δpₚ, wₚ)`; with the stabilisation off, `(Δpₚ, Bₚ)` (its term and its
+/// gradient vanish).
 fn patch_constants<const D: usize>(
     system: &StepSystem<D>,
-    steps: &[CoupledParticle<f64, D>],
+    local: &[Local<'_, D>],
+    increments: &[(f64, f64)],
     b: &[f64],
 ) -> Vec<(f64, f64)> {
     let flow = system.flow.as_ref().expect("a coupled step");
-    let b_of =
-        |s: &CoupledParticle<f64, D>| -> f64 { s.nodes.iter().map(|n| n.weight * b[n.flat]).sum() };
-    let mut out: Vec<(f64, f64)> = steps.iter().map(|s| (s.increment, b_of(s))).collect();
+    let b_of = |l: &Local<'_, D>| -> f64 {
+        (l.flats.iter().zip(&l.shape))
+            .map(|(&f, (w, _))| w * b[f])
+            .sum()
+    };
+    let mut out: Vec<(f64, f64)> = (local.iter().zip(increments))
+        .map(|(l, &(dp, _))| (dp, b_of(l)))
+        .collect();
     for patch in &flow.patches {
         let (mut w, mut wp, mut wb) = (0.0, 0.0, 0.0);
         for &p in patch {
-            let s = &steps[p];
-            w += s.stabilisation;
-            wp += s.stabilisation * s.increment;
-            wb += s.stabilisation * out[p].1;
+            let (dp, wt) = increments[p];
+            w += wt;
+            wp += wt * dp;
+            wb += wt * out[p].1;
         }
         for &p in patch {
             out[p] = (wp / w, wb / w);
@@ -467,6 +611,97 @@ impl<const D: usize> Seeded<D> {
     }
 }
 
+/// Particle `particle` inverted in sub-step `step`.
+fn inverted(step: usize, particle: usize) -> AdjointError {
+    AdjointError::Implicit(ImplicitError::InvalidState { step, particle })
+}
+
+/// A sub-step's `ψ` with `λ = 0`: the weights of the reactions and of the end states, and
+/// what they are evaluated at.
+struct Held<'a, const D: usize> {
+    system: &'a StepSystem<D>,
+    local: &'a [Local<'a, D>],
+    /// Per particle, [`Local::inputs`] at the converged solution.
+    inputs: &'a [Vec<f64>],
+    /// `r̄` on the mixture rows' internal force, per grid node.
+    reactions: &'a [Vector<f64, D>],
+    /// `s̄'` per particle.
+    end: &'a [Vec<f64>],
+    /// `p̄'` per particle.
+    excess: &'a [f64],
+    /// The load step (for errors).
+    step: usize,
+}
+
+impl<const D: usize> Held<'_, D> {
+    /// The sub-step's adjoint `λ` from `Jᵀλ = ∂ψ/∂(Δu, p̂)|_{λ=0}`, and each particle's
+    /// `(Δpₚ, wₚ)`. One evaluation per particle with its `L` = [`coupled_lanes`] stencil
+    /// sums seeded gives both the right-hand side ([`Local::gradient`]) and the kernel's
+    /// derivative `A = ∂(rows)/∂(ΔF, p̂, ∇ⁿp̂)` that the tangent `J` is assembled from
+    /// ([`StepSystem::coupled_tangent_from`]).
+    ///
+    /// # Errors
+    /// An inverted particle, or an adjoint system that cannot be solved.
+    fn adjoint<const L: usize>(
+        &self,
+        mats: &[Material<DualSVec64<L>>],
+        fluid: &PoreFluid<D>,
+        linear: &mut loam_implicit::linear::LinearSolver,
+    ) -> Result<(Vec<f64>, Vec<(f64, f64)>), AdjointError> {
+        let system = self.system;
+        let nodes = system.grid().num_nodes();
+        let (no_forces, no_fluid) = (vec![Vector::<f64, D>::zeros(); nodes], vec![0.0; nodes]);
+        let hydraulic: Vec<Hydraulic<DualSVec64<L>>> =
+            fluid.hydraulic.iter().map(Hydraulic::lift).collect();
+        let sums: Vec<usize> =
+            (Local::<D>::UNKNOWNS..Local::<D>::UNKNOWNS + coupled_lanes(D)).collect();
+        type Linear<const L: usize> = (Vec<f64>, CoupledTangent<L>, (f64, f64));
+        let linearised: Vec<Option<Linear<L>>> = (0..self.local.len())
+            .into_par_iter()
+            .map(|p| {
+                let l = &self.local[p];
+                let cot = CoupledCotangent {
+                    internal: self.reactions,
+                    external: &no_forces,
+                    fluid: &no_fluid,
+                    end: &self.end[p],
+                    excess: self.excess[p],
+                    patch: (0.0, 0.0),
+                    scale: l.fluid.scale,
+                };
+                let (g, step) =
+                    l.gradient(&self.inputs[p], &sums, mats, &hydraulic[l.material], &cot)?;
+                let lanes = |v: &DualSVec64<L>| -> [f64; L] {
+                    std::array::from_fn(|k| v.eps.0.as_ref().map_or(0.0, |e| e[k]))
+                };
+                let a = std::array::from_fn(|o| lanes(&step.rows[o]));
+                Some((g, a, (step.increment.re, step.stabilisation.re)))
+            })
+            .collect();
+        let linearised: Vec<Linear<L>> = (linearised.into_iter().enumerate())
+            .map(|(p, s)| s.ok_or_else(|| inverted(self.step, p)))
+            .collect::<Result<_, _>>()?;
+        let mut rhs = vec![0.0; system.len()];
+        for (l, (g, _, _)) in self.local.iter().zip(&linearised) {
+            scatter(system, &l.flats, g, &mut rhs);
+        }
+        let mut lambda = vec![0.0; system.len()];
+        if rhs.iter().any(|v| *v != 0.0) {
+            let k = system
+                .coupled_tangent_from::<L>(|p| Some(linearised[p].1))
+                .map_err(|e| inverted(self.step, e.particle))?;
+            linear
+                .solve_transpose(&k, &rhs, &mut lambda)
+                .map_err(|source| AdjointError::Linear {
+                    step: self.step,
+                    what: "adjoint",
+                    source,
+                })?;
+        }
+        Ok((lambda, linearised.iter().map(|l| l.2).collect()))
+    }
+}
+
 /// The reverse pass of a coupled run over its sub-steps `first..` ([`super::adjoint`] for
 /// the equations; module docs for the coupled step).
 ///
@@ -491,7 +726,6 @@ pub fn reverse<const D: usize>(
         .map(|q| q.balance_tangent(config, initial))
         .collect::<Result<_, _>>()?;
     let zeros = vec![Vector::<f64, D>::zeros(); nodes];
-    let no_fluid = vec![0.0; nodes];
     let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
     let mut sbar = vec![vec![0.0; state_len(D)]; n];
     let mut ebar = vec![0.0; n];
@@ -501,7 +735,7 @@ pub fn reverse<const D: usize>(
             .then(|| StepSeeds::new(config, observations, &weights, sub.step));
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
-        let local = locals(&replay, fluid, initial);
+        let local = locals(&replay, fluid, initial, &config.materials);
         for &(p, k, w) in seeds.iter().flat_map(|s| &s.states) {
             sbar[p][k] += w;
         }
@@ -512,12 +746,7 @@ pub fn reverse<const D: usize>(
             sbar[p][D - 1] += w * local[p].fluid.hydrostatic_slope(end);
         }
         system.prepare(&mut linear);
-        let inverted = |particle| {
-            AdjointError::Implicit(ImplicitError::InvalidState {
-                step: sub.step,
-                particle,
-            })
-        };
+        let inverted = |particle| inverted(sub.step, particle);
         let a_r = (seeds.as_ref())
             .and_then(|s| s.reaction_weights.as_deref())
             .unwrap_or(&zeros);
@@ -526,48 +755,20 @@ pub fn reverse<const D: usize>(
             .collect();
         let hydraulic: Vec<Hydraulic<DualSVec64<LANES>>> =
             fluid.hydraulic.iter().map(Hydraulic::lift).collect();
-        // Right-hand side: ∂ψ/∂(Δu, p̂) with λ = 0.
-        let by_unknowns: Vec<Option<Vec<f64>>> = (0..n)
-            .into_par_iter()
-            .map(|p| {
-                let cot = CoupledCotangent {
-                    internal: a_r,
-                    external: &zeros,
-                    fluid: &no_fluid,
-                    end: &sbar[p],
-                    excess: ebar[p],
-                    patch: (0.0, 0.0),
-                    scale: local[p].fluid.scale,
-                };
-                let l = &local[p];
-                let z = &inputs[p];
-                l.gradient(
-                    z,
-                    Local::<D>::UNKNOWNS..z.len(),
-                    &mats,
-                    &hydraulic[l.material],
-                    &cot,
-                )
-            })
-            .collect();
-        let mut rhs = vec![0.0; system.len()];
-        for (p, g) in by_unknowns.into_iter().enumerate() {
-            let g = g.ok_or_else(|| inverted(p))?;
-            scatter(system, &local[p].flats, &g, &mut rhs);
-        }
-        let mut lambda = vec![0.0; system.len()];
-        if rhs.iter().any(|v| *v != 0.0) {
-            let k = system
-                .tangent_local(&sub.solution, solver.materials())
-                .map_err(|e| inverted(e.particle))?;
-            linear
-                .solve_transpose(&k, &rhs, &mut lambda)
-                .map_err(|source| AdjointError::Linear {
-                    step: sub.step,
-                    what: "adjoint",
-                    source,
-                })?;
-        }
+        let held = Held {
+            system,
+            local: &local,
+            inputs: &inputs,
+            reactions: a_r,
+            end: &sbar,
+            excess: &ebar,
+            step: sub.step,
+        };
+        let (lambda, increments) = match D {
+            2 => held.adjoint::<7>(&solver.materials().dual7, fluid, &mut linear)?,
+            3 => held.adjoint::<13>(&solver.materials().dual13, fluid, &mut linear)?,
+            _ => unreachable!("D is 2 or 3"),
+        };
         // Nodal weights: a = r̄ − λ_u, c = λ_u, b = −λ_p.
         let mut internal = a_r.to_vec();
         let mut external = zeros.clone();
@@ -584,23 +785,7 @@ pub fn reverse<const D: usize>(
                 }
             }
         }
-        let real: Vec<Option<CoupledParticle<f64, D>>> = (0..n)
-            .into_par_iter()
-            .map(|p| {
-                let l = &local[p];
-                let hydraulic = &fluid.hydraulic[l.material];
-                l.step(
-                    &inputs[p],
-                    &config.materials[l.material],
-                    hydraulic,
-                    &l.loads,
-                )
-            })
-            .collect();
-        let real: Vec<CoupledParticle<f64, D>> = (real.into_iter().enumerate())
-            .map(|(p, s)| s.ok_or_else(|| inverted(p)))
-            .collect::<Result<_, _>>()?;
-        let patches = patch_constants(system, &real, &fluid_w);
+        let patches = patch_constants(system, &local, &increments, &fluid_w);
         let rates = replay.prescribed_rates(params)?;
         let per_particle: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..n)
             .into_par_iter()
@@ -616,7 +801,7 @@ pub fn reverse<const D: usize>(
                     patch: patches[p],
                     scale: l.fluid.scale,
                 };
-                let g = l.gradient(z, 0..z.len(), &mats, &hydraulic[l.material], &cot)?;
+                let (g, _) = l.gradient(z, &l.lanes(), &mats, &hydraulic[l.material], &cot)?;
                 let mut shares = vec![0.0; params.len()];
                 for (j, q) in params.iter().enumerate() {
                     shares[j] = match *q {
@@ -699,7 +884,7 @@ pub fn model_tangents<const D: usize>(
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
         let flow = system.flow.as_ref().expect("a coupled step");
-        let local = locals(&replay, fluid, initial);
+        let local = locals(&replay, fluid, initial, &config.materials);
         system.prepare(&mut linear);
         let inverted = |particle| {
             AdjointError::Implicit(ImplicitError::InvalidState {
