@@ -633,6 +633,9 @@ struct Held<'a, const D: usize> {
     step: usize,
 }
 
+/// A sub-step's adjoint `λ` with each particle's `(Δpₚ, wₚ)` ([`Held::adjoint`]).
+type Adjoint = (Vec<f64>, Vec<(f64, f64)>);
+
 impl<const D: usize> Held<'_, D> {
     /// The sub-step's adjoint `λ` from `Jᵀλ = ∂ψ/∂(Δu, p̂)|_{λ=0}`, and each particle's
     /// `(Δpₚ, wₚ)`. One evaluation per particle with its `L` = [`coupled_lanes`] stencil
@@ -647,7 +650,7 @@ impl<const D: usize> Held<'_, D> {
         mats: &[Material<DualSVec64<L>>],
         fluid: &PoreFluid<D>,
         linear: &mut loam_implicit::linear::LinearSolver,
-    ) -> Result<(Vec<f64>, Vec<(f64, f64)>), AdjointError> {
+    ) -> Result<Adjoint, AdjointError> {
         let system = self.system;
         let nodes = system.grid().num_nodes();
         let (no_forces, no_fluid) = (vec![Vector::<f64, D>::zeros(); nodes], vec![0.0; nodes]);
