@@ -148,9 +148,10 @@ def test_ctrl_c_stops_a_run_which_records_it(tmp_path: Path) -> None:
     scene = dambreak(tmp_path)
     scene["solver"]["end_time"] = 30.0
     scene["output"]["frames"] = 1000
+    long = loam.Scene.from_dict(scene)
     timer = interrupt_after(0.5)
     with pytest.raises(KeyboardInterrupt):
-        loam.run(loam.Scene.from_dict(scene))
+        loam.run(long)
     timer.join()
     summary = (tmp_path / "summary.json").read_text()
     assert '"status": "interrupted"' in summary
