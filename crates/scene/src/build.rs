@@ -651,19 +651,24 @@ impl Scene {
         )
     }
 
-    /// The output settings; `affine` is left out unless the explicit transfer carries `C`.
-    fn output_plan(&self) -> OutputPlan {
+    /// The folder a run writes to: `output.dir`, else `out/<scene file stem>` (`out/scene`
+    /// for a scene not read from a file), relative to the working directory.
+    pub fn output_dir(&self) -> PathBuf {
         let stem = self
             .source
             .as_deref()
             .and_then(|p| p.file_stem())
             .map_or_else(|| "scene".into(), PathBuf::from);
+        self.output
+            .dir
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("out").join(stem))
+    }
+
+    /// The output settings; `affine` is left out unless the explicit transfer carries `C`.
+    fn output_plan(&self) -> OutputPlan {
         OutputPlan {
-            dir: self
-                .output
-                .dir
-                .clone()
-                .unwrap_or_else(|| PathBuf::from("out").join(stem)),
+            dir: self.output_dir(),
             frames: self.output.frames,
             fields: self
                 .output

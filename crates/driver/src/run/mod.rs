@@ -69,6 +69,18 @@ pub fn run(path: &Path, options: &Options) -> Outcome {
     start_run(&scene, path, options, start)
 }
 
+/// Runs a scene already loaded (from a file or from text, and validated or not), as
+/// [`run`] runs a file: the same checks, stepping, frames and summary, without checkpoints.
+/// `label` names the scene in messages and in the summary (its file, or a name for a scene
+/// made in memory).
+pub fn run_scene(scene: &Scene, label: &Path, options: &Options) -> Outcome {
+    let start = Start {
+        checkpoints: None,
+        resume: None,
+    };
+    start_run(scene, label, options, start)
+}
+
 /// Continues the explicit run in `dir` from its checkpoint (`loam run --resume DIR`), with
 /// the scene recorded there (with a note when the scene file the run started from has been
 /// edited since); `options.out` is replaced by `dir`. With

@@ -1,0 +1,152 @@
+//! The solver behind a `Simulation`, with its dimension and kind erased: the explicit
+//! solver, or the implicit one stepped by load steps, each with its particles.
+
+use crate::fields::{self, Array, Field};
+use loam_core::{Particles, TimeStep};
+use loam_explicit::Solver;
+use loam_implicit::ImplicitSolver;
+
+/// A solver and its particles, seen from Python.
+pub trait Stepper: Send + Sync {
+    /// The dimension, 2 or 3.
+    fn dim(&self) -> usize;
+    /// Steps (explicit) or load steps (implicit) completed.
+    fn steps(&self) -> usize;
+    /// Simulated time (s): zero throughout an implicit run of the solid alone.
+    fn time(&self) -> f64;
+    /// The load factor reached (implicit runs; `None` for explicit ones).
+    fn load_factor(&self) -> Option<f64>;
+    /// The cap on the next step towards the time `t` (`f64::INFINITY` for none), or `None`
+    /// once `t` is reached; an error where the solver does not step in time.
+    fn cap_towards(&self, t: f64) -> Result<Option<f64>, String>;
+    /// One step, no longer than `cap`.
+    fn step(&mut self, cap: f64) -> Result<(), String>;
+    /// A copy of `field` of every particle.
+    fn field(&self, field: Field) -> Array<f64>;
+    /// Every particle's material index.
+    fn material(&self) -> Array<i64>;
+}
+
+/// What a solver does for a [`Stepper`]; see the methods of the same names there.
+pub trait Solve<const D: usize>: Send + Sync {
+    /// Steps completed.
+    fn steps(&self) -> usize;
+    /// Simulated time (s).
+    fn time(&self) -> f64;
+    /// The load factor reached, for a solver that has one.
+    fn load_factor(&self) -> Option<f64>;
+    /// The cap on the next step towards `t`.
+    fn cap_towards(&self, t: f64) -> Result<Option<f64>, String>;
+    /// One step of `particles`, no longer than `cap`.
+    fn step(&mut self, particles: &mut Particles<f64, D>, cap: f64) -> Result<(), String>;
+}
+
+/// A solver and the particles it steps.
+pub struct Engine<S, const D: usize> {
+    /// The solver.
+    pub solver: S,
+    /// The particles.
+    pub particles: Particles<f64, D>,
+}
+
+impl<S: Solve<D>, const D: usize> Stepper for Engine<S, D> {
+    fn dim(&self) -> usize {
+        D
+    }
+
+    fn steps(&self) -> usize {
+        self.solver.steps()
+    }
+
+    fn time(&self) -> f64 {
+        self.solver.time()
+    }
+
+    fn load_factor(&self) -> Option<f64> {
+        self.solver.load_factor()
+    }
+
+    fn cap_towards(&self, t: f64) -> Result<Option<f64>, String> {
+        self.solver.cap_towards(t)
+    }
+
+    fn step(&mut self, cap: f64) -> Result<(), String> {
+        self.solver.step(&mut self.particles, cap)
+    }
+
+    fn field(&self, field: Field) -> Array<f64> {
+        fields::field(&self.particles, field)
+    }
+
+    fn material(&self) -> Array<i64> {
+        fields::material(&self.particles)
+    }
+}
+
+impl<const D: usize> Solve<D> for Solver<f64, D> {
+    fn steps(&self) -> usize {
+        Solver::steps(self)
+    }
+
+    fn time(&self) -> f64 {
+        Solver::time(self)
+    }
+
+    fn load_factor(&self) -> Option<f64> {
+        None
+    }
+
+    /// A fixed step Δt is never shortened: the steps are those that end by `t` (with the
+    /// round-off allowance of [`Solver::next_step_cap`]). An adaptive step is shortened to end
+    /// on `t`.
+    fn cap_towards(&self, t: f64) -> Result<Option<f64>, String> {
+        Ok(match self.config().time_step {
+            TimeStep::Fixed { dt } => {
+                let allowance = (1e-9 * t.abs()).min(0.5 * dt);
+                (Solver::time(self) + dt <= t + allowance).then_some(f64::INFINITY)
+            }
+            TimeStep::Adaptive { .. } => self.next_step_cap(t),
+        })
+    }
+
+    fn step(&mut self, particles: &mut Particles<f64, D>, cap: f64) -> Result<(), String> {
+        (Solver::step(self, particles, cap))
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
+
+impl<const D: usize> Solve<D> for ImplicitSolver<D> {
+    fn steps(&self) -> usize {
+        ImplicitSolver::steps(self)
+    }
+
+    fn time(&self) -> f64 {
+        ImplicitSolver::time(self)
+    }
+
+    fn load_factor(&self) -> Option<f64> {
+        Some(ImplicitSolver::load_factor(self))
+    }
+
+    fn cap_towards(&self, _: f64) -> Result<Option<f64>, String> {
+        Err(
+            "advance_to steps explicit scenes; an implicit scene steps by load steps, \
+             with step(n)"
+                .into(),
+        )
+    }
+
+    /// One load step (`cap` does not apply); an error once the loading is complete.
+    fn step(&mut self, particles: &mut Particles<f64, D>, _: f64) -> Result<(), String> {
+        if self.finished() {
+            return Err(format!(
+                "the loading is complete after {} load steps (solver.load_steps)",
+                ImplicitSolver::steps(self)
+            ));
+        }
+        (ImplicitSolver::step(self, particles))
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+}
