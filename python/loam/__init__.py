@@ -7,10 +7,14 @@ The package wraps the Rust library loam (distribution ``loam-mpm``):
 - :class:`Simulation` builds a scene and steps it, its particle state read as NumPy arrays.
 - :func:`run` runs a scene exactly as ``loam run`` does and returns its summary.
 - :func:`read_series` reads the frames a run wrote.
+- :class:`Study` sets up an inversion file once and gives ``L(θ)`` and ``dL/dθ`` by loam's
+  adjoint at any parameters; :func:`gradient` is ``loam gradient``'s result as a dict.
+- :mod:`loam.jax` and :mod:`loam.torch` make a study's loss a differentiable JAX function
+  or PyTorch autograd function (imported on their own: they need JAX or PyTorch).
 
 Units are SI (m, s, kg, Pa); stresses are Cauchy stresses, tension positive; pore
-pressures are compression positive. Gradients, inversions and layers for JAX or PyTorch
-are not available from Python yet.
+pressures are compression positive. ``loam invert``'s optimiser is not available from Python
+yet (drive a :class:`Study` with SciPy, optax or a PyTorch optimiser instead).
 """
 
 from __future__ import annotations
@@ -22,14 +26,17 @@ from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._loam import SceneError, SimulationError, Scene, Simulation
+from ._loam import InversionError, SceneError, SimulationError, Scene, Simulation, Study
 from . import _loam
 
 __all__ = [
+    "InversionError",
     "Scene",
     "SceneError",
     "Simulation",
     "SimulationError",
+    "Study",
+    "gradient",
     "read_series",
     "run",
 ]
@@ -80,3 +87,19 @@ def read_series(folder: PathLike) -> Tuple[np.ndarray, List[Dict[str, np.ndarray
     """
     times, frames = _loam.read_series(os.fspath(folder))
     return np.asarray(times, dtype=np.float64), frames
+
+
+def gradient(inversion: PathLike, memory: Optional[int] = None) -> Dict[str, Any]:
+    """``loam gradient``'s result for the inversion file ``inversion``, as a dict.
+
+    Keys: ``"loss"`` (``L`` at the file's first guess), ``"names"`` (the named parameters),
+    ``"theta"`` (every unknown: the named parameters, then any velocity field's weights) and
+    ``"gradient"`` (``dL/dθ`` over ``theta``, float64), computed by the same code as the
+    command, so equal to its ``--json`` output bit for bit. ``memory``: the bytes the explicit
+    adjoint may keep (``--memory``). Raises :class:`InversionError` for an invalid file and
+    :class:`SimulationError` for a run that fails.
+    """
+    study = Study(os.fspath(inversion), memory)
+    theta = study.initial
+    loss, grad = study.gradient(theta)
+    return {"loss": loss, "names": study.names, "theta": theta, "gradient": grad}

@@ -23,6 +23,30 @@ class SceneError(ValueError):
 class SimulationError(RuntimeError):
     """A simulation step or a run that failed (the solver's message)."""
 
+class InversionError(ValueError):
+    """An invalid inversion file or parameters it refuses; the message names the field."""
+
+class Study:
+    """An inversion file set up once: ``L(θ)`` and ``dL/dθ`` by loam's adjoint."""
+
+    def __init__(self, path: _Path, memory: Optional[int] = None) -> None:
+        """Read, validate and set up the inversion file ``path``."""
+    @property
+    def names(self) -> List[str]:
+        """The named parameters, the first unknowns."""
+    @property
+    def initial(self) -> npt.NDArray[np.float64]:
+        """The first guess of every unknown."""
+    @property
+    def truth(self) -> Optional[npt.NDArray[np.float64]]:
+        """The named parameters' truth values, when the file gives each one."""
+    def gradient(
+        self, theta: Union[npt.NDArray[np.float64], List[float]]
+    ) -> Tuple[float, npt.NDArray[np.float64]]:
+        """``(L, dL/dθ)`` at ``theta`` by the discrete adjoint."""
+    def field_errors(self, theta: Union[npt.NDArray[np.float64], List[float]]) -> List[float]:
+        """Each velocity field's relative L2 error against the truth at ``theta``."""
+
 class Scene:
     """A validated scene."""
 

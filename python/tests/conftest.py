@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import tomllib
 from pathlib import Path
@@ -49,7 +50,18 @@ def block(gravity: float = -9.8, end_time: float = 0.1) -> Dict[str, Any]:
 @pytest.fixture
 def loam_binary() -> Optional[Path]:
     """The ``loam`` program built by ``cargo build --release`` (``LOAM_BIN`` or
-    ``target/release/loam``), if there is one."""
+    ``target/release/loam``), if there is one; under CI (``CI=true``), where the README's
+    first test command has built it, a missing program fails the test."""
     given = os.environ.get("LOAM_BIN")
     path = Path(given) if given else REPO / "target" / "release" / "loam"
+    if not path.is_file() and os.environ.get("CI") == "true":
+        pytest.fail(f"no loam program at {path} (cargo build --release -p loam-cli)")
     return path if path.is_file() else None
+
+
+def need(module: str) -> Any:
+    """Imports an optional dependency of a test (``jax``, ``torch``): skips the test where it
+    is not installed, but fails it under CI (``CI=true``), which installs them."""
+    if os.environ.get("CI") == "true":
+        return importlib.import_module(module)
+    return pytest.importorskip(module)

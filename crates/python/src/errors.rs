@@ -24,6 +24,20 @@ pyo3::create_exception!(
      grid), a solver that did not converge, or a run whose outcome was not a success."
 );
 
+pyo3::create_exception!(
+    loam,
+    InversionError,
+    PyValueError,
+    "An inversion file that cannot be read or is invalid, or parameters it refuses (a wrong \
+     length, a value that is not finite, a value out of its range). The message names the \
+     file and the field or the parameter, as `loam check` and `loam gradient` print it."
+);
+
+/// An `InversionError` with `message`.
+pub fn inversion_error(_py: Python<'_>, message: impl Into<String>) -> PyErr {
+    InversionError::new_err(message.into())
+}
+
 /// The Python exception for a scene error, with its `path` and `issues` attributes.
 pub fn scene_error(py: Python<'_>, e: &loam_scene::SceneError) -> PyErr {
     let issues = (e.issues().iter())

@@ -1,0 +1,65 @@
+"""loam as a differentiable JAX function: the loss of an inversion file of its unknowns.
+
+``loss_function(study)`` returns ``f(θ) = L(θ)`` with a :func:`jax.custom_vjp` whose forward
+and backward call loam through :func:`jax.pure_callback`: the forward pass runs loam's
+forward model and its discrete adjoint once, keeps ``dL/dθ``, and the backward pass returns
+``ct · dL/dθ``. So ``jax.grad``, ``jax.value_and_grad`` and ``jax.jit`` of either work, and
+an optax optimiser can drive θ. Under :func:`jax.vmap` the callback runs once per batch
+element (``vmap_method="sequential"``).
+
+loam computes in float64: enable JAX's 64-bit mode first
+(``jax.config.update("jax_enable_x64", True)``), or the layer refuses to build.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import Study
+
+__all__ = ["loss_function"]
+
+
+def loss_function(study: Study) -> Callable[[jax.Array], jax.Array]:
+    """``θ ↦ L(θ)`` of ``study`` as a JAX function with loam's adjoint as its VJP.
+
+    ``θ`` is a float64 vector of ``len(study.initial)`` values: the named parameters in the
+    file's order and physical units, then any velocity field's network weights. A θ that
+    loam refuses (wrong length, a value that is not finite, a parameter out of its range)
+    raises :class:`loam.InversionError` from the callback.
+    """
+    if not jax.config.read("jax_enable_x64"):
+        raise RuntimeError(
+            "loam.jax needs JAX's 64-bit mode: call "
+            'jax.config.update("jax_enable_x64", True) before building the layer'
+        )
+    n = len(study.initial)
+    shapes = (
+        jax.ShapeDtypeStruct((), jnp.float64),
+        jax.ShapeDtypeStruct((n,), jnp.float64),
+    )
+
+    def host(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        loss, grad = study.gradient(np.asarray(theta, dtype=np.float64))
+        return np.asarray(loss, dtype=np.float64), np.asarray(grad, dtype=np.float64)
+
+    def both(theta: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return jax.pure_callback(host, shapes, theta, vmap_method="sequential")
+
+    @jax.custom_vjp
+    def loss(theta: jax.Array) -> jax.Array:
+        return both(theta)[0]
+
+    def forward(theta: jax.Array) -> tuple[jax.Array, jax.Array]:
+        value, grad = both(theta)
+        return value, grad
+
+    def backward(grad: jax.Array, cotangent: jax.Array) -> tuple[jax.Array]:
+        return (cotangent * grad,)
+
+    loss.defvjp(forward, backward)
+    return loss
