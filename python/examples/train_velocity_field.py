@@ -18,12 +18,12 @@ from typing import Tuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
+import optax  # type: ignore[import-untyped]
 
 import loam
 from loam.jax import loss_function
 
-jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_enable_x64", True)  # type: ignore[no-untyped-call]
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -63,13 +63,13 @@ def main(iterations: int = 60) -> None:
         )
         return optax.apply_updates(theta, updates), state, value
 
-    first = 100 * study.field_errors(theta)[0]
+    first = 100 * study.field_errors(np.asarray(theta))[0]
     start = time.perf_counter()
     print(f"start: field error {first:.2f} %")
     for k in range(1, iterations + 1):
         theta, state, value = step(theta, state)
         if k % 10 == 0 or k == iterations:
-            error = study.field_errors(theta)[0]
+            error = study.field_errors(np.asarray(theta))[0]
             print(f"iteration {k:3d}: L = {float(value):.6e}, field error {100 * error:.2f} %")
     wall = time.perf_counter() - start
     print(

@@ -32,15 +32,15 @@ def loss_function(study: Study) -> Callable[[jax.Array], jax.Array]:
     loam refuses (wrong length, a value that is not finite, a parameter out of its range)
     raises :class:`loam.InversionError` from the callback.
     """
-    if not jax.config.read("jax_enable_x64"):
+    if not jax.config.read("jax_enable_x64"):  # type: ignore[no-untyped-call]
         raise RuntimeError(
             "loam.jax needs JAX's 64-bit mode: call "
             'jax.config.update("jax_enable_x64", True) before building the layer'
         )
     n = len(study.initial)
     shapes = (
-        jax.ShapeDtypeStruct((), jnp.float64),
-        jax.ShapeDtypeStruct((n,), jnp.float64),
+        jax.ShapeDtypeStruct((), jnp.float64),  # type: ignore[no-untyped-call]
+        jax.ShapeDtypeStruct((n,), jnp.float64),  # type: ignore[no-untyped-call]
     )
 
     def host(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -48,7 +48,8 @@ def loss_function(study: Study) -> Callable[[jax.Array], jax.Array]:
         return np.asarray(loss, dtype=np.float64), np.asarray(grad, dtype=np.float64)
 
     def both(theta: jax.Array) -> tuple[jax.Array, jax.Array]:
-        return jax.pure_callback(host, shapes, theta, vmap_method="sequential")
+        value, grad = jax.pure_callback(host, shapes, theta, vmap_method="sequential")
+        return value, grad
 
     @jax.custom_vjp
     def loss(theta: jax.Array) -> jax.Array:

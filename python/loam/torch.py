@@ -22,17 +22,18 @@ class Loss(torch.autograd.Function):
     """``L(θ)`` of an inversion (:class:`loam.Study`) with loam's adjoint as its backward."""
 
     @staticmethod
-    def forward(ctx: Any, theta: torch.Tensor, study: Study) -> torch.Tensor:  # type: ignore[override]
+    def forward(ctx: Any, theta: torch.Tensor, study: Study) -> torch.Tensor:
         value, grad = study.gradient(theta.detach().cpu().numpy().astype(np.float64))
         ctx.save_for_backward(torch.from_numpy(np.asarray(grad)).to(theta.dtype))
         return torch.tensor(value, dtype=theta.dtype)
 
     @staticmethod
-    def backward(ctx: Any, grad_output: torch.Tensor) -> tuple[torch.Tensor, None]:  # type: ignore[override]
+    def backward(ctx: Any, grad_output: torch.Tensor) -> tuple[torch.Tensor, None]:
         (grad,) = ctx.saved_tensors
         return grad_output * grad, None
 
 
 def loss(study: Study, theta: torch.Tensor) -> torch.Tensor:
     """``L(θ)`` of ``study`` at ``theta``, differentiable by loam's adjoint."""
-    return Loss.apply(theta, study)
+    value: torch.Tensor = Loss.apply(theta, study)
+    return value

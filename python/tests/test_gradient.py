@@ -118,6 +118,6 @@ def test_torch_gradcheck_of_the_layer(friction: loam.Study) -> None:
         lambda t: loss(friction, t), (theta,), eps=1e-6, atol=1e-7, rtol=1e-5
     )
     value = loss(friction, theta)
-    value.backward()
+    value.backward()  # type: ignore[no-untyped-call]
     _, grad = friction.gradient(theta.detach().numpy())
     np.testing.assert_array_equal(theta.grad.numpy(), grad)
