@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import subprocess
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 import pytest
@@ -121,3 +121,41 @@ def test_torch_gradcheck_of_the_layer(friction: loam.Study) -> None:
     value.backward()  # type: ignore[no-untyped-call]
     _, grad = friction.gradient(theta.detach().numpy())
     np.testing.assert_array_equal(theta.grad.numpy(), grad)
+
+
+def test_optax_lbfgs_through_the_jax_layer_recovers_the_friction(friction: loam.Study) -> None:
+    """optax's L-BFGS, one jitted step per iteration, drives the three floor frictions of the
+    synthetic dam-break through the layer, μ = softplus(z) keeping them positive (the chain
+    rule through JAX). The observations come from a run at the truth (0.3, 0.1, 0.2), so the
+    minimum is the truth with L = 0: after 20 iterations (from 0.798 each) L is below 1e-12
+    and μ within 1e-5 of it (the iterates converge superlinearly: 1e-8 by then)."""
+    jax = need("jax")
+    jax.config.update("jax_enable_x64", True)
+    optax = need("optax")
+    import jax.numpy as jnp
+
+    from loam.jax import loss_function
+
+    f = loss_function(friction)
+
+    def g(z: Any) -> Any:
+        return f(jax.nn.softplus(z))
+
+    optimiser = optax.lbfgs()
+    value_and_grad = optax.value_and_grad_from_state(g)
+
+    @jax.jit  # type: ignore[untyped-decorator]
+    def step(z: Any, state: Any) -> Any:
+        value, grad = value_and_grad(z, state=state)
+        updates, state = optimiser.update(grad, state, z, value=value, grad=grad, value_fn=g)
+        return optax.apply_updates(z, updates), state
+
+    z = jnp.log(jnp.expm1(jnp.asarray(friction.initial)))
+    state = optimiser.init(z)
+    for _ in range(20):
+        z, state = step(z, state)
+    mu = np.asarray(jax.nn.softplus(z))
+    truth = friction.truth
+    assert truth is not None
+    assert float(g(z)) < 1e-12
+    np.testing.assert_allclose(mu, truth, rtol=1e-5)
