@@ -74,11 +74,38 @@ fn natural_log(x: f32) -> f32 {
     if x < 0.66 || x > 1.5 {
         return log(x);
     }
-    let u = (x - 1.0) / (x + 1.0);
+    return atanh_series((x - 1.0) / (x + 1.0));
+}
+
+// ln(1 + y) as `natural_log` computes ln x, from y itself: u = y/(y + 2) keeps the digits of a
+// small y that 1 + y would round away.
+fn ln_1p(y: f32) -> f32 {
+    if y < -0.34 || y > 0.5 {
+        return log(1.0 + y);
+    }
+    return atanh_series(y / (y + 2.0));
+}
+
+// 2 atanh(u) = 2 (u + u³/3 + … + u¹³/13) for |u| ≤ 1/5.
+fn atanh_series(u: f32) -> f32 {
     let u2 = u * u;
     let series = 1.0 + u2 * (1.0 / 3.0 + u2 * (1.0 / 5.0 + u2 * (1.0 / 7.0
         + u2 * (1.0 / 9.0 + u2 * (1.0 / 11.0 + u2 * (1.0 / 13.0))))));
     return 2.0 * u * series;
+}
+
+// eˣ − 1. Vulkan lets `exp` be off by 3 + 2|x| ulps of eˣ ≈ 1, which is 1e-4 of a strain of
+// 1e-3: for |x| ≤ 1/2 the Taylor series x (1 + x/2 (1 + x/3 (…))) to x¹³/13! (truncation
+// below 0.5¹⁴/14! ≈ 7e-16), in additions and multiplications, which Vulkan rounds correctly.
+fn exp_m1(x: f32) -> f32 {
+    if abs(x) > 0.5 {
+        return exp(x) - 1.0;
+    }
+    var sum = 1.0;
+    for (var k = 13u; k >= 2u; k--) {
+        sum = 1.0 + x * sum * (1.0 / f32(k));
+    }
+    return x * sum;
 }
 
 // ---- fluid (constitutive/fluid.rs) ----
@@ -225,13 +252,13 @@ fn hencky_stress(e: vec4<f32>, f: mat3x3<f32>) -> mat3x3<f32> {
 
 // ---- J2 (constitutive/j2.rs) ----
 
-// Q diag(g(λ_k)) Qᵀ of a symmetric matrix with eigenvalues λ and eigenvectors Q: the
-// logarithm (`natural_log`) or, with `exponential`, the exponential of each eigenvalue.
+// Q diag(g(λ_k)) Qᵀ of a symmetric matrix with eigenvalues λ and eigenvectors Q:
+// g(λ) = ln(1 + λ) (`ln_1p`) or, with `exponential`, g(λ) = e^λ − 1 (`exp_m1`).
 fn spectral(a: mat3x3<f32>, exponential: bool) -> mat3x3<f32> {
     let eig = symmetric_eigen(a);
     var g = eig.values;
     for (var k = 0u; k < 3u; k++) {
-        g[k] = select(natural_log(g[k]), exp(g[k]), exponential);
+        g[k] = select(ln_1p(g[k]), exp_m1(g[k]), exponential);
     }
     let d = mat3x3<f32>(
         vec3<f32>(g.x, 0.0, 0.0),
@@ -249,6 +276,11 @@ fn spectral(a: mat3x3<f32>, exponential: bool) -> mat3x3<f32> {
 // bₑᵗʳ = ΔF bₑ ΔFᵀ (symmetrised), εᵗʳ = ½ ln bₑᵗʳ, τᵗʳ = 2μ εᵗʳ + λ tr(εᵗʳ) I, the yield
 // function f = ‖dev τᵗʳ‖ − √(2/3) (σ_y + H ε̄ᵖ), and for f > 0 the radial return
 // Δγ = f / (2μ + ⅔H), τ = τᵗʳ − 2μ Δγ n, ε̄ᵖ += √(2/3) Δγ; σ = τ / det F.
+//
+// bₑ is carried as bₑ − I, of the size of the strain: with G = ΔF − I,
+// bₑᵗʳ − I = ΔF (bₑ − I) ΔFᵀ + G + Gᵀ + G Gᵀ, so that a strain of 1e-3 keeps f32's digits
+// through the rebuild and the trial instead of a few ulps of 1 (the CPU's f32 run keeps bₑ
+// and takes its logarithm in f64). The eigenvectors of bₑ − I are those of bₑ.
 fn j2_update(
     e: vec4<f32>,
     surface: vec4<f32>,
@@ -259,7 +291,8 @@ fn j2_update(
     plastic_strain: f32,
 ) -> Returned {
     let b_n = spectral(dp_compliance(e, sigma_n * j_n) * 2.0, true);
-    let b = delta_f * b_n * transpose(delta_f);
+    let g = delta_f - IDENTITY;
+    let b = delta_f * b_n * transpose(delta_f) + g + transpose(g) + g * transpose(g);
     let b_trial = (b + transpose(b)) * 0.5;
     let eps_trial = spectral(b_trial, false) * 0.5;
     let tau_trial = lame_stress(e, eps_trial);
