@@ -6,15 +6,16 @@ The package wraps the Rust library loam (distribution ``loam-mpm``):
   an invalid one raises :class:`SceneError` naming the field.
 - :class:`Simulation` builds a scene and steps it, its particle state read as NumPy arrays.
 - :func:`run` runs a scene exactly as ``loam run`` does and returns its summary.
-- :func:`read_series` reads the frames a run wrote.
+- :func:`read_series` reads the frames a run wrote; :func:`loam.plot.plot_frame` draws a 2D
+  one with matplotlib.
 - :class:`Study` sets up an inversion file once and gives ``L(θ)`` and ``dL/dθ`` by loam's
-  adjoint at any parameters; :func:`gradient` is ``loam gradient``'s result as a dict.
+  adjoint at any parameters; :func:`gradient` is ``loam gradient``'s result as a dict and
+  :func:`invert` runs ``loam invert``'s optimiser.
 - :mod:`loam.jax` and :mod:`loam.torch` make a study's loss a differentiable JAX function
   or PyTorch autograd function (imported on their own: they need JAX or PyTorch).
 
 Units are SI (m, s, kg, Pa); stresses are Cauchy stresses, tension positive; pore
-pressures are compression positive. ``loam invert``'s optimiser is not available from Python
-yet (drive a :class:`Study` with SciPy, optax or a PyTorch optimiser instead).
+pressures are compression positive.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ __all__ = [
     "SimulationError",
     "Study",
     "gradient",
+    "invert",
     "read_series",
     "run",
 ]
@@ -103,3 +105,31 @@ def gradient(inversion: PathLike, memory: Optional[int] = None) -> Dict[str, Any
     theta = study.initial
     loss, grad = study.gradient(theta)
     return {"loss": loss, "names": study.names, "theta": theta, "gradient": grad}
+
+
+def invert(
+    inversion: PathLike,
+    out: Optional[PathLike] = None,
+    resume: bool = False,
+    memory: Optional[int] = None,
+) -> Dict[str, Any]:
+    """Run the optimiser of the inversion file ``inversion`` as ``loam invert`` does.
+
+    The same code as the command, so the same iterates to the last bit and the same files:
+    ``history.csv``, ``history.json``, ``checkpoint.json`` (after every iteration), the
+    plots and what was recovered, in ``out``, else ``out/<file stem>``. ``resume=True``
+    continues from the checkpoint in ``out`` (only the file's ``[stop]`` may have changed).
+    ``memory``: the bytes the explicit adjoint may keep (``--memory``).
+
+    Returns the parsed ``history.json`` (``"names"``, ``"truth"`` and ``"entries"``: one
+    per iteration with ``"loss"``, ``"parameters"``, ``"gradient"``, ``"field_errors"``, …)
+    with one more key, ``"dir"``, the output folder. Raises :class:`InversionError` for an
+    invalid file (naming the field) or an output folder that cannot be written,
+    :class:`SimulationError` when a run fails, and ``KeyboardInterrupt`` on Ctrl-C after the
+    iteration in progress, with the history and the checkpoint kept for ``resume``.
+    """
+    study = Study(os.fspath(inversion), memory)
+    folder = Path(study.invert(None if out is None else os.fspath(out), resume))
+    history: Dict[str, Any] = json.loads((folder / "history.json").read_text())
+    history["dir"] = str(folder)
+    return history

@@ -46,6 +46,8 @@ class Study:
         """``(L, dL/dθ)`` at ``theta`` by the discrete adjoint."""
     def field_errors(self, theta: Union[npt.NDArray[np.float64], List[float]]) -> List[float]:
         """Each velocity field's relative L2 error against the truth at ``theta``."""
+    def invert(self, out: Optional[_Path] = None, resume: bool = False) -> Path:
+        """Run the file's optimiser as ``loam invert`` does; returns the output folder."""
 
 class Scene:
     """A validated scene."""

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import loam
-from conftest import REPO, block, dambreak
+from conftest import REPO, block, dambreak, need
 
 
 def test_stepping_gives_the_bits_of_loam_run(tmp_path: Path) -> None:
@@ -157,3 +157,29 @@ def test_ctrl_c_stops_a_run_which_records_it(tmp_path: Path) -> None:
     assert '"status": "interrupted"' in summary
     # The next run goes to its end.
     assert loam.run(loam.Scene.from_dict(dambreak(tmp_path)))["status"] == "completed"
+
+
+def test_plot_frame_draws_each_particle_with_its_value(tmp_path: Path) -> None:
+    """The scatter's points are the frame's positions and its colours the field's values:
+    the speed for a vector, the compression-positive mean stress −tr σ/3 for the stress."""
+    need("matplotlib").use("Agg")
+    import matplotlib.pyplot as plt
+
+    from loam.plot import plot_frame
+
+    scene = dambreak(tmp_path)
+    scene["output"]["fields"] = ["velocity", "stress"]
+    loam.run(loam.Scene.from_dict(scene), out=tmp_path)
+    _, frames = loam.read_series(tmp_path)
+    frame = frames[-1]
+    fig, (a, b) = plt.subplots(1, 2)
+    speed = plot_frame(frame, "velocity", ax=a)
+    np.testing.assert_array_equal(speed.get_offsets(), frame["position"][:, :2])
+    np.testing.assert_allclose(speed.get_array(), np.linalg.norm(frame["velocity"], axis=1))
+    p = plot_frame(frame, "stress", ax=b)
+    mean = -np.trace(frame["stress"], axis1=1, axis2=2) / 3
+    np.testing.assert_allclose(p.get_array(), mean)
+    assert mean.max() > 0, "the water column presses on the floor: compression"
+    with pytest.raises(KeyError, match="velocity"):
+        plot_frame(frame, "speed")
+    plt.close(fig)

@@ -1,7 +1,7 @@
 //! The compiled module `loam._loam` of the Python package `loam` (distribution `loam-mpm`):
 //! scenes ([`scene`]), a simulation stepped from Python ([`simulation`]), runs as `loam run`
 //! makes them ([`run`]), the frames they write ([`series`]) and inversion files' gradients
-//! ([`study`]).
+//! and optimisations ([`study`]).
 //!
 //! The package's Python layer (`python/loam/`) re-exports these with docstrings and type
 //! hints; `docs/python.md` documents the API.
@@ -12,6 +12,7 @@ mod fields;
 mod run;
 mod scene;
 mod series;
+mod signals;
 mod simulation;
 mod study;
 

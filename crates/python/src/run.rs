@@ -1,26 +1,19 @@
 //! `loam.run`: a run of a scene exactly as `loam run` makes it (frames, `summary.json`),
 //! through the same driver code.
 //!
-//! The run goes on a thread of its own while the calling thread, with the GIL released,
-//! wakes every few milliseconds to check the interpreter's signals: on Ctrl-C it asks the run
-//! to stop after its step in progress ([`interrupt::request`]), waits for the run to write its
-//! summary, and raises `KeyboardInterrupt`. loam's own signal handler is never installed in
-//! the interpreter.
+//! The run goes on a thread of its own ([`crate::signals::watched`]): Ctrl-C stops it after
+//! its step in progress, and `KeyboardInterrupt` is raised once it has written its summary.
 
 use crate::errors::{simulation_error, with_issues};
 use crate::scene::expect_scene;
 use loam_driver::Outcome;
 use loam_driver::preflight::{MAX_STEPS, MemoryLimit, StepLimit};
-use loam_driver::run::{Options, interrupt, run_scene};
+use loam_driver::run::{Options, run_scene};
 use loam_scene::Device;
 use loam_scene::output::FrameWriter;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::path::PathBuf;
-use std::time::Duration;
-
-/// How long the calling thread sleeps between two checks for a signal.
-const POLL: Duration = Duration::from_millis(20);
 
 /// Runs `scene` as `loam run` does, writing its frames and `summary.json` to `out` (else the
 /// scene's `output.dir`), and returns the output folder. `device` (`"cpu"` or `"gpu"`)
@@ -59,22 +52,7 @@ pub fn run(
         device,
         p2g: None,
     };
-    interrupt::clear();
-    let (outcome, signal) = std::thread::scope(|s| {
-        let running = s.spawn(|| run_scene(scene, &label, &options));
-        let mut signal = None;
-        while !running.is_finished() {
-            py.detach(|| std::thread::sleep(POLL));
-            if signal.is_none()
-                && let Err(e) = py.check_signals()
-            {
-                interrupt::request();
-                signal = Some(e);
-            }
-        }
-        (running.join(), signal)
-    });
-    interrupt::clear();
+    let (outcome, signal) = crate::signals::watched(py, || run_scene(scene, &label, &options));
     if let Some(e) = signal {
         return Err(e);
     }

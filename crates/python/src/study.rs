@@ -7,7 +7,7 @@
 
 use crate::errors::{inversion_error, simulation_error};
 use loam_driver::Outcome;
-use loam_driver::invert::{Failure, Limits, Study as Inner};
+use loam_driver::invert::{Failure, Limits, Study as Inner, output_folder};
 use loam_driver::preflight::{MAX_INVERSION_STEPS, MemoryLimit, StepLimit};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
@@ -118,5 +118,40 @@ impl Study {
             ));
         }
         Ok(py.detach(|| self.inner.field_errors(&theta)))
+    }
+
+    /// Runs the file's optimiser as `loam invert` does (the same code, iterates and files),
+    /// writing `history.csv`, `history.json`, the checkpoint after every iteration, the plots
+    /// and what was recovered into `out`, else `out/<file stem>`; with `resume` it continues
+    /// from the checkpoint there. Returns the output folder. Ctrl-C stops it after the
+    /// iteration in progress, keeps what it wrote and raises `KeyboardInterrupt`; an output
+    /// folder that cannot be written or a checkpoint of another file raises
+    /// `InversionError`, a run that fails `SimulationError` (the reason is printed on stderr).
+    #[pyo3(signature = (out = None, resume = false))]
+    fn invert(&self, py: Python<'_>, out: Option<PathBuf>, resume: bool) -> PyResult<PathBuf> {
+        let path = self.inner.path().to_path_buf();
+        let dir = output_folder(&path, out.as_deref());
+        let (outcome, signal) = crate::signals::watched(py, || self.inner.invert(&dir, resume));
+        if let Some(e) = signal {
+            return Err(e);
+        }
+        let said = |what: &str| {
+            format!(
+                "{}: {what} (the reason is printed on stderr)",
+                path.display()
+            )
+        };
+        match outcome {
+            Ok(Outcome::Ok) => Ok(dir),
+            Ok(Outcome::BadInput) => Err(inversion_error(py, said("the inversion was refused"))),
+            Ok(Outcome::Interrupted) => {
+                Err(simulation_error(said("the inversion was interrupted")))
+            }
+            Ok(Outcome::Failed) => Err(simulation_error(said("the inversion failed"))),
+            Err(_) => Err(simulation_error(format!(
+                "{}: the inversion stopped on an internal error",
+                path.display()
+            ))),
+        }
     }
 }

@@ -596,6 +596,19 @@ fn field_blocks<const D: usize>(inv: &Inversion<D>) -> Vec<(usize, usize)> {
     out
 }
 
+/// The output folder of `loam invert FILE [--out DIR]`: `DIR`, else `out/<FILE's stem>`.
+pub fn output_folder(path: &Path, out: Option<&Path>) -> PathBuf {
+    out.map_or_else(
+        || {
+            let stem = path
+                .file_stem()
+                .map_or("inversion".into(), |s| s.to_string_lossy().into_owned());
+            PathBuf::from("out").join(stem)
+        },
+        Path::to_path_buf,
+    )
+}
+
 /// `loam invert FILE [--out DIR] [--resume] [--memory SIZE]`.
 pub fn invert(
     path: &Path,
@@ -604,15 +617,7 @@ pub fn invert(
     memory: Option<u64>,
     limits: Limits,
 ) -> Outcome {
-    let dir = out.map_or_else(
-        || {
-            let stem = path
-                .file_stem()
-                .map_or("inversion".into(), |s| s.to_string_lossy().into_owned());
-            PathBuf::from("out").join(stem)
-        },
-        Path::to_path_buf,
-    );
+    let dir = output_folder(path, out);
     with_inversion(
         path,
         memory,

@@ -45,6 +45,11 @@ impl Study {
             })
     }
 
+    /// The inversion file.
+    pub fn path(&self) -> &Path {
+        self.0.inverse().path()
+    }
+
     /// The names of the named parameters, the first unknowns (`materials[0].young`, …).
     pub fn names(&self) -> &[String] {
         self.0.inverse().names()
@@ -97,6 +102,14 @@ impl Study {
             message: format!("{path}: {e}"),
         })?;
         Ok((loss, gradient))
+    }
+
+    /// Runs the file's optimiser from its first guess as `loam invert` does, writing the
+    /// history, the checkpoint after every iteration and the report into `dir` (the
+    /// optimisation continues from the checkpoint there with `resume`); stops between
+    /// iterations when [`crate::run::interrupt::requested`].
+    pub fn invert(&self, dir: &Path, resume: bool) -> Outcome {
+        super::invert_with(self.0.inverse(), dir, resume)
     }
 }
 
