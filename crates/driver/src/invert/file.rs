@@ -2,6 +2,10 @@
 //! inverse problem on the scene it names (`docs/inversion-format.md`).
 
 use super::Limits;
+use super::common::{
+    Solver, Unknowns, check_observed, check_sources, check_tracked, observed_steps, unknowns,
+    valid, velocity_only,
+};
 use super::limits;
 use super::model::Model;
 use super::observed;
@@ -9,6 +13,7 @@ use super::units::quantity;
 use loam_core::Particles;
 use loam_core::TimeStep;
 use loam_core::tensor::Vector;
+use loam_explicit::Config;
 use loam_inverse::implicit::ImplicitParam;
 use loam_inverse::{
     Checkpoints, Control, K0State, MonitorBox, Observations, Param, Problem, ReverseStep, Station,
@@ -371,34 +376,9 @@ pub fn read<S: serde::de::DeserializeOwned>(path: &Path) -> Result<S, Invalid> {
     Ok(loam_scene::parse_file(path, &text, SceneFormat::Toml)?)
 }
 
-/// The issue, as `(field, message)`, of a `[synthetic]` section `s` whose first observed
-/// step `first` is after the last, `steps`: it observes nothing. The field is `first` when
-/// the file gives it, else `every` (of which `first` is the default).
-pub fn nothing_observed(s: &SyntheticSpec, first: usize, steps: usize) -> (String, String) {
-    let field = match s.first {
-        Some(_) => "synthetic.first",
-        None => "synthetic.every",
-    };
-    let msg = format!(
-        "the first observed step, {first}, is after the last step of the run, {steps}: \
-         nothing would be observed (the loss would be 0 whatever the parameters)"
-    );
-    (field.into(), msg)
-}
-
 /// Why an observation file is refused beside `[synthetic]`.
 pub const SYNTHETIC_CLASH: &str = "not with [synthetic]: synthetic observations come from the \
                                    truth run (and are written to the output folder)";
-
-/// The field paths (`observations.NAME`) of the observation files given beside
-/// `[synthetic]`, from `(NAME, given)` pairs.
-pub fn observed_with_synthetic(given: &[(&str, bool)]) -> Vec<String> {
-    given
-        .iter()
-        .filter(|(_, g)| *g)
-        .map(|(name, _)| format!("observations.{name}"))
-        .collect()
-}
 
 /// An invalid-file error listing `issues`, each line starting with the file name.
 pub fn invalid(path: &Path, issues: Vec<Issue>) -> Invalid {
@@ -513,65 +493,13 @@ pub fn build<const D: usize>(
         );
     }
     // The unknowns.
-    let mut controls = Vec::new();
-    let mut variables = Vec::new();
-    let mut truth = Some(Vec::new());
-    for (i, p) in file.parameters.iter().enumerate() {
-        let at = |field: &str| format!("parameters[{i}].{field}");
-        let control = if p.name == "velocity" {
-            velocity_control::<D>(p, &built, &mut |f, m| issue(at(f), m))
-        } else {
-            for (field, given) in [
-                ("direction", p.direction.is_some()),
-                ("material", p.material.is_some()),
-            ] {
-                if given {
-                    issue(at(field), "only for `name = \"velocity\"`".into());
-                }
-            }
-            match p.name.parse::<Param>() {
-                Err(_) if let Ok(ImplicitParam::K0(k)) = p.name.parse::<ImplicitParam>() => {
-                    let state = config.as_ref().map(|c| match c.materials.get(k) {
-                        Some(m) => K0State::of(m, &c.gravity, &built.particles, k),
-                        None => Err(format!(
-                            "no such material: the scene has {}",
-                            c.materials.len()
-                        )),
-                    });
-                    match state {
-                        Some(Err(msg)) => {
-                            issue(at("name"), format!("parameter `{}`: {msg}", p.name));
-                            None
-                        }
-                        _ => Some(Control::K0 { material: k }),
-                    }
-                }
-                Ok(param) => match config.as_ref().map(|c| param.value(c)) {
-                    Some(Err(e)) => {
-                        issue(at("name"), e.to_string());
-                        None
-                    }
-                    _ => Some(Control::Param(param)),
-                },
-                Err(msg) => {
-                    let other = p.name.parse::<ImplicitParam>().is_ok();
-                    issue(at("name"), for_path(&msg, other, "implicit"));
-                    None
-                }
-            }
-        };
-        if let Some(c) = control {
-            if controls.contains(&c) {
-                issue(at("name"), format!("`{}` is given twice", p.name));
-            }
-            controls.push(c);
-        }
-        variables.push(variable(p, &mut |f, m| issue(at(f), m)));
-        truth = truth.zip(p.truth).map(|(mut t, v)| {
-            t.push(v);
-            t
-        });
-    }
+    let Unknowns {
+        mut controls,
+        mut variables,
+        truth,
+    } = unknowns(&file.parameters, &mut issue, |p, issue| {
+        explicit_control(p, &built, config.as_ref(), issue)
+    });
     // The velocity fields come after the parameters.
     let scalars = controls.len();
     for (i, f) in file.velocity_field.iter().enumerate() {
@@ -628,25 +556,13 @@ pub fn build<const D: usize>(
             );
         }
     }
-    let o = &file.observations;
-    for (field, given) in [
-        ("displacement", o.displacement.is_some()),
-        ("displacement_sigma", o.displacement_sigma.is_some()),
-        ("reaction", o.reaction.is_some()),
-        ("reaction_sigma", o.reaction_sigma.is_some()),
-        ("reactions", !o.reactions.is_empty()),
-        ("pore_pressure", o.pore_pressure.is_some()),
-        ("pore_pressure_sigma", o.pore_pressure_sigma.is_some()),
-        ("piezometers", !o.piezometers.is_empty()),
-    ] {
-        if given {
-            issue(
-                format!("observations.{field}"),
-                "applies to implicit scenes (`[solver] type = \"implicit\"`); an explicit scene \
-                 observes `tracked` positions, monitor `velocity` or `deposit` depths"
-                    .into(),
-            );
-        }
+    for field in file.observations.given_for(Solver::Implicit) {
+        issue(
+            field,
+            "applies to implicit scenes (`[solver] type = \"implicit\"`); an explicit scene \
+             observes `tracked` positions, monitor `velocity` or `deposit` depths"
+                .into(),
+        );
     }
     // Monitors.
     let mut monitor_names: Vec<String> = Vec::new();
@@ -740,82 +656,54 @@ pub fn build<const D: usize>(
             );
         }
     }
-    match &file.synthetic {
-        Some(s) => {
-            for field in observed_with_synthetic(&[
-                ("tracked", o.tracked.is_some()),
-                ("velocity", o.velocity.is_some()),
-                ("deposit", o.deposit.is_some()),
-            ]) {
-                issue(field, SYNTHETIC_CLASH.into());
-            }
-            let watched = s.particles > 0 || !s.ids.is_empty() || !boxes.is_empty();
-            match s.every {
-                Some(0) => issue("synthetic.every".into(), "expected at least 1 step".into()),
-                None if watched => issue(
-                    "synthetic.every".into(),
-                    "expected the steps between observations of the tracked particles and \
-                     monitors"
-                        .into(),
-                ),
-                Some(every) if watched && steps > 0 => {
-                    let first = s.first.unwrap_or(every);
-                    if limits::observed_steps(first, every, steps) == 0 {
-                        let (field, msg) = nothing_observed(s, first, steps);
-                        issue(field, msg);
-                    }
-                }
-                _ => {}
-            }
-            if s.particles > built.particles.len() {
-                issue(
-                    "synthetic.particles".into(),
-                    format!("the scene has only {} particles", built.particles.len()),
-                );
-            }
-            check_ids(s, built.particles.len(), &mut issue);
-            if s.particles == 0 && s.ids.is_empty() && boxes.is_empty() && stations.is_empty() {
-                issue(
-                    "synthetic.particles".into(),
-                    "nothing to observe: track particles, or define monitors or deposit \
-                     stations"
-                        .into(),
-                );
-            }
-            if !file.velocity_field.is_empty() && s.scene.is_none() {
-                issue(
-                    "synthetic.scene".into(),
-                    "a velocity field's truth comes from a truth scene: the forward scene with \
-                     the truth velocities (e.g. a body's `velocity_file`)"
-                        .into(),
-                );
-            }
-            if truth.is_none() {
-                require_truth(&file.parameters, &mut issue);
-            }
+    check_sources(
+        file.synthetic.is_some(),
+        &o.files(Solver::Explicit),
+        &[
+            (
+                o.deposit.is_some() && stations.is_empty(),
+                "stations",
+                "the deposit file needs deposit stations",
+            ),
+            (
+                o.velocity.is_some() && boxes.is_empty(),
+                "monitors",
+                "the velocity file needs monitor boxes",
+            ),
+        ],
+        &mut issue,
+    );
+    if let Some(s) = &file.synthetic {
+        let watched = s.particles > 0 || !s.ids.is_empty() || !boxes.is_empty();
+        match s.every {
+            Some(0) => issue("synthetic.every".into(), "expected at least 1 step".into()),
+            None if watched => issue(
+                "synthetic.every".into(),
+                "expected the steps between observations of the tracked particles and \
+                 monitors"
+                    .into(),
+            ),
+            Some(every) if watched => check_observed(s, every, steps, &mut issue),
+            _ => {}
         }
-        None => {
-            if o.tracked.is_none() && o.velocity.is_none() && o.deposit.is_none() {
-                issue(
-                    "observations".into(),
-                    "expected `tracked`, `velocity` or `deposit` (a CSV file), or a [synthetic] \
-                     section"
-                        .into(),
-                );
-            }
-            if o.deposit.is_some() && stations.is_empty() {
-                issue(
-                    "observations.stations".into(),
-                    "the deposit file needs deposit stations".into(),
-                );
-            }
-            if o.velocity.is_some() && boxes.is_empty() {
-                issue(
-                    "observations.monitors".into(),
-                    "the velocity file needs monitor boxes".into(),
-                );
-            }
+        check_tracked(s, built.particles.len(), &mut issue);
+        if s.particles == 0 && s.ids.is_empty() && boxes.is_empty() && stations.is_empty() {
+            issue(
+                "synthetic.particles".into(),
+                "nothing to observe: track particles, or define monitors or deposit \
+                 stations"
+                    .into(),
+            );
         }
+        if !file.velocity_field.is_empty() && s.scene.is_none() {
+            issue(
+                "synthetic.scene".into(),
+                "a velocity field's truth comes from a truth scene: the forward scene with \
+                 the truth velocities (e.g. a body's `velocity_file`)"
+                    .into(),
+            );
+        }
+        require_truth(&file.parameters, &mut issue);
     }
     let checkpoints = match (file.segment, memory) {
         (Some(k), _) => Checkpoints::Segment(k),
@@ -826,9 +714,8 @@ pub fn build<const D: usize>(
     if let Some(c) = config.as_ref().filter(|_| steps > 0) {
         let rows = file.synthetic.as_ref().map_or(0, |s| {
             let every = s.every.unwrap_or(steps + 1);
-            let first = s.first.unwrap_or(every);
             let per_step = tracked_ids(built.particles.len(), s).len() + boxes.len();
-            limits::observed_steps(first, every, steps) * per_step + stations.len()
+            observed_steps(s, every, steps) * per_step + stations.len()
         });
         let bytes = limits::explicit(c, &built.particles, steps, checkpoints, rows as f64);
         if let Some(msg) = limits.exceeded(steps, bytes) {
@@ -840,9 +727,7 @@ pub fn build<const D: usize>(
             issue(field.into(), msg);
         }
     }
-    if !issues.is_empty() {
-        return Err(invalid(path, issues));
-    }
+    valid(path, issues)?;
     let config = config.expect("an explicit scene");
     let mut problem = Problem {
         config,
@@ -918,9 +803,7 @@ pub fn build<const D: usize>(
                     Err(msg) => errors.push(Issue::new("observations.deposit", msg)),
                 }
             }
-            if !errors.is_empty() {
-                return Err(invalid(path, errors));
-            }
+            valid(path, errors)?;
             out
         }
     };
@@ -1085,14 +968,46 @@ pub fn tracked_ids(n: usize, s: &SyntheticSpec) -> Vec<usize> {
     ids
 }
 
-/// Checks `synthetic.ids` against the `n` particles of the scene.
-pub fn check_ids(s: &SyntheticSpec, n: usize, issue: &mut dyn FnMut(String, String)) {
-    for (j, &id) in s.ids.iter().enumerate() {
-        if id >= n {
-            issue(
-                format!("synthetic.ids[{j}]"),
-                format!("particle {id} does not exist: the scene has {n} particles"),
-            );
+/// What parameter `p` sets on an explicit scene, checked against the scene's configuration
+/// `config` (`None` when the scene is not explicit); `None` after an issue.
+fn explicit_control<const D: usize>(
+    p: &ParameterSpec,
+    built: &Built<D>,
+    config: Option<&Config<f64, D>>,
+    issue: &mut dyn FnMut(&str, String),
+) -> Option<Control> {
+    if p.name == "velocity" {
+        return velocity_control::<D>(p, built, issue);
+    }
+    velocity_only(p, "", issue);
+    match p.name.parse::<Param>() {
+        Err(_) if let Ok(ImplicitParam::K0(k)) = p.name.parse::<ImplicitParam>() => {
+            let state = config.map(|c| match c.materials.get(k) {
+                Some(m) => K0State::of(m, &c.gravity, &built.particles, k),
+                None => Err(format!(
+                    "no such material: the scene has {}",
+                    c.materials.len()
+                )),
+            });
+            match state {
+                Some(Err(msg)) => {
+                    issue("name", format!("parameter `{}`: {msg}", p.name));
+                    None
+                }
+                _ => Some(Control::K0 { material: k }),
+            }
+        }
+        Ok(param) => match config.map(|c| param.value(c)) {
+            Some(Err(e)) => {
+                issue("name", e.to_string());
+                None
+            }
+            _ => Some(Control::Param(param)),
+        },
+        Err(msg) => {
+            let other = p.name.parse::<ImplicitParam>().is_ok();
+            issue("name", for_path(&msg, other, "implicit"));
+            None
         }
     }
 }

@@ -5,10 +5,13 @@
 //! (`docs/inversion-format.md`).
 
 use super::Limits;
+use super::common::{
+    Solver, Unknowns, check_observed, check_sources, check_tracked, observed_steps, unknowns,
+    valid, velocity_only,
+};
 use super::file::{
-    Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, SYNTHETIC_CLASH, check_ids,
-    check_optimiser, for_path, invalid, nothing_observed, observed_with_synthetic, require_truth,
-    tracked_ids, variable,
+    Invalid, Inversion, InversionFile, OptimizerSpec, ParameterSpec, check_optimiser, for_path,
+    require_truth, tracked_ids,
 };
 use super::limits;
 use super::model::Model;
@@ -45,26 +48,19 @@ pub fn build<const D: usize>(
     let unit = built.time_unit().seconds();
     let n = built.particles.len();
     let o = &file.observations;
-    for (field, given) in [
+    let explicit_only = [
         ("end_time", file.end_time.is_some()),
         ("segment", file.segment.is_some()),
         ("velocity_field", !file.velocity_field.is_empty()),
-        ("observations.tracked", o.tracked.is_some()),
-        ("observations.tracked_weight", o.tracked_weight.is_some()),
-        ("observations.velocity", o.velocity.is_some()),
-        ("observations.velocity_weight", o.velocity_weight.is_some()),
-        ("observations.monitors", !o.monitors.is_empty()),
-        ("observations.deposit", o.deposit.is_some()),
-        ("observations.deposit_weight", o.deposit_weight.is_some()),
-        ("observations.stations", !o.stations.is_empty()),
-        (
-            "synthetic.scene",
-            file.synthetic.as_ref().is_some_and(|s| s.scene.is_some()),
-        ),
-    ] {
-        if given {
-            issue(field.into(), EXPLICIT_ONLY.into());
-        }
+    ];
+    let truth_scene = file.synthetic.as_ref().is_some_and(|s| s.scene.is_some());
+    let fields = (explicit_only.iter())
+        .filter(|(_, given)| *given)
+        .map(|(field, _)| field.to_string())
+        .chain(o.given_for(Solver::Explicit))
+        .chain(truth_scene.then(|| "synthetic.scene".to_owned()));
+    for field in fields {
+        issue(field, EXPLICIT_ONLY.into());
     }
     if memory.is_some() {
         issue(
@@ -91,40 +87,18 @@ pub fn build<const D: usize>(
             "expected at least one parameter".into(),
         );
     }
-    // The unknowns.
-    let mut params = Vec::new();
-    let mut scene_params = Vec::new();
-    let mut variables = Vec::new();
-    let mut truth = Some(Vec::new());
-    for (i, p) in file.parameters.iter().enumerate() {
-        let at = |field: &str| format!("parameters[{i}].{field}");
-        for (field, given) in [
-            ("direction", p.direction.is_some()),
-            ("material", p.material.is_some()),
-        ] {
-            if given {
-                issue(
-                    at(field),
-                    format!("only for `name = \"velocity\"`, which {EXPLICIT_ONLY}"),
-                );
-            }
-        }
-        match solver_param(p, &scene, &config, &built.particles) {
-            Ok((named, solver)) => {
-                if params.contains(&solver) {
-                    issue(at("name"), format!("`{}` is given twice", p.name));
-                }
-                params.push(solver);
-                scene_params.push(named);
-            }
-            Err(msg) => issue(at("name"), msg),
-        }
-        variables.push(variable(p, &mut |f, m| issue(at(f), m)));
-        truth = truth.zip(p.truth).map(|(mut t, v)| {
-            t.push(v);
-            t
-        });
-    }
+    // The unknowns, as the scene numbers them and as the solver does.
+    let Unknowns {
+        controls,
+        variables,
+        truth,
+    } = unknowns(&file.parameters, &mut issue, |p, issue| {
+        velocity_only(p, &format!(", which {EXPLICIT_ONLY}"), issue);
+        (solver_param(p, &scene, &config, &built.particles))
+            .map_err(|msg| issue("name", msg))
+            .ok()
+    });
+    let (scene_params, params): (Vec<_>, Vec<_>) = controls.into_iter().unzip();
     check_optimiser(&file.optimizer, &file.stop, &mut issue);
     if matches!(file.optimizer, OptimizerSpec::LevenbergMarquardt { .. }) {
         issue(
@@ -182,86 +156,58 @@ pub fn build<const D: usize>(
         }
     }
     let piezometers = piezometers(o, &built.particles, coupled, &mut issue);
-    match &file.synthetic {
-        Some(s) => {
-            for field in observed_with_synthetic(&[
-                ("displacement", o.displacement.is_some()),
-                ("reaction", o.reaction.is_some()),
-                ("pore_pressure", o.pore_pressure.is_some()),
-            ]) {
-                issue(field, SYNTHETIC_CLASH.into());
-            }
-            if s.every == Some(0) {
-                issue(
-                    "synthetic.every".into(),
-                    "expected at least 1 load step".into(),
-                );
-            }
-            if s.first == Some(0) {
-                issue(
-                    "synthetic.first".into(),
-                    "expected a load step ≥ 1 (step 0 is the initial state)".into(),
-                );
-            }
-            let every = s.every.unwrap_or(1).max(1);
-            let first = s.first.unwrap_or(every);
-            let steps = config.load_steps;
-            if steps > 0 && limits::observed_steps(first, every, steps) == 0 {
-                let (field, msg) = nothing_observed(s, first, steps);
-                issue(field, msg);
-            }
-            if s.particles > n {
-                issue(
-                    "synthetic.particles".into(),
-                    format!("the scene has only {n} particles"),
-                );
-            }
-            check_ids(s, n, &mut issue);
-            if s.particles == 0
-                && s.ids.is_empty()
-                && o.reactions.is_empty()
-                && o.piezometers.is_empty()
-            {
-                issue(
-                    "synthetic.particles".into(),
-                    "nothing to observe: choose particles (`particles`, `ids`) or define \
-                     [[observations.reactions]] or [[observations.piezometers]]"
-                        .into(),
-                );
-            }
-            if truth.is_none() {
-                require_truth(&file.parameters, &mut issue);
-            }
+    check_sources(
+        file.synthetic.is_some(),
+        &o.files(Solver::Implicit),
+        &[
+            (
+                o.reaction.is_some() && o.reactions.is_empty(),
+                "reactions",
+                "the reaction file needs [[observations.reactions]]",
+            ),
+            (
+                o.pore_pressure.is_some() && o.piezometers.is_empty(),
+                "piezometers",
+                "the pore-pressure file needs [[observations.piezometers]]",
+            ),
+        ],
+        &mut issue,
+    );
+    if let Some(s) = &file.synthetic {
+        if s.every == Some(0) {
+            issue(
+                "synthetic.every".into(),
+                "expected at least 1 load step".into(),
+            );
         }
-        None => {
-            if o.displacement.is_none() && o.reaction.is_none() && o.pore_pressure.is_none() {
-                issue(
-                    "observations".into(),
-                    "expected `displacement`, `reaction` or `pore_pressure` (a CSV file), or a \
-                     [synthetic] section"
-                        .into(),
-                );
-            }
-            if o.reaction.is_some() && o.reactions.is_empty() {
-                issue(
-                    "observations.reactions".into(),
-                    "the reaction file needs [[observations.reactions]]".into(),
-                );
-            }
-            if o.pore_pressure.is_some() && o.piezometers.is_empty() {
-                issue(
-                    "observations.piezometers".into(),
-                    "the pore-pressure file needs [[observations.piezometers]]".into(),
-                );
-            }
+        if s.first == Some(0) {
+            issue(
+                "synthetic.first".into(),
+                "expected a load step ≥ 1 (step 0 is the initial state)".into(),
+            );
         }
+        let every = s.every.unwrap_or(1).max(1);
+        check_observed(s, every, config.load_steps, &mut issue);
+        check_tracked(s, n, &mut issue);
+        if s.particles == 0
+            && s.ids.is_empty()
+            && o.reactions.is_empty()
+            && o.piezometers.is_empty()
+        {
+            issue(
+                "synthetic.particles".into(),
+                "nothing to observe: choose particles (`particles`, `ids`) or define \
+                 [[observations.reactions]] or [[observations.piezometers]]"
+                    .into(),
+            );
+        }
+        require_truth(&file.parameters, &mut issue);
     }
     // The length of the run and the memory of its record, before a step is run.
     let rows = file.synthetic.as_ref().map_or(0, |s| {
         let every = s.every.unwrap_or(1).max(1);
-        let first = s.first.unwrap_or(every);
         let per_step = tracked_ids(n, s).len() * D + o.reactions.len() + o.piezometers.len();
-        limits::observed_steps(first, every, config.load_steps) * per_step
+        observed_steps(s, every, config.load_steps) * per_step
     });
     let bytes = limits::implicit::<D>(config.load_steps, n, rows as f64);
     if let Some(msg) = limits.exceeded(config.load_steps, bytes) {
@@ -271,9 +217,7 @@ pub fn build<const D: usize>(
         };
         issue(field.into(), msg);
     }
-    if !issues.is_empty() {
-        return Err(invalid(path, issues));
-    }
+    valid(path, issues)?;
     let mut problem = ImplicitProblem {
         config,
         initial: built.particles,
@@ -549,11 +493,8 @@ fn read_observations<const D: usize>(
             Err(msg) => errors.push(Issue::new("observations.pore_pressure", msg)),
         }
     }
-    if errors.is_empty() {
-        Ok(items)
-    } else {
-        Err(invalid(path, errors))
-    }
+    valid(path, errors)?;
+    Ok(items)
 }
 
 /// The observations of an implicit inversion as the CSV files hold them: per load step, the

@@ -10,6 +10,7 @@
 //! and a checkpoint that `--resume` continues from. A signal (Ctrl-C) stops it after the
 //! iteration in progress, with everything written so far kept.
 
+mod common;
 mod element;
 mod file;
 mod history;
