@@ -83,7 +83,8 @@ class Scene:
 class Simulation:
     """A scene's solver and particles, stepped from Python."""
 
-    def __init__(self, scene: Scene, device: str = "cpu") -> None: ...
+    def __init__(self, scene: Scene, device: str = "cpu") -> None:
+        """Build ``scene`` for stepping on ``device``: ``"cpu"``, or ``"gpu"`` (explicit)."""
     def step(self, n: int = 1) -> None:
         """Take ``n`` steps (explicit) or load steps (implicit)."""
     def advance_to(self, t: float) -> None:

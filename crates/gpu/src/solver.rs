@@ -448,13 +448,26 @@ impl<const D: usize> GpuSolver<D> {
             let Some(cap) = self.next_step_cap(t_end) else {
                 break;
             };
-            match self.time_step {
-                TimeStep::Fixed { .. } => self.submit(1),
-                TimeStep::Adaptive { .. } => self.adaptive_step(cap)?,
-            }
+            self.submit_one(cap)?;
         }
         self.check()?;
         Ok(self.next_step_cap(t_end).is_none())
+    }
+
+    /// One step, an adaptive one no longer than `cap` (a fixed step is never shortened), and
+    /// the stability flags read back: the GPU's `loam_explicit::Solver::step`.
+    pub fn step(&mut self, cap: f64) -> Result<(), GpuError> {
+        self.submit_one(cap)?;
+        self.check()
+    }
+
+    /// Submits one step, an adaptive one capped at `cap`.
+    fn submit_one(&mut self, cap: f64) -> Result<(), GpuError> {
+        match self.time_step {
+            TimeStep::Fixed { .. } => self.submit(1),
+            TimeStep::Adaptive { .. } => self.adaptive_step(cap)?,
+        }
+        Ok(())
     }
 
     /// One adaptive step capped at `cap`: the largest particle speed per material comes back

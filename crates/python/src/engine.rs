@@ -1,10 +1,13 @@
 //! The solver behind a `Simulation`, with its dimension and kind erased: the explicit
-//! solver, or the implicit one stepped by load steps, each with its particles.
+//! solver, or the implicit one stepped by load steps, each with its particles, or the
+//! explicit steps on the GPU.
 
 use crate::fields::{self, Array, Field};
 use loam_core::{Particles, TimeStep};
 use loam_explicit::Solver;
+use loam_gpu::GpuSolver;
 use loam_implicit::ImplicitSolver;
+use std::sync::Mutex;
 
 /// A solver and its particles, seen from Python.
 pub trait Stepper: Send + Sync {
@@ -21,8 +24,8 @@ pub trait Stepper: Send + Sync {
     fn cap_towards(&self, t: f64) -> Result<Option<f64>, String>;
     /// One step, no longer than `cap`.
     fn step(&mut self, cap: f64) -> Result<(), String>;
-    /// A copy of `field` of every particle.
-    fn field(&self, field: Field) -> Array<f64>;
+    /// A copy of `field` of every particle (an error where it cannot be read back).
+    fn field(&self, field: Field) -> Result<Array<f64>, String>;
     /// Every particle's material index.
     fn material(&self) -> Array<i64>;
 }
@@ -74,8 +77,8 @@ impl<S: Solve<D>, const D: usize> Stepper for Engine<S, D> {
         self.solver.step(&mut self.particles, cap)
     }
 
-    fn field(&self, field: Field) -> Array<f64> {
-        fields::field(&self.particles, field)
+    fn field(&self, field: Field) -> Result<Array<f64>, String> {
+        Ok(fields::field(&self.particles, field))
     }
 
     fn material(&self) -> Array<i64> {
@@ -96,17 +99,13 @@ impl<const D: usize> Solve<D> for Solver<f64, D> {
         None
     }
 
-    /// A fixed step Δt is never shortened: the steps are those that end by `t` (with the
-    /// round-off allowance of [`Solver::next_step_cap`]). An adaptive step is shortened to end
-    /// on `t`.
     fn cap_towards(&self, t: f64) -> Result<Option<f64>, String> {
-        Ok(match self.config().time_step {
-            TimeStep::Fixed { dt } => {
-                let allowance = (1e-9 * t.abs()).min(0.5 * dt);
-                (Solver::time(self) + dt <= t + allowance).then_some(f64::INFINITY)
-            }
-            TimeStep::Adaptive { .. } => self.next_step_cap(t),
-        })
+        Ok(explicit_cap(
+            &self.config().time_step,
+            Solver::time(self),
+            t,
+            || self.next_step_cap(t),
+        ))
     }
 
     fn step(&mut self, particles: &mut Particles<f64, D>, cap: f64) -> Result<(), String> {
@@ -148,5 +147,97 @@ impl<const D: usize> Solve<D> for ImplicitSolver<D> {
         (ImplicitSolver::step(self, particles))
             .map(|_| ())
             .map_err(|e| e.to_string())
+    }
+}
+
+/// The cap on the next explicit step from the time `time` towards `t`: a fixed step Δt is
+/// never shortened, so the steps are those that end by `t` (with the round-off allowance of
+/// [`Solver::next_step_cap`], `min(1e-9 |t|, Δt/2)`), unbounded while one more fits; an
+/// adaptive step is shortened to end on `t` (its solver's cap, `adaptive()`).
+fn explicit_cap(
+    time_step: &TimeStep,
+    time: f64,
+    t: f64,
+    adaptive: impl FnOnce() -> Option<f64>,
+) -> Option<f64> {
+    match *time_step {
+        TimeStep::Fixed { dt } => {
+            let allowance = (1e-9 * t.abs()).min(0.5 * dt);
+            (time + dt <= t + allowance).then_some(f64::INFINITY)
+        }
+        TimeStep::Adaptive { .. } => adaptive(),
+    }
+}
+
+/// The explicit steps on the GPU ([`GpuSolver`], in f32 on the device) and a host copy of the
+/// particles in f64, read back when a field is asked for after steps were taken.
+pub struct GpuEngine<const D: usize> {
+    /// The solver.
+    solver: GpuSolver<D>,
+    /// The scene's time step, fixed or adaptive.
+    time_step: TimeStep,
+    /// The particles as last read back (as built, before the first step) and the step they
+    /// were read at.
+    host: Mutex<(Particles<f64, D>, usize)>,
+}
+
+impl<const D: usize> GpuEngine<D> {
+    /// The engine of `solver`, built from `particles` with the time step `time_step`.
+    pub fn new(solver: GpuSolver<D>, time_step: TimeStep, particles: Particles<f64, D>) -> Self {
+        Self {
+            solver,
+            time_step,
+            host: Mutex::new((particles, 0)),
+        }
+    }
+}
+
+impl<const D: usize> Stepper for GpuEngine<D> {
+    fn dim(&self) -> usize {
+        D
+    }
+
+    fn steps(&self) -> usize {
+        self.solver.steps()
+    }
+
+    fn time(&self) -> f64 {
+        self.solver.time()
+    }
+
+    fn load_factor(&self) -> Option<f64> {
+        None
+    }
+
+    fn cap_towards(&self, t: f64) -> Result<Option<f64>, String> {
+        Ok(explicit_cap(&self.time_step, self.solver.time(), t, || {
+            self.solver.next_step_cap(t)
+        }))
+    }
+
+    fn step(&mut self, cap: f64) -> Result<(), String> {
+        self.solver
+            .step(cap)
+            .map_err(|e| format!("{e} (t = {:.6e} s, on the GPU)", self.solver.time()))
+    }
+
+    fn field(&self, field: Field) -> Result<Array<f64>, String> {
+        let mut host = self.host.lock().map_err(|e| e.to_string())?;
+        let (particles, read_at) = &mut *host;
+        if *read_at != self.solver.steps() {
+            self.solver
+                .read_particles(particles)
+                .map_err(|e| e.to_string())?;
+            *read_at = self.solver.steps();
+        }
+        Ok(fields::field(particles, field))
+    }
+
+    fn material(&self) -> Array<i64> {
+        let host = self
+            .host
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        fields::material(&host.0)
     }
 }

@@ -5,14 +5,15 @@
 //! interpreter's signals are checked, so Ctrl-C raises `KeyboardInterrupt` with the state of
 //! the last completed step.
 
-use crate::engine::{Engine, Stepper};
+use crate::engine::{Engine, GpuEngine, Stepper};
 use crate::errors::{refused_scene, scene_error, simulation_error};
 use crate::fields::Field;
 use crate::scene::expect_scene;
 use loam_driver::preflight::{self, MAX_STEPS, MemoryLimit, StepLimit};
 use loam_explicit::Solver;
+use loam_gpu::{GpuError, GpuSolver};
 use loam_implicit::ImplicitSolver;
-use loam_scene::{Built, SolverPlan};
+use loam_scene::{Built, ExplicitPlan, SolverPlan};
 use numpy::PyArrayDyn;
 use pyo3::exceptions::{PyNotImplementedError, PyValueError};
 use pyo3::prelude::*;
@@ -27,28 +28,59 @@ pub struct Simulation {
     engine: Box<dyn Stepper>,
 }
 
+/// The solver of an explicit scene, with the checks `loam run` makes before the first step
+/// (their warnings go to Python's `warnings`).
+fn explicit_solver<const D: usize>(
+    py: Python<'_>,
+    scene: &loam_scene::Scene,
+    built: &Built<D>,
+    plan: &ExplicitPlan,
+) -> PyResult<Solver<f64, D>> {
+    let refused = |msg: String| refused_scene(py, scene.source.as_deref(), &msg);
+    let config = built.explicit_config().expect("an explicit plan");
+    let solver = Solver::new(config, &built.particles).map_err(|e| refused(e.to_string()))?;
+    let limit = StepLimit::new(None, MAX_STEPS);
+    let warnings =
+        preflight::explicit(built, plan, &solver, &built.particles, limit).map_err(refused)?;
+    let warn = py.import("warnings")?;
+    for w in warnings {
+        warn.call_method1("warn", (w,))?;
+    }
+    Ok(solver)
+}
+
 /// Builds `scene` in `D` dimensions and makes its solver, with the checks `loam run` makes
-/// before the first step.
-fn build<const D: usize>(py: Python<'_>, scene: &loam_scene::Scene) -> PyResult<Box<dyn Stepper>> {
+/// before the first step; explicit steps go to the first GPU adapter with `gpu`.
+fn build<const D: usize>(
+    py: Python<'_>,
+    scene: &loam_scene::Scene,
+    gpu: bool,
+) -> PyResult<Box<dyn Stepper>> {
     let refused = |msg: String| refused_scene(py, scene.source.as_deref(), &msg);
     let built: Built<D> = scene.build().map_err(|e| scene_error(py, &e))?;
-    match built.plan {
+    match &built.plan {
+        SolverPlan::Explicit(plan) if gpu => {
+            let cpu = explicit_solver(py, scene, &built, plan)?;
+            let time_step = cpu.config().time_step;
+            let device =
+                loam_driver::run::gpu::device(None).map_err(|e| simulation_error(e.to_string()))?;
+            let solver = GpuSolver::new(&device, &cpu.config().lift(), &built.particles.lift())
+                .map_err(|e| match e {
+                    GpuError::Unsupported { .. } | GpuError::Config(_) => refused(e.to_string()),
+                    e => simulation_error(e.to_string()),
+                })?;
+            Ok(Box::new(GpuEngine::new(solver, time_step, built.particles)))
+        }
         SolverPlan::Explicit(plan) => {
-            let config = built.explicit_config().expect("an explicit plan");
-            let solver =
-                Solver::new(config, &built.particles).map_err(|e| refused(e.to_string()))?;
-            let limit = StepLimit::new(None, MAX_STEPS);
-            let warnings = preflight::explicit(&built, &plan, &solver, &built.particles, limit)
-                .map_err(refused)?;
-            let warn = py.import("warnings")?;
-            for w in warnings {
-                warn.call_method1("warn", (w,))?;
-            }
+            let solver = explicit_solver(py, scene, &built, plan)?;
             Ok(Box::new(Engine {
                 solver,
                 particles: built.particles,
             }))
         }
+        SolverPlan::Implicit(_) if gpu => Err(PyValueError::new_err(
+            "device: \"gpu\" steps explicit scenes; this scene is implicit (solver.type)",
+        )),
         SolverPlan::Implicit(_) => {
             let config = built.implicit_config().expect("an implicit plan");
             let solver = ImplicitSolver::new(config, &built.particles)
@@ -103,38 +135,36 @@ impl Simulation {
 
     /// A copy of `field` as a NumPy array.
     fn array<'py>(&self, py: Python<'py>, field: Field) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        self.engine.field(field).into_numpy(py)
+        (self.engine.field(field))
+            .map_err(simulation_error)?
+            .into_numpy(py)
     }
 }
 
 #[pymethods]
 impl Simulation {
-    /// Builds `scene` (checked as `loam run` checks it) for stepping on `device` (only
-    /// `"cpu"` for now).
+    /// Builds `scene` (checked as `loam run` checks it) for stepping on `device`: `"cpu"`,
+    /// or `"gpu"` for an explicit scene's steps in f32 on the first GPU adapter (as
+    /// `loam run --device gpu`; the state is read back from the device when asked for).
     #[new]
     #[pyo3(signature = (scene, device = "cpu"))]
     fn new(py: Python<'_>, scene: &Bound<'_, PyAny>, device: &str) -> PyResult<Self> {
         let scene = expect_scene(scene)?;
-        match device {
-            "cpu" => {}
-            "gpu" => {
-                return Err(PyNotImplementedError::new_err(
-                    "device: a Simulation steps on the CPU only for now; run a scene on the \
-                     GPU with loam.run(scene, device=\"gpu\")",
-                ));
-            }
+        let gpu = match device {
+            "cpu" => false,
+            "gpu" => true,
             other => {
                 return Err(PyValueError::new_err(format!(
                     "device: expected \"cpu\" or \"gpu\", got {other:?}"
                 )));
             }
-        }
+        };
         let scene = &scene.inner;
         preflight::size(scene, MemoryLimit::new(None))
             .map_err(|msg| refused_scene(py, scene.source.as_deref(), &msg))?;
         let engine = match scene.dim() {
-            2 => build::<2>(py, scene)?,
-            _ => build::<3>(py, scene)?,
+            2 => build::<2>(py, scene, gpu)?,
+            _ => build::<3>(py, scene, gpu)?,
         };
         Ok(Self { engine })
     }
