@@ -9,10 +9,13 @@ The package wraps the Rust library loam (distribution ``loam-mpm``):
 - :func:`read_series` reads the frames a run wrote; :func:`loam.plot.plot_frame` draws a 2D
   one with matplotlib.
 - :class:`Study` sets up an inversion file once and gives ``L(θ)`` and ``dL/dθ`` by loam's
-  adjoint at any parameters; :func:`gradient` is ``loam gradient``'s result as a dict and
-  :func:`invert` runs ``loam invert``'s optimiser.
-- :mod:`loam.jax` and :mod:`loam.torch` make a study's loss a differentiable JAX function
-  or PyTorch autograd function (imported on their own: they need JAX or PyTorch).
+  adjoint at any parameters, and the observed quantities ``y(θ)`` with their
+  vector–Jacobian product ``ȳᵀ ∂y/∂θ``; :func:`gradient` is ``loam gradient``'s result as a
+  dict, :func:`vjp` the product for one cotangent, and :func:`invert` runs ``loam invert``'s
+  optimiser.
+- :mod:`loam.jax` and :mod:`loam.torch` make a study's loss or its observed quantities a
+  differentiable JAX function or PyTorch autograd function (imported on their own: they need
+  JAX or PyTorch).
 
 Units are SI (m, s, kg, Pa); stresses are Cauchy stresses, tension positive; pore
 pressures are compression positive.
@@ -41,6 +44,7 @@ __all__ = [
     "invert",
     "read_series",
     "run",
+    "vjp",
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -105,6 +109,31 @@ def gradient(inversion: PathLike, memory: Optional[int] = None) -> Dict[str, Any
     theta = study.initial
     loss, grad = study.gradient(theta)
     return {"loss": loss, "names": study.names, "theta": theta, "gradient": grad}
+
+
+def vjp(
+    inversion: PathLike,
+    theta: Union[np.ndarray, List[float]],
+    cotangent: Union[np.ndarray, List[float]],
+    memory: Optional[int] = None,
+) -> np.ndarray:
+    """``ȳᵀ ∂y/∂θ``: the vector–Jacobian product of the observed quantities ``y`` of the
+    inversion file ``inversion`` at the unknowns ``theta`` with the cotangent ``ȳ``, by loam's
+    discrete adjoint seeded with ``ȳ`` on either path (explicit or implicit; element tests by
+    forward-mode duals).
+
+    ``theta`` holds every unknown as :func:`gradient`'s ``"theta"`` does; ``cotangent`` one
+    value per observed quantity, in the order of ``Study(inversion).observations()``, which
+    also gives each quantity's label, data ``d`` and weight ``c``. With ``ȳ = ∂ℓ/∂y`` it is
+    the gradient of any loss ``ℓ(y)``; with ``ȳ = 2c (y − d)`` it is ``loam gradient``'s.
+    ``memory``: the bytes the explicit adjoint may keep (``--memory``).
+
+    Each call sets the file up again (and reruns its ``[synthetic]`` truth run, if any): to
+    evaluate many, keep a :class:`Study` and call its ``vjp``. Raises
+    :class:`InversionError` for an invalid file or a ``theta`` or ``cotangent`` of the wrong
+    length or with a value that is not finite, :class:`SimulationError` for a run that fails.
+    """
+    return Study(os.fspath(inversion), memory).vjp(theta, cotangent)
 
 
 def invert(

@@ -44,6 +44,20 @@ class Study:
         self, theta: Union[npt.NDArray[np.float64], List[float]]
     ) -> Tuple[float, npt.NDArray[np.float64]]:
         """``(L, dL/dθ)`` at ``theta`` by the discrete adjoint."""
+    def observations(
+        self,
+    ) -> Tuple[List[str], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The observed quantities' labels, data ``d`` and weights ``c``."""
+    def observe(
+        self, theta: Union[npt.NDArray[np.float64], List[float]]
+    ) -> npt.NDArray[np.float64]:
+        """The observed quantities ``y(θ)`` by a forward run."""
+    def vjp(
+        self,
+        theta: Union[npt.NDArray[np.float64], List[float]],
+        cotangent: Union[npt.NDArray[np.float64], List[float]],
+    ) -> npt.NDArray[np.float64]:
+        """``ȳᵀ ∂y/∂θ`` by the discrete adjoint seeded with ``ȳ``."""
     def field_errors(self, theta: Union[npt.NDArray[np.float64], List[float]]) -> List[float]:
         """Each velocity field's relative L2 error against the truth at ``theta``."""
     def invert(self, out: Optional[_Path] = None, resume: bool = False) -> Path:
@@ -107,6 +121,9 @@ class Simulation:
     @property
     def velocities(self) -> npt.NDArray[np.float64]:
         """Particle velocities, N × D (m/s); a copy."""
+    @velocities.setter
+    def velocities(self, value: npt.NDArray[np.float64]) -> None:
+        """Set every particle's velocity from an N × D float64 array."""
     @property
     def stress(self) -> npt.NDArray[np.float64]:
         """Cauchy stress, N × 3 × 3 (Pa, tension positive); a copy."""

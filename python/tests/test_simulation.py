@@ -76,6 +76,39 @@ def test_mass_is_constant_and_a_free_fall_has_velocity_g_t() -> None:
     assert sim.masses.dtype == np.float64 and sim.material.dtype == np.int64
 
 
+def test_velocities_set_from_python_step_as_a_scenes_initial_velocity() -> None:
+    """A velocity set from Python steps to the same bits as the same velocity given in the
+    scene (`bodies[0].velocity`): the setter replaces the state the solver integrates."""
+    scene = block(gravity=-9.8)
+    given = dict(scene, bodies=[dict(scene["bodies"][0], velocity=[0.75, -0.5])])
+    reference = loam.Simulation(loam.Scene.from_dict(given))
+    sim = loam.Simulation(loam.Scene.from_dict(scene))
+    sim.velocities = np.tile([0.75, -0.5], (len(sim.masses), 1))
+    np.testing.assert_array_equal(sim.velocities, reference.velocities)
+    sim.step(100)
+    reference.step(100)
+    np.testing.assert_array_equal(sim.positions, reference.positions)
+    np.testing.assert_array_equal(sim.velocities, reference.velocities)
+
+
+def test_bad_velocities_raise_naming_them() -> None:
+    sim = loam.Simulation(loam.Scene.from_dict(block()))
+    n = len(sim.masses)
+    with pytest.raises(ValueError, match=rf"velocities: expected shape \[{n}, 2\], got \[{n}, 3\]"):
+        sim.velocities = np.zeros((n, 3))
+    with pytest.raises(ValueError, match=r"velocities: expected shape"):
+        sim.velocities = np.zeros(2 * n)
+    with pytest.raises(TypeError, match="velocities: expected dtype float64, got float32"):
+        sim.velocities = np.zeros((n, 2), dtype=np.float32)
+    v = np.zeros((n, 2))
+    v[3, 1] = np.inf
+    with pytest.raises(ValueError, match=r"velocities\[3, 1\] = inf"):
+        sim.velocities = v
+    implicit = loam.Simulation(loam.Scene.from_file(REPO / "examples" / "column_compaction.toml"))
+    with pytest.raises(loam.SimulationError, match="quasi-static"):
+        implicit.velocities = np.zeros((len(implicit.masses), 2))
+
+
 def test_a_fixed_step_never_passes_the_target_time() -> None:
     sim = loam.Simulation(loam.Scene.from_dict(block()))
     sim.advance_to(0.01049)
@@ -197,8 +230,8 @@ def gpu_simulation(scene: loam.Scene) -> loam.Simulation:
 
 def test_a_gpu_simulation_steps_as_the_cpu_one_to_f32_round_off(tmp_path: Path) -> None:
     """The reduced friction dam-break, 600 fixed steps on the GPU (f32) and on the CPU
-    (f64): the same step count and time (but for Δt's f32 rounding), and positions within 1e-4 m. The GPU parity tests
-    hold the GPU to the CPU's own f32 run, whose distance from the f64 run grows to about
+    (f64): the same step count and time (but for Δt's f32 rounding), and positions within
+    1e-4 m. The GPU parity tests hold the GPU to the CPU's own f32 run, whose distance from the f64 run grows to about
     1e-5 m over 2,500 steps of this dam-break; 1e-4 m (a five-hundredth of a cell) leaves
     that a factor of ten and is far below any error in the physics (a wrong friction or
     pressure moves the front by millimetres in 600 steps)."""

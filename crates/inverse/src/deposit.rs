@@ -2,7 +2,7 @@
 //! function of the particle state.
 
 use crate::adjoint_state::ParticleAdjoint;
-use crate::objective::{Objective, ScalarObjective};
+use crate::objective::{Objective, ScalarObjective, least_squares_term};
 use loam_core::tensor::{self, Vector};
 use loam_core::{Particles, Scalar};
 use std::collections::BTreeMap;
@@ -124,49 +124,57 @@ impl<const D: usize> Objective<D> for DepositProfile<D> {
         particles: &Particles<f64, D>,
         adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64 {
-        if let (Some(adj), Some(targets)) = (adjoint, self.targets.get(&step)) {
-            for &(s, target) in targets {
-                let station = &self.stations[s];
-                let r = 2.0 * self.weight * (station.depth(particles, self.up) - target);
-                for p in 0..particles.len() {
-                    let (k, grad) = station.kernel(&particles.x[p], self.up);
-                    // Outside the support the kernel and its gradient vanish together.
-                    if k == 0.0 {
-                        continue;
-                    }
-                    let f = particles.f[p];
-                    let j = tensor::det(&f);
-                    let v0 = particles.volume0[p];
-                    adj.x[p] += grad * (r * j * v0);
-                    if let Some(inv) = tensor::inverse(&f) {
-                        adj.f[p] += inv.transpose() * (r * v0 * k * j);
-                    }
-                    adj.volume0[p] += r * j * k;
-                }
-            }
-        }
-        self.value(step, particles)
+        least_squares_term(self, step, particles, adjoint)
     }
 }
 
 impl<const D: usize> ScalarObjective<D> for DepositProfile<D> {
-    fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T {
-        let Some(targets) = self.targets.get(&step) else {
-            return T::zero();
-        };
-        let mut loss = T::zero();
-        for &(s, target) in targets {
-            let d = self.stations[s].depth(particles, self.up) - T::cst(target);
-            loss += d * d * T::cst(self.weight);
+    /// The depth `h_s` at each observed station.
+    fn observed<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        for &(s, _) in self.targets.get(&step).into_iter().flatten() {
+            out.push(self.stations[s].depth(particles, self.up));
         }
-        loss
     }
 
-    /// `√w (h_s − h*)` per observed station.
-    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
-        let root = T::cst(self.weight.sqrt());
-        for &(s, target) in self.targets.get(&step).into_iter().flatten() {
-            out.push((self.stations[s].depth(particles, self.up) - T::cst(target)) * root);
+    fn data(&self, step: usize, out: &mut Vec<(f64, f64)>) {
+        for &(_, target) in self.targets.get(&step).into_iter().flatten() {
+            out.push((target, self.weight));
+        }
+    }
+
+    fn labels(&self, step: usize, out: &mut Vec<String>) {
+        for &(s, _) in self.targets.get(&step).into_iter().flatten() {
+            out.push(format!("depth at deposit station {s}"));
+        }
+    }
+
+    /// With `r = ȳ_s` and `K_p = K_b(x_p − s)`: `∂(r h_s)/∂x_p = r J_p V⁰_p ∇K_p`,
+    /// `∂/∂F_p = r V⁰_p K_p J_p F_p⁻ᵀ`, `∂/∂V⁰_p = r J_p K_p`.
+    fn pull(
+        &self,
+        step: usize,
+        particles: &Particles<f64, D>,
+        cotangent: &[f64],
+        adjoint: &mut ParticleAdjoint<D>,
+    ) {
+        let targets = self.targets.get(&step).into_iter().flatten();
+        for (&(s, _), &r) in targets.zip(cotangent) {
+            let station = &self.stations[s];
+            for p in 0..particles.len() {
+                let (k, grad) = station.kernel(&particles.x[p], self.up);
+                // Outside the support the kernel and its gradient vanish together.
+                if k == 0.0 {
+                    continue;
+                }
+                let f = particles.f[p];
+                let j = tensor::det(&f);
+                let v0 = particles.volume0[p];
+                adjoint.x[p] += grad * (r * j * v0);
+                if let Some(inv) = tensor::inverse(&f) {
+                    adjoint.f[p] += inv.transpose() * (r * v0 * k * j);
+                }
+                adjoint.volume0[p] += r * j * k;
+            }
         }
     }
 }

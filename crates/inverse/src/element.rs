@@ -241,11 +241,27 @@ impl LabTest {
     /// The scaled residuals `(m − d)/σ` of the observations against `curve`.
     ///
     /// # Errors
+    /// As [`LabTest::modelled`].
+    pub fn residuals<T: Scalar>(
+        &self,
+        curve: &[CurvePoint<T>],
+        index: usize,
+    ) -> Result<Vec<T>, AdjointError> {
+        let m = self.modelled(curve, index)?;
+        Ok((m.into_iter().zip(&self.observed))
+            .map(|(m, o)| (m - T::cst(o.value)) / T::cst(o.sigma))
+            .collect())
+    }
+
+    /// The model values `m` of the observations on `curve`: each observed quantity
+    /// interpolated at the observation's axial strain.
+    ///
+    /// # Errors
     /// [`AdjointError::Observation`] naming the test (`tests[index]`) when the curve's axial
     /// strain does not move monotonically (observations are placed by it), or an observed
     /// axial strain lies outside the curve, or a void ratio is observed of a test without an
     /// initial one.
-    pub fn residuals<T: Scalar>(
+    pub fn modelled<T: Scalar>(
         &self,
         curve: &[CurvePoint<T>],
         index: usize,
@@ -285,14 +301,13 @@ impl LabTest {
                             .into(),
                     )
                 })?;
-                let m = interpolate(&xs, &ys, o.axial_strain).ok_or_else(|| {
+                interpolate(&xs, &ys, o.axial_strain).ok_or_else(|| {
                     fail(format!(
                         "an observation at axial strain {} lies outside the test's path, \
                          {lo:.6e} to {hi:.6e}",
                         o.axial_strain
                     ))
-                })?;
-                Ok((m - T::cst(o.value)) / T::cst(o.sigma))
+                })
             })
             .collect()
     }
@@ -348,13 +363,58 @@ impl ElementProblem {
         theta: &[f64],
         lifted: impl Fn(&Material<f64>) -> Result<Material<T>, AdjointError>,
     ) -> Result<Vec<T>, AdjointError> {
+        self.of_curves(theta, lifted, LabTest::residuals)
+    }
+
+    /// `of(test, its curve, its index)` of every test, concatenated, the curves in the scalar
+    /// of `lifted` (each test's material at `theta` lifted by it).
+    fn of_curves<T: Scalar>(
+        &self,
+        theta: &[f64],
+        lifted: impl Fn(&Material<f64>) -> Result<Material<T>, AdjointError>,
+        of: impl Fn(&LabTest, &[CurvePoint<T>], usize) -> Result<Vec<T>, AdjointError>,
+    ) -> Result<Vec<T>, AdjointError> {
         let materials = self.materials(theta)?;
         let mut out = Vec::new();
         for (i, (t, m)) in self.tests.iter().zip(&materials).enumerate() {
             let curve = t.curve(m, &lifted(m)?, i)?;
-            out.extend(t.residuals(&curve, i)?);
+            out.extend(of(t, &curve, i)?);
         }
         Ok(out)
+    }
+
+    /// The model value `m_i` of every observation at `theta`, test by test.
+    ///
+    /// # Errors
+    /// As [`ElementProblem::residuals`].
+    pub fn modelled(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.of_curves(theta, |m| Ok(m.clone()), LabTest::modelled)
+    }
+
+    /// The vector–Jacobian product `ȳᵀ ∂m/∂θ` of the model values ([`ElementProblem::modelled`])
+    /// with `cotangent` (one value per observation): `Σᵢ ȳᵢ ∂mᵢ/∂θ_k` from one `Dual64` run
+    /// of the tests per parameter, as the gradient's.
+    ///
+    /// # Errors
+    /// A cotangent whose length is not the number of observations, or as
+    /// [`ElementProblem::residuals`].
+    pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        let n = self.observations();
+        if cotangent.len() != n {
+            return Err(AdjointError::Observation {
+                field: "cotangent".into(),
+                msg: format!(
+                    "has {} value(s); expected one per observation, {n}",
+                    cotangent.len()
+                ),
+            });
+        }
+        (0..self.params.len())
+            .map(|k| {
+                let m = self.of_curves(theta, self.seeding(k), LabTest::modelled)?;
+                Ok(m.iter().zip(cotangent).map(|(m, b)| m.eps * b).sum())
+            })
+            .collect()
     }
 
     /// The scaled residuals `r_i = (m_i − d_i)/σ_i` of every observation at `theta`.
@@ -376,12 +436,20 @@ impl ElementProblem {
     /// The residuals with their derivative with respect to parameter `k` (a `Dual64` run of
     /// every test with that parameter seeded).
     fn seeded_residuals(&self, theta: &[f64], k: usize) -> Result<Vec<Dual64>, AdjointError> {
+        self.residuals_in(theta, self.seeding(k))
+    }
+
+    /// Each material lifted to `Dual64` with parameter `k` seeded.
+    fn seeding(
+        &self,
+        k: usize,
+    ) -> impl Fn(&Material<f64>) -> Result<Material<Dual64>, AdjointError> + use<> {
         let field = self.params[k];
-        self.residuals_in(theta, |m| {
+        move |m| {
             seed_material(m, field)
                 .map(|(dual, _)| dual)
                 .ok_or_else(|| no_such(field, 0, m))
-        })
+        }
     }
 
     /// The residuals `r` and the columns `∂r/∂θ_j` of their Jacobian, one seeded run per
@@ -443,6 +511,26 @@ impl ElementProblem {
         let (r, columns) = self.jacobian(theta)?;
         // The columns are dr/dθ = (dm/dθ)/σ already: unit σ.
         Ok(Identifiability::new(&columns, theta, &vec![1.0; r.len()]))
+    }
+
+    /// What each observation is, test by test (`tests[0]: q at axial strain 0.01`), with its
+    /// data `d_i` and weight `c_i = 1/(2σ_i²)` (`L = Σ c_i (m_i − d_i)²`).
+    pub fn labelled(&self) -> Vec<(String, f64, f64)> {
+        (self.tests.iter().enumerate())
+            .flat_map(|(i, t)| {
+                t.observed.iter().map(move |o| {
+                    (
+                        format!(
+                            "tests[{i}]: {} at axial strain {}",
+                            o.measure.name(),
+                            o.axial_strain
+                        ),
+                        o.value,
+                        0.5 / (o.sigma * o.sigma),
+                    )
+                })
+            })
+            .collect()
     }
 
     /// The number of observations.

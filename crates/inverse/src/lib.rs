@@ -59,10 +59,12 @@ pub use error::AdjointError;
 pub use field::{Mlp, SplitMix64, VelocityField};
 pub use gradient::{Gradient, Phases, gradient};
 pub use k0::K0State;
-pub use objective::{Objective, ScalarObjective, TrackedPositions};
+pub use objective::{Objective, Pullback, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, LevenbergMarquardt, Optimiser};
 pub use params::{Acts, MaterialField, Param};
-pub use problem::{Control, GaussNewtonModel, GradientCost, Problem, run_residuals, run_value};
+pub use problem::{
+    Control, GaussNewtonModel, GradientCost, Problem, run_observed, run_residuals, run_value,
+};
 pub use step::ReverseStep;
 pub use variable::{Transform, Variable, softplus, softplus_inverse};

@@ -5,7 +5,7 @@
 use crate::adjoint_state::ParticleAdjoint;
 use crate::deposit::DepositProfile;
 use crate::error::AdjointError;
-use crate::objective::{Objective, ScalarObjective, TrackedPositions};
+use crate::objective::{Objective, ScalarObjective, TrackedPositions, axis, least_squares_term};
 use loam_core::tensor::Vector;
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
@@ -151,54 +151,63 @@ impl<const D: usize> Objective<D> for VelocityMonitors<D> {
         particles: &Particles<f64, D>,
         adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64 {
-        if let (Some(adj), Some(targets)) = (adjoint, self.targets.get(&step)) {
-            for (b, target) in targets {
-                let monitor = &self.boxes[*b];
-                let weights: Vec<(usize, f64, Vector<f64, D>)> = (0..particles.len())
-                    .filter_map(|p| {
-                        let (w, dw) = monitor.weight_and_gradient(&particles.x[p]);
-                        (w != 0.0).then_some((p, w, dw))
-                    })
-                    .collect();
-                let mass: f64 = weights.iter().map(|&(p, w, _)| particles.mass[p] * w).sum();
-                if mass == 0.0 {
-                    continue;
-                }
-                let mean = monitor.mean_velocity(particles);
-                let g = (mean - target) * (2.0 * self.weight);
-                for &(p, w, dw) in &weights {
-                    let m = particles.mass[p];
-                    let along = g.dot(&(particles.v[p] - mean));
-                    adj.v[p] += g * (m * w / mass);
-                    adj.mass[p] += along * w / mass;
-                    adj.x[p] += dw * (along * m / mass);
-                }
-            }
-        }
-        self.value(step, particles)
+        least_squares_term(self, step, particles, adjoint)
     }
 }
 
 impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
-    fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T {
-        let Some(targets) = self.targets.get(&step) else {
-            return T::zero();
-        };
-        let mut loss = T::zero();
-        for (b, target) in targets {
-            let mean = self.boxes[*b].mean_velocity(particles);
-            loss += (mean - target.map(T::cst)).norm_squared() * T::cst(self.weight);
+    /// The components of the mean velocity `v̄_b` in each observed box.
+    fn observed<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        for (b, _) in self.targets.get(&step).into_iter().flatten() {
+            out.extend(self.boxes[*b].mean_velocity(particles).iter().copied());
         }
-        loss
     }
 
-    /// `√w (v̄ − v*)`, component by component.
-    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
-        let root = T::cst(self.weight.sqrt());
-        for (b, target) in self.targets.get(&step).into_iter().flatten() {
-            let mean = self.boxes[*b].mean_velocity(particles);
-            let d = mean - target.map(T::cst);
-            out.extend(d.iter().map(|&d| d * root));
+    fn data(&self, step: usize, out: &mut Vec<(f64, f64)>) {
+        for (_, target) in self.targets.get(&step).into_iter().flatten() {
+            out.extend(target.iter().map(|&d| (d, self.weight)));
+        }
+    }
+
+    fn labels(&self, step: usize, out: &mut Vec<String>) {
+        for (b, _) in self.targets.get(&step).into_iter().flatten() {
+            out.extend((0..D).map(|a| format!("v{} in monitor box {b}", axis(a))));
+        }
+    }
+
+    /// With `M = Σ m_q W_q` and `g = ȳ_b`: `∂(g·v̄)/∂v_p = g m_p W_p / M`,
+    /// `∂/∂m_p = g·(v_p − v̄) W_p / M`, `∂/∂x_p = g·(v_p − v̄) m_p ∇W_p / M`. With sharp
+    /// boxes (`ε = 0`) `∇W = 0`: particles entering or leaving are a jump, whose derivative
+    /// is zero almost everywhere.
+    fn pull(
+        &self,
+        step: usize,
+        particles: &Particles<f64, D>,
+        cotangent: &[f64],
+        adjoint: &mut ParticleAdjoint<D>,
+    ) {
+        let targets = self.targets.get(&step).into_iter().flatten();
+        for ((b, _), bar) in targets.zip(cotangent.chunks(D)) {
+            let monitor = &self.boxes[*b];
+            let weights: Vec<(usize, f64, Vector<f64, D>)> = (0..particles.len())
+                .filter_map(|p| {
+                    let (w, dw) = monitor.weight_and_gradient(&particles.x[p]);
+                    (w != 0.0).then_some((p, w, dw))
+                })
+                .collect();
+            let mass: f64 = weights.iter().map(|&(p, w, _)| particles.mass[p] * w).sum();
+            if mass == 0.0 {
+                continue;
+            }
+            let mean = monitor.mean_velocity(particles);
+            let g = Vector::<f64, D>::from_column_slice(bar);
+            for &(p, w, dw) in &weights {
+                let m = particles.mass[p];
+                let along = g.dot(&(particles.v[p] - mean));
+                adjoint.v[p] += g * (m * w / mass);
+                adjoint.mass[p] += along * w / mass;
+                adjoint.x[p] += dw * (along * m / mass);
+            }
         }
     }
 }
@@ -298,26 +307,57 @@ impl<const D: usize> Objective<D> for Observations<D> {
         &self,
         step: usize,
         particles: &Particles<f64, D>,
-        mut adjoint: Option<&mut ParticleAdjoint<D>>,
+        adjoint: Option<&mut ParticleAdjoint<D>>,
     ) -> f64 {
-        self.tracked.term(step, particles, adjoint.as_deref_mut())
-            + self.monitors.term(step, particles, adjoint.as_deref_mut())
-            + self.deposit.term(step, particles, adjoint)
+        least_squares_term(self, step, particles, adjoint)
+    }
+}
+
+impl<const D: usize> Observations<D> {
+    /// The number of quantities the tracked positions and the monitors observe after
+    /// `step` steps (the deposit's follow them).
+    fn counts(&self, step: usize) -> (usize, usize) {
+        let n = |t: Option<&Vec<_>>| t.map_or(0, |t| t.len() * D);
+        (
+            n(self.tracked.targets.get(&step)),
+            n(self.monitors.targets.get(&step)),
+        )
     }
 }
 
 impl<const D: usize> ScalarObjective<D> for Observations<D> {
-    fn value<T: Scalar>(&self, step: usize, particles: &Particles<T, D>) -> T {
-        self.tracked.value(step, particles)
-            + self.monitors.value(step, particles)
-            + self.deposit.value(step, particles)
+    /// The tracked positions', the monitors' and the deposit's quantities, in that order.
+    fn observed<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
+        self.tracked.observed(step, particles, out);
+        self.monitors.observed(step, particles, out);
+        self.deposit.observed(step, particles, out);
     }
 
-    /// The tracked positions', the monitors' and the deposit's residuals, in that order.
-    fn residuals<T: Scalar>(&self, step: usize, particles: &Particles<T, D>, out: &mut Vec<T>) {
-        self.tracked.residuals(step, particles, out);
-        self.monitors.residuals(step, particles, out);
-        self.deposit.residuals(step, particles, out);
+    fn data(&self, step: usize, out: &mut Vec<(f64, f64)>) {
+        self.tracked.data(step, out);
+        self.monitors.data(step, out);
+        self.deposit.data(step, out);
+    }
+
+    fn labels(&self, step: usize, out: &mut Vec<String>) {
+        self.tracked.labels(step, out);
+        self.monitors.labels(step, out);
+        self.deposit.labels(step, out);
+    }
+
+    fn pull(
+        &self,
+        step: usize,
+        particles: &Particles<f64, D>,
+        cotangent: &[f64],
+        adjoint: &mut ParticleAdjoint<D>,
+    ) {
+        let (a, b) = self.counts(step);
+        let (tracked, rest) = cotangent.split_at(a.min(cotangent.len()));
+        let (monitors, deposit) = rest.split_at(b.min(rest.len()));
+        self.tracked.pull(step, particles, tracked, adjoint);
+        self.monitors.pull(step, particles, monitors, adjoint);
+        self.deposit.pull(step, particles, deposit, adjoint);
     }
 }
 

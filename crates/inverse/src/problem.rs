@@ -7,13 +7,14 @@ use crate::error::AdjointError;
 use crate::field::VelocityField;
 use crate::gradient::{Phases, gradient};
 use crate::k0::K0State;
-use crate::objective::ScalarObjective;
+use crate::objective::{Objective, Pullback, ScalarObjective};
 use crate::params::{MaterialField, Param};
 use loam_core::constitutive::MaterialState;
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
 use nalgebra::Matrix3;
 use num_dual::Dual64;
+use std::collections::BTreeMap;
 
 /// One unknown of an inversion: a scalar `θ`, or a block of them (a velocity field's
 /// weights). The unknowns of a [`Problem`] are the controls' values one after the other.
@@ -310,13 +311,101 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
         &self,
         theta: &[f64],
     ) -> Result<(f64, Vec<f64>, GradientCost), AdjointError> {
+        let (loss, derivative, cost) = self.adjoint(theta, &self.objective)?;
+        Ok((loss, derivative, cost))
+    }
+
+    /// The quantities `y` the objective observes in the run at `theta`: every observed
+    /// step's ([`ScalarObjective::observed`]) in the order of the steps.
+    ///
+    /// # Errors
+    /// As [`Problem::loss`].
+    pub fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        let (config, particles) = self.setup(theta)?;
+        run_observed(config, particles, self.steps, &self.objective)
+    }
+
+    /// `∂y/∂θ_k` of every observed quantity ([`Problem::observe`]) by a forward-mode dual run
+    /// ([`Problem::seeded`]): a column of the observations' Jacobian, the oracle of
+    /// [`Problem::vjp`].
+    ///
+    /// # Errors
+    /// As [`Problem::loss`].
+    pub fn observe_tangent(&self, theta: &[f64], k: usize) -> Result<Vec<f64>, AdjointError> {
+        let (config, particles) = self.seeded(theta, k)?;
+        let y = run_observed(config, particles, self.steps, &self.objective)?;
+        Ok(y.iter().map(|y| y.eps).collect())
+    }
+
+    /// The vector–Jacobian product `ȳᵀ ∂y/∂θ` of the observed quantities
+    /// ([`Problem::observe`]) with the cotangent `ȳ` (one value per quantity, in their
+    /// order), by the adjoint seeded with `ȳ` ([`Pullback`]) instead of `∂L/∂y`; with
+    /// `ȳ = ∂L/∂y = 2c (y − d)` it is `dL/dθ`.
+    ///
+    /// # Errors
+    /// A cotangent whose length is not the number of observed quantities, or as
+    /// [`Problem::gradient`].
+    pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        let mut at = 0;
+        let mut per_step = BTreeMap::new();
+        let mut data = Vec::new();
+        for step in 0..=self.steps {
+            data.clear();
+            self.objective.data(step, &mut data);
+            if !data.is_empty() && at + data.len() <= cotangent.len() {
+                per_step.insert(step, cotangent[at..at + data.len()].to_vec());
+            }
+            at += data.len();
+        }
+        if at != cotangent.len() {
+            return Err(AdjointError::Observation {
+                field: "cotangent".into(),
+                msg: format!(
+                    "has {} value(s); expected one per observed quantity, {at}",
+                    cotangent.len()
+                ),
+            });
+        }
+        let pullback = Pullback {
+            objective: &self.objective,
+            cotangent: per_step,
+        };
+        Ok(self.adjoint(theta, &pullback)?.1)
+    }
+
+    /// What each observed quantity is, in the order of [`Problem::observe`]
+    /// (`step 100: x of particle 12`), with its data `d` and weight `c`
+    /// (`L = Σ c (y − d)²`).
+    pub fn labelled(&self) -> Vec<(String, f64, f64)> {
+        let (mut labels, mut data) = (Vec::new(), Vec::new());
+        let mut out = Vec::new();
+        for step in 0..=self.steps {
+            labels.clear();
+            data.clear();
+            self.objective.labels(step, &mut labels);
+            self.objective.data(step, &mut data);
+            out.extend(
+                (labels.drain(..).zip(&data))
+                    .map(|(l, &(d, c))| (format!("step {step}: {l}"), d, c)),
+            );
+        }
+        out
+    }
+
+    /// The adjoint of the run at `theta` seeded by `objective`: its value, its gradient in
+    /// every unknown and what it took.
+    fn adjoint(
+        &self,
+        theta: &[f64],
+        objective: &impl Objective<D>,
+    ) -> Result<(f64, Vec<f64>, GradientCost), AdjointError> {
         let (config, particles) = self.setup(theta)?;
         let g = gradient(
             &config,
             &particles,
             self.steps,
             &self.params(),
-            &self.objective,
+            objective,
             self.checkpoints,
         )?;
         let mut from_params = g.params.iter();
@@ -502,6 +591,24 @@ pub fn run_value<T: Scalar, const D: usize, O: ScalarObjective<D>>(
         loss += objective.value(s, p)
     })?;
     Ok(loss)
+}
+
+/// The observed quantities of every step over a forward run of `steps` steps, in the order
+/// of the steps ([`ScalarObjective::observed`]).
+///
+/// # Errors
+/// A run that is refused or stops.
+pub fn run_observed<T: Scalar, const D: usize, O: ScalarObjective<D>>(
+    config: Config<T, D>,
+    particles: Particles<T, D>,
+    steps: usize,
+    objective: &O,
+) -> Result<Vec<T>, AdjointError> {
+    let mut out = Vec::new();
+    run_each(config, particles, steps, |s, p| {
+        objective.observed(s, p, &mut out)
+    })?;
+    Ok(out)
 }
 
 /// The residuals of every `ℓ_n` over a forward run of `steps` steps, in the order of the

@@ -28,6 +28,9 @@ pub trait Stepper: Send + Sync {
     fn field(&self, field: Field) -> Result<Array<f64>, String>;
     /// Every particle's material index.
     fn material(&self) -> Array<i64>;
+    /// Replaces every particle's velocity by `v` (N × D values, row-major, finite), or says
+    /// why the solver cannot take them.
+    fn set_velocities(&mut self, v: &[f64]) -> Result<(), String>;
 }
 
 /// What a solver does for a [`Stepper`]; see the methods of the same names there.
@@ -42,6 +45,8 @@ pub trait Solve<const D: usize>: Send + Sync {
     fn cap_towards(&self, t: f64) -> Result<Option<f64>, String>;
     /// One step of `particles`, no longer than `cap`.
     fn step(&mut self, particles: &mut Particles<f64, D>, cap: f64) -> Result<(), String>;
+    /// Whether the particles' velocities are state the solver integrates (else why not).
+    fn takes_velocities(&self) -> Result<(), String>;
 }
 
 /// A solver and the particles it steps.
@@ -84,6 +89,14 @@ impl<S: Solve<D>, const D: usize> Stepper for Engine<S, D> {
     fn material(&self) -> Array<i64> {
         fields::material(&self.particles)
     }
+
+    fn set_velocities(&mut self, v: &[f64]) -> Result<(), String> {
+        self.solver.takes_velocities()?;
+        for (p, v) in self.particles.v.iter_mut().zip(v.chunks_exact(D)) {
+            p.copy_from_slice(v);
+        }
+        Ok(())
+    }
 }
 
 impl<const D: usize> Solve<D> for Solver<f64, D> {
@@ -112,6 +125,10 @@ impl<const D: usize> Solve<D> for Solver<f64, D> {
         (Solver::step(self, particles, cap))
             .map(|_| ())
             .map_err(|e| e.to_string())
+    }
+
+    fn takes_velocities(&self) -> Result<(), String> {
+        Ok(())
     }
 }
 
@@ -147,6 +164,18 @@ impl<const D: usize> Solve<D> for ImplicitSolver<D> {
         (ImplicitSolver::step(self, particles))
             .map(|_| ())
             .map_err(|e| e.to_string())
+    }
+
+    /// Newmark dynamics integrates the velocities; a quasi-static run has none.
+    fn takes_velocities(&self) -> Result<(), String> {
+        match self.config().dynamics {
+            Some(_) => Ok(()),
+            None => Err(
+                "a quasi-static implicit run has no velocities to set (its steps \
+                         are load steps; solver.dynamics steps in time)"
+                    .into(),
+            ),
+        }
     }
 }
 
@@ -231,6 +260,14 @@ impl<const D: usize> Stepper for GpuEngine<D> {
             *read_at = self.solver.steps();
         }
         Ok(fields::field(particles, field))
+    }
+
+    fn set_velocities(&mut self, _: &[f64]) -> Result<(), String> {
+        Err(
+            "the particle state is not set on the GPU: build the Simulation with \
+             device=\"cpu\" to set it"
+                .into(),
+        )
     }
 
     fn material(&self) -> Array<i64> {

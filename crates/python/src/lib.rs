@@ -6,6 +6,7 @@
 //! The package's Python layer (`python/loam/`) re-exports these with docstrings and type
 //! hints; `docs/python.md` documents the API.
 
+mod arrays;
 mod engine;
 mod errors;
 mod fields;

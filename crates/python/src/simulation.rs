@@ -229,6 +229,18 @@ impl Simulation {
         self.array(py, Field::Velocities)
     }
 
+    /// Sets every particle's velocity (m/s) from an N × D float64 array of finite values,
+    /// e.g. an initial velocity field made in Python; the next step starts from them. Raises
+    /// `TypeError` for another dtype, `ValueError` naming `velocities` for another shape or
+    /// a value that is not finite, and `SimulationError` where the solver takes no velocities
+    /// (a quasi-static implicit run; the GPU).
+    #[setter]
+    fn set_velocities(&mut self, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (n, d) = (self.engine.material().data.len(), self.engine.dim());
+        let v = crate::arrays::matrix(value, "velocities", [n, d])?;
+        self.engine.set_velocities(&v).map_err(simulation_error)
+    }
+
     /// Cauchy stress, N × 3 × 3 (Pa, tension positive); a copy.
     #[getter]
     fn stress<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {

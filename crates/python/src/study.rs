@@ -5,12 +5,12 @@
 //! An evaluation runs with the GIL released. It is not interrupted by Ctrl-C: the signal is
 //! raised as `KeyboardInterrupt` when the evaluation in progress has finished.
 
+use crate::arrays::vector;
 use crate::errors::{inversion_error, simulation_error};
 use loam_driver::Outcome;
 use loam_driver::invert::{Failure, Limits, Study as Inner, output_folder};
 use loam_driver::preflight::{MAX_INVERSION_STEPS, MemoryLimit, StepLimit};
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
-use pyo3::exceptions::PyTypeError;
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use std::path::PathBuf;
 
@@ -29,29 +29,9 @@ fn raised(py: Python<'_>, f: Failure) -> PyErr {
     }
 }
 
-/// The parameters `theta` as float64 values: a one-dimensional float64 NumPy array, or a
-/// sequence of numbers. An array of another dtype or shape is refused, naming `theta`, so
-/// that nothing is converted silently.
+/// The parameters `theta` as float64 values ([`vector`]).
 fn parameters(theta: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
-    if let Ok(a) = theta.cast::<PyUntypedArray>() {
-        return match a.cast::<PyArray1<f64>>() {
-            Ok(a) => Ok(a.readonly().as_array().to_vec()),
-            Err(_) => Err(PyTypeError::new_err(format!(
-                "theta: expected a one-dimensional float64 array, got shape {:?} and dtype {}",
-                a.shape(),
-                a.dtype()
-            ))),
-        };
-    }
-    theta.extract::<Vec<f64>>().map_err(|_| {
-        PyTypeError::new_err(format!(
-            "theta: expected a one-dimensional float64 array or a sequence of numbers, got {}",
-            theta
-                .get_type()
-                .name()
-                .map_or("?".into(), |n| n.to_string())
-        ))
-    })
+    vector(theta, "theta")
 }
 
 #[pymethods]
@@ -104,6 +84,56 @@ impl Study {
             .detach(|| self.inner.gradient(&theta))
             .map_err(|f| raised(py, f))?;
         Ok((loss, grad.into_pyarray(py)))
+    }
+
+    /// The observed quantities of the file, in the order of `observe` and `vjp`: their labels
+    /// (`step 120: x of particle 7`), data `d` and weights `c`, so that the file's loss is
+    /// `L = Σ c (y − d)²`.
+    fn observations<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (
+        Vec<String>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+    ) {
+        let obs = self.inner.observations();
+        let data: Vec<f64> = obs.iter().map(|o| o.1).collect();
+        let weights: Vec<f64> = obs.iter().map(|o| o.2).collect();
+        let labels = obs.into_iter().map(|o| o.0).collect();
+        (labels, data.into_pyarray(py), weights.into_pyarray(py))
+    }
+
+    /// The observed quantities `y(θ)` at `theta` (float64, the model's values, not misfits)
+    /// by a forward run. Raises `InversionError` for a bad `theta`, `SimulationError` for a
+    /// run that fails.
+    fn observe<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let theta = parameters(theta)?;
+        let y = py
+            .detach(|| self.inner.observe(&theta))
+            .map_err(|f| raised(py, f))?;
+        Ok(y.into_pyarray(py))
+    }
+
+    /// `ȳᵀ ∂y/∂θ` at `theta` for the cotangent `ȳ` of the observed quantities, by loam's
+    /// discrete adjoint seeded with `ȳ`. Raises `InversionError` for a `theta` or a
+    /// cotangent of the wrong length or with a value that is not finite.
+    fn vjp<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+        cotangent: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let theta = parameters(theta)?;
+        let cotangent = vector(cotangent, "cotangent")?;
+        let g = py
+            .detach(|| self.inner.vjp(&theta, &cotangent))
+            .map_err(|f| raised(py, f))?;
+        Ok(g.into_pyarray(py))
     }
 
     /// The relative L2 error of each velocity field at `theta` against the `[synthetic]`

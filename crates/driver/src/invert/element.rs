@@ -733,6 +733,15 @@ impl Inverse for ElementInversion {
             gauss_newton.then_some(model.matrix),
         ))
     }
+    fn observations(&self) -> Vec<(String, f64, f64)> {
+        self.problem.labelled()
+    }
+    fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.problem.modelled(theta)
+    }
+    fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.problem.vjp(theta, cotangent)
+    }
     fn write_synthetic(&self, dir: &Path) -> Result<(), String> {
         (0..self.tests.len()).try_for_each(|i| self.write_observed(i, dir))
     }

@@ -131,6 +131,13 @@ trait Inverse {
         first: bool,
         gauss_newton: bool,
     ) -> Result<Evaluated, AdjointError>;
+    /// What each observed quantity is, with its data `d` and weight `c`
+    /// (`L = Σ c (y − d)²`), in the order of [`Inverse::observe`].
+    fn observations(&self) -> Vec<(String, f64, f64)>;
+    /// The observed quantities `y(θ)`.
+    fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError>;
+    /// `ȳᵀ ∂y/∂θ` for the cotangent `ȳ` of the observed quantities.
+    fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError>;
     /// The velocity fields' relative errors against the truth at `theta` (none by default).
     fn field_errors(&self, _theta: &[f64]) -> Vec<f64> {
         Vec::new()
@@ -193,6 +200,15 @@ impl<const D: usize> Inverse for Inversion<D> {
             self.problem.trial_gradient(theta)?
         };
         Ok((loss, g, None))
+    }
+    fn observations(&self) -> Vec<(String, f64, f64)> {
+        self.problem.labelled()
+    }
+    fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.problem.observe(theta)
+    }
+    fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.problem.vjp(theta, cotangent)
     }
     fn field_errors(&self, theta: &[f64]) -> Vec<f64> {
         Inversion::field_errors(self, theta)

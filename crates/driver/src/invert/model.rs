@@ -69,6 +69,37 @@ impl<const D: usize> Model<D> {
         }
     }
 
+    /// What each observed quantity is, with its data `d` and weight `c` (`L = Σ c (y − d)²`),
+    /// in the order of [`Model::observe`].
+    pub fn labelled(&self) -> Vec<(String, f64, f64)> {
+        match self {
+            Self::Explicit(p) => p.labelled(),
+            Self::Implicit { problem, .. } => problem.observations.labelled(),
+        }
+    }
+
+    /// The observed quantities `y(θ)` of the run at `theta`.
+    ///
+    /// # Errors
+    /// A run that fails.
+    pub fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        match self {
+            Self::Explicit(p) => p.observe(theta),
+            Self::Implicit { problem, .. } => problem.observe(theta),
+        }
+    }
+
+    /// `ȳᵀ ∂y/∂θ` by the adjoint seeded with the cotangent `ȳ` of the observed quantities.
+    ///
+    /// # Errors
+    /// A cotangent of the wrong length, or a run or an adjoint that fails.
+    pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        match self {
+            Self::Explicit(p) => p.vjp(theta, cotangent),
+            Self::Implicit { problem, .. } => problem.vjp(theta, cotangent),
+        }
+    }
+
     /// `(L, dL/dθ)` at an optimiser's trial point: on an implicit scene a run that stops
     /// gives an infinite loss ([`ImplicitProblem::trial_gradient`]).
     ///

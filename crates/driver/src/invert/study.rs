@@ -5,6 +5,7 @@
 
 use super::{Invalid, Limits, SetUp, outcome_of};
 use crate::Outcome;
+use loam_inverse::AdjointError;
 use std::path::Path;
 
 /// Why an inversion could not be set up or evaluated: the outcome a command would have
@@ -76,32 +77,84 @@ impl Study {
     /// `loam gradient` prints at the file's first guess. `theta` of the wrong length or with
     /// a value that is not finite is invalid input, named as `theta[k]`.
     pub fn gradient(&self, theta: &[f64]) -> Result<(f64, Vec<f64>), Failure> {
-        let inverse = self.0.inverse();
-        let path = inverse.path().display();
-        let invalid = |message: String| Failure {
+        self.check_theta(theta)?;
+        let (loss, gradient, _) = self.failed(self.0.inverse().evaluate(theta, true, false))?;
+        Ok((loss, gradient))
+    }
+
+    /// Every observed quantity `yᵢ` of the file: what it is (`step 120: x of particle 7`),
+    /// its data `dᵢ` and its weight `cᵢ`, in the order of [`Study::observe`]; the loss is
+    /// `L = Σᵢ cᵢ (yᵢ − dᵢ)²`.
+    pub fn observations(&self) -> Vec<(String, f64, f64)> {
+        self.0.inverse().observations()
+    }
+
+    /// The observed quantities `y(θ)` at `theta` by a forward run (model values, not
+    /// misfits). `theta` is checked as by [`Study::gradient`].
+    pub fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, Failure> {
+        self.check_theta(theta)?;
+        self.failed(self.0.inverse().observe(theta))
+    }
+
+    /// The vector–Jacobian product `ȳᵀ ∂y/∂θ` of the observed quantities at `theta` with
+    /// the cotangent `ȳ` (one value per quantity, in the order of [`Study::observations`]),
+    /// by the discrete adjoint seeded with `ȳ` (forward-mode duals for element tests): the
+    /// gradient of any loss `ℓ(y)` defined outside loam, with `ȳ = ∂ℓ/∂y`. With
+    /// `ȳᵢ = 2cᵢ (yᵢ − dᵢ)` it is [`Study::gradient`]'s `dL/dθ`. A `theta` or a cotangent
+    /// of the wrong length or with a value that is not finite is invalid input, named.
+    pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, Failure> {
+        self.check_theta(theta)?;
+        let n = self.observations().len();
+        if cotangent.len() != n {
+            return Err(self.invalid(format!(
+                "cotangent has {} value(s); expected {n}, one per observed quantity",
+                cotangent.len()
+            )));
+        }
+        if let Some(k) = cotangent.iter().position(|v| !v.is_finite()) {
+            return Err(self.invalid(format!(
+                "cotangent[{k}] = {}: expected a finite number",
+                cotangent[k]
+            )));
+        }
+        self.failed(self.0.inverse().vjp(theta, cotangent))
+    }
+
+    /// Invalid input: `message` after the file's path.
+    fn invalid(&self, message: String) -> Failure {
+        Failure {
             outcome: Outcome::BadInput,
-            message,
-        };
+            message: format!("{}: {message}", self.path().display()),
+        }
+    }
+
+    /// A run's or an adjoint's error as a failure, after the file's path.
+    fn failed<T>(&self, result: Result<T, AdjointError>) -> Result<T, Failure> {
+        result.map_err(|e| Failure {
+            outcome: outcome_of(&e),
+            message: format!("{}: {e}", self.path().display()),
+        })
+    }
+
+    /// Refuses `theta` of the wrong length or with a value that is not finite.
+    fn check_theta(&self, theta: &[f64]) -> Result<(), Failure> {
+        let inverse = self.0.inverse();
         let n = inverse.initial().len();
         if theta.len() != n {
-            return Err(invalid(format!(
-                "{path}: theta has {} value(s); expected {n} (the {} named parameter(s) then \
-                 any velocity field's weights)",
+            return Err(self.invalid(format!(
+                "theta has {} value(s); expected {n} (the {} named parameter(s) then any \
+                 velocity field's weights)",
                 theta.len(),
                 inverse.names().len()
             )));
         }
         if let Some(k) = theta.iter().position(|v| !v.is_finite()) {
-            return Err(invalid(format!(
-                "{path}: theta[{k}] = {}: expected a finite number",
+            return Err(self.invalid(format!(
+                "theta[{k}] = {}: expected a finite number",
                 theta[k]
             )));
         }
-        let (loss, gradient, _) = inverse.evaluate(theta, true, false).map_err(|e| Failure {
-            outcome: outcome_of(&e),
-            message: format!("{path}: {e}"),
-        })?;
-        Ok((loss, gradient))
+        Ok(())
     }
 
     /// Runs the file's optimiser from its first guess as `loam invert` does, writing the
@@ -112,6 +165,10 @@ impl Study {
         super::invert_with(self.0.inverse(), dir, resume)
     }
 }
+
+#[cfg(test)]
+#[path = "vjp_tests.rs"]
+mod vjp_tests;
 
 #[cfg(test)]
 mod tests {

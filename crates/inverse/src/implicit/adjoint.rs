@@ -53,7 +53,25 @@ pub fn reverse<const D: usize>(
     observations: &ImplicitObservations,
     params: &[ImplicitParam],
 ) -> Result<Vec<f64>, AdjointError> {
-    reverse_from(config, initial, run, observations, params, 0)
+    let weights = observations.residual_weights(run);
+    reverse_from(config, initial, run, observations, &weights, params, 0)
+}
+
+/// The vector–Jacobian product `ȳᵀ ∂m/∂θ` of the model values `m_k` of `observations` in
+/// `run` ([`ImplicitObservations::model`]) with the cotangent `cotangent` (`ȳ_k`, one per
+/// observation): the reverse pass of [`reverse`] seeded with `ȳ` instead of `∂L/∂m`.
+///
+/// # Errors
+/// As [`reverse`].
+pub fn pull_back<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    run: &Trajectory<D>,
+    observations: &ImplicitObservations,
+    cotangent: &[f64],
+    params: &[ImplicitParam],
+) -> Result<Vec<f64>, AdjointError> {
+    reverse_from(config, initial, run, observations, cotangent, params, 0)
 }
 
 /// The "last step only" approximation of [`reverse`]: the reverse pass of the last accepted
@@ -72,25 +90,27 @@ pub fn reverse_last_substep<const D: usize>(
     params: &[ImplicitParam],
 ) -> Result<Vec<f64>, AdjointError> {
     let last = run.substeps.len().saturating_sub(1);
-    reverse_from(config, initial, run, observations, params, last)
+    let weights = observations.residual_weights(run);
+    reverse_from(config, initial, run, observations, &weights, params, last)
 }
 
-/// The reverse pass over the sub-steps `first..` of `run`.
+/// The reverse pass over the sub-steps `first..` of `run`, seeded with `weights`, the
+/// cotangent `∂L/∂m_k` of each observation's model value.
 fn reverse_from<const D: usize>(
     config: &ImplicitConfig<D>,
     initial: &Particles<f64, D>,
     run: &Trajectory<D>,
     observations: &ImplicitObservations,
+    weights: &[f64],
     params: &[ImplicitParam],
     first: usize,
 ) -> Result<Vec<f64>, AdjointError> {
     if config.pore_fluid.is_some() {
-        return super::coupled::reverse(config, initial, run, observations, params, first);
+        return super::coupled::reverse(config, initial, run, observations, weights, params, first);
     }
     let solver = ImplicitSolver::new(config.clone(), initial)?;
     let n = initial.len();
     let nodes = config.grid.num_nodes();
-    let weights = observations.residual_weights(run);
     let lanes = LaneMaterials::new(&config.materials);
     // Per parameter and material, the material with that parameter seeded (if it is one of
     // its constants).
@@ -116,7 +136,7 @@ fn reverse_from<const D: usize>(
     let mut grad = vec![0.0; params.len()];
     for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
         let seeds = SubStep::ends_step(&run.substeps, i)
-            .then(|| StepSeeds::new(config, observations, &weights, sub.step));
+            .then(|| StepSeeds::new(config, observations, weights, sub.step));
         for &(p, k, w) in seeds.iter().flat_map(|s| &s.states) {
             sbar[p][k] += w;
         }

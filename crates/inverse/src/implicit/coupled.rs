@@ -705,8 +705,9 @@ impl<const D: usize> Held<'_, D> {
     }
 }
 
-/// The reverse pass of a coupled run over its sub-steps `first..` ([`super::adjoint`] for
-/// the equations; module docs for the coupled step).
+/// The reverse pass of a coupled run over its sub-steps `first..`, seeded with `weights`
+/// (the cotangent of each observation's model value; [`super::adjoint`] for the equations,
+/// module docs for the coupled step).
 ///
 /// # Errors
 /// A sub-step whose system cannot be rebuilt or whose adjoint system cannot be solved.
@@ -715,6 +716,7 @@ pub fn reverse<const D: usize>(
     initial: &Particles<f64, D>,
     run: &Trajectory<D>,
     observations: &ImplicitObservations,
+    weights: &[f64],
     params: &[ImplicitParam],
     first: usize,
 ) -> Result<Vec<f64>, AdjointError> {
@@ -722,7 +724,6 @@ pub fn reverse<const D: usize>(
     let solver = ImplicitSolver::new(config.clone(), initial)?;
     let n = initial.len();
     let nodes = config.grid.num_nodes();
-    let weights = observations.residual_weights(run);
     let mats: Vec<Material<DualSVec64<LANES>>> =
         config.materials.iter().map(|m| m.lift()).collect();
     let balance_rates: Vec<Vec<Vector<f64, D>>> = (params.iter())
@@ -735,7 +736,7 @@ pub fn reverse<const D: usize>(
     let mut grad = vec![0.0; params.len()];
     for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
         let seeds = SubStep::ends_step(&run.substeps, i)
-            .then(|| StepSeeds::new(config, observations, &weights, sub.step));
+            .then(|| StepSeeds::new(config, observations, weights, sub.step));
         let replay = Replay::new(&solver, initial, sub)?;
         let system = &replay.system;
         let local = locals(&replay, fluid, initial, &config.materials);

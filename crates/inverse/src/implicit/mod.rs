@@ -169,6 +169,52 @@ impl<const D: usize> ImplicitProblem<D> {
         })
     }
 
+    /// The model value `m_k` of every observation ([`ImplicitObservations::model`]) in the run
+    /// at `theta`, in the order of the observations.
+    ///
+    /// # Errors
+    /// As [`ImplicitProblem::loss`].
+    pub fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        self.with_run(theta, |_, _, run| {
+            let items = &self.observations.items;
+            Ok(items
+                .iter()
+                .map(|o| ImplicitObservations::model(o, run))
+                .collect())
+        })
+    }
+
+    /// The vector–Jacobian product `ȳᵀ ∂m/∂θ` of the observations' model values
+    /// ([`ImplicitProblem::observe`]) with `cotangent` (one value per observation), by the
+    /// adjoint seeded with `ȳ` ([`adjoint::pull_back`]); with `ȳ_k = (m_k − d_k)/σ_k²` it is
+    /// `dL/dθ`.
+    ///
+    /// # Errors
+    /// A cotangent whose length is not the number of observations, or as
+    /// [`ImplicitProblem::gradient`].
+    pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
+        let n = self.observations.items.len();
+        if cotangent.len() != n {
+            return Err(AdjointError::Observation {
+                field: "cotangent".into(),
+                msg: format!(
+                    "has {} value(s); expected one per observation, {n}",
+                    cotangent.len()
+                ),
+            });
+        }
+        self.with_run(theta, |config, particles, run| {
+            adjoint::pull_back(
+                config,
+                particles,
+                run,
+                &self.observations,
+                cotangent,
+                &self.params,
+            )
+        })
+    }
+
     /// `(L, dL/dθ)` at an optimiser's trial point: as [`ImplicitProblem::gradient`], but a
     /// forward run that stops (Newton fails on every cut of a load step: a material too soft
     /// to carry its load) gives `L = ∞` and a zero gradient, so that a line search shortens

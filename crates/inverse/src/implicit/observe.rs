@@ -226,6 +226,35 @@ impl ImplicitObservations {
         }
     }
 
+    /// What each observation is, in order (`load step 3: y displacement of particle 12`),
+    /// with its data `d_k` and weight `c_k = 1/(2σ_k²)` (`L = Σ_k c_k (m_k − d_k)²`).
+    pub fn labelled(&self) -> Vec<(String, f64, f64)> {
+        let axis = |a: usize| ['x', 'y', 'z'].get(a).copied().unwrap_or('?');
+        (self.items.iter())
+            .map(|o| {
+                let what = match o.quantity {
+                    Quantity::Displacement {
+                        particle,
+                        component,
+                    } => format!("{} displacement of particle {particle}", axis(component)),
+                    Quantity::Velocity {
+                        particle,
+                        component,
+                    } => format!("{} velocity of particle {particle}", axis(component)),
+                    Quantity::Reaction {
+                        constraint,
+                        component,
+                    } => format!("{} reaction of constraint {constraint}", axis(component)),
+                    Quantity::PorePressure { particle } => {
+                        format!("pore pressure at particle {particle}")
+                    }
+                };
+                let c = 0.5 / (o.sigma * o.sigma);
+                (format!("load step {}: {what}", o.step), o.value, c)
+            })
+            .collect()
+    }
+
     /// `L` of a run.
     pub fn loss<const D: usize>(&self, run: &Trajectory<D>) -> f64 {
         self.items
