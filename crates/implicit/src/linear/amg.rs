@@ -22,7 +22,9 @@
 //!    fixed 0.08 leaves most coarse nodes without a strong neighbour and hence without a
 //!    coarse correction (measured on a 32³-element cube: 815 of 1,398 second-level nodes,
 //!    and CG iterations growing from 12 to 31 between 8³ and 32³ elements; 12 throughout with
-//!    the halving).
+//!    the halving). `θ` is a parameter of the setup: the pressure Schur block of the u–p
+//!    preconditioner, a scalar Laplacian whose trilinear stencil has no coupling above 0.08
+//!    of the diagonal, uses a lower one ([`super::block`]).
 //! 2. **Aggregation** (the greedy phases of Vaněk et al.): (1) every node whose strong
 //!    neighbours are all unaggregated forms an aggregate with them; (2) every node left joins
 //!    the phase-1 aggregate of its strongest aggregated neighbour; (3) the nodes still left
@@ -259,13 +261,15 @@ pub(super) struct Amg {
 
 impl Amg {
     /// Builds the hierarchy of `a` with `near_nullspace` (the constant vector, unknown by
-    /// unknown, when `None`).
+    /// unknown, when `None`) and the strength threshold `theta` of the finest level
+    /// ([`STRENGTH_THRESHOLD`] for the displacement systems; module documentation, step 1).
     ///
     /// # Panics
     /// If `near_nullspace` does not have the size of `a`.
     pub(super) fn new(
         a: &SparseMatrix,
         near_nullspace: Option<&NearNullspace>,
+        theta: f64,
     ) -> Result<Self, LinearError> {
         let n = a.pattern.n();
         let fallback;
@@ -282,8 +286,8 @@ impl Amg {
         let mut levels = Vec::new();
         while op.nrows() > COARSE_SIZE && levels.len() + 1 < MAX_LEVELS {
             let at = op.as_ref().transpose().to_col_major().map_err(backend)?;
-            let theta = STRENGTH_THRESHOLD * 0.5f64.powi(levels.len() as i32);
-            let graph = strong_graph(at.as_ref(), &ns.node, theta);
+            let theta_l = theta * 0.5f64.powi(levels.len() as i32);
+            let graph = strong_graph(at.as_ref(), &ns.node, theta_l);
             let (agg, count) = aggregate(&graph);
             let (t, coarse_ns) = tentative(&agg, count, &ns);
             if t.ncols() >= op.nrows() {
@@ -766,14 +770,15 @@ pub(super) mod inspect {
             .collect()
     }
 
-    /// The tentative prolongator (dense) and coarse near-nullspace of the finest level, and
-    /// the number of nodes left out of every aggregate.
+    /// The tentative prolongator (dense) and coarse near-nullspace of the finest level with
+    /// the strength threshold `theta`, and the number of nodes left out of every aggregate.
     pub(in crate::linear) fn first_tentative(
         a: &SparseMatrix,
         ns: &NearNullspace,
+        theta: f64,
     ) -> (nalgebra::DMatrix<f64>, NearNullspace, usize) {
         let at = a.as_faer().transpose().to_col_major().expect("transpose");
-        let graph = strong_graph(at.as_ref(), &ns.node, STRENGTH_THRESHOLD);
+        let graph = strong_graph(at.as_ref(), &ns.node, theta);
         let (agg, count) = aggregate(&graph);
         let left_out = agg.iter().filter(|&&a| a == NONE).count();
         let (t, coarse) = tentative(&agg, count, ns);

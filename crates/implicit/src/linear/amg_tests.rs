@@ -6,7 +6,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::amg::{Amg, inspect};
+use super::amg::{Amg, STRENGTH_THRESHOLD, inspect};
 use super::precond::PrecondState;
 use super::*;
 
@@ -248,7 +248,7 @@ fn amg_solutions_match_lu() {
     for system in [Elasticity::new::<2>(20), Elasticity::new::<3>(6)] {
         let a = &system.a;
         let n = system.n();
-        let hierarchy = Amg::new(a, Some(&system.modes)).expect("setup");
+        let hierarchy = Amg::new(a, Some(&system.modes), STRENGTH_THRESHOLD).expect("setup");
         assert!(
             inspect::sizes(&hierarchy).len() >= 2,
             "a multilevel hierarchy: {:?}",
@@ -374,7 +374,8 @@ fn amg_iteration_counts_do_not_grow_with_the_mesh() {
 #[test]
 fn tentative_prolongator_holds_the_rigid_body_modes() {
     for system in [Elasticity::new::<2>(8), Elasticity::new::<3>(4)] {
-        let (t, coarse, left_out) = inspect::first_tentative(&system.a, &system.modes);
+        let (t, coarse, left_out) =
+            inspect::first_tentative(&system.a, &system.modes, STRENGTH_THRESHOLD);
         assert_eq!(left_out, 0);
         let m = system.modes.modes();
         assert!(
@@ -494,7 +495,7 @@ fn amg_timing_on_the_largest_3d_case() {
     let assembly = start.elapsed().as_secs_f64();
     let b = load(system.n());
     let start = Instant::now();
-    let hierarchy = Amg::new(&system.a, Some(&system.modes)).expect("setup");
+    let hierarchy = Amg::new(&system.a, Some(&system.modes), STRENGTH_THRESHOLD).expect("setup");
     let setup = start.elapsed().as_secs_f64();
     println!(
         "3D 18^3 elements: {} unknowns, {} non-zeros, assembly {assembly:.2} s; AMG levels {:?}, setup {setup:.3} s",

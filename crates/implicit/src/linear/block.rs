@@ -1,5 +1,5 @@
 //! Block preconditioner of the coupled displacement–pressure (u–p) systems:
-//! [`Preconditioner::Block`].
+//! [`Preconditioner::Block`](super::Preconditioner::Block).
 //!
 //! With the unknowns split into displacements `u` and pore pressures `p`, the tangent of a
 //! coupled step is the 2 × 2 block matrix
@@ -29,7 +29,8 @@
 //!
 //! with `Ã_uu⁻¹` one V-cycle of the smoothed-aggregation AMG ([`super::amg`]) of `A_uu`, built
 //! with the rigid-body modes of the displacement unknowns, and `S̃⁻¹` one V-cycle of the same
-//! AMG with the constant near-nullspace of the approximate Schur complement
+//! AMG with the constant near-nullspace and a lower strength threshold
+//! ([`SCHUR_STRENGTH_THRESHOLD`], below) of the approximate Schur complement
 //!
 //! ```text
 //! S̃ = A_pp − diag(A_pu D_uu⁻¹ A_up),    D_uu = diag(A_uu).
@@ -65,8 +66,39 @@
 //! Q1–Q1 test systems of this module (`block_tests`) GMRES with ILU(0) on `S̃` needed 19 → 34
 //! iterations from 16² to 32² elements in 2D at mobilities of 1e-8 … 1e-4 m²/(Pa·s), where the
 //! pressure block is a Laplacian whose ILU(0) is not mesh-independent, and with the AMG 11 → 13;
-//! in 3D (6³ → 12³ elements) 15 → 22 against 13 → 17. In the undrained limit both are alike
-//! (`S̃` is then dominated by its diagonal augmentation).
+//! in 3D (6³ → 12³ elements) 15 → 22 against 13 → 17 (13 → 13 with the threshold below). In
+//! the undrained limit both are alike (`S̃` is then dominated by its diagonal augmentation).
+//!
+//! # The AMG of the Schur block
+//!
+//! The AMG drops the couplings weaker than `θ √(a_ii a_jj)` before it aggregates
+//! ([`super::amg`], step 1). The displacement block keeps the elasticity value
+//! `θ` = [`STRENGTH_THRESHOLD`] = 0.08; `S̃` uses [`SCHUR_STRENGTH_THRESHOLD`] = 0.02. In the
+//! flow-dominated steps `S̃` is the Darcy Laplacian `Δt κ L`, and with linear shape
+//! functions `L` is the trilinear stencil, whose couplings are all below 0.08 of the diagonal
+//! away from the faces: edge neighbours 1/16, corners 1/32 and face neighbours 0 with exact
+//! integration; 0.070, 0.045 and 0.033 with 2³ particles per cell at the quarter points. At
+//! 0.08 every node two cells or more from the faces is left out of the aggregates, the V-cycle
+//! is a Gauss–Seidel sweep there, and the GMRES count grew in proportion to the number of
+//! cells per side. 0.02 is below every coupling of that stencil, so the fine level is cut
+//! into the usual 3 × 3 × 3 aggregates, and it still drops the couplings across a mobility
+//! contrast beyond about 20 (an edge coupling from a node in the less permeable material
+//! `κ₁` to one on the interface with `κ₂ ≫ κ₁` is about `√(2 κ₁/κ₂)/16` of their
+//! diagonals). Quadratic B-splines were hardly affected (their wider stencil has strong
+//! couplings at 0.08): their counts moved by at most half an iteration per Newton
+//! iteration.
+//!
+//! What was measured before the change, on the 1 m cube of
+//! `benches/scenes/consolidation_block_3d_16.toml` with linear shape functions and steps of
+//! 1,000 s (GMRES iterations per Newton iteration in the flow-dominated steps), with one
+//! part of `M` made exact at a time: with `Ã_uu⁻¹` a sparse LU of `A_uu`, 12–13 (8³ cells) and
+//! 26 (16³), no better than the V-cycle; with `S̃⁻¹` a sparse LU of `S̃`, 12–13 at both
+//! sizes; with the exact Schur complement (`z_p` from an LU of the whole matrix), 12–13 at
+//! both. So neither the displacement AMG nor the diagonal Schur approximation was the cause,
+//! but the V-cycle of `S̃`; with the threshold at 0.02 (0 to 0.06 gave the same) the counts are
+//! 12.5–15 at 8³, 16³, 24³ and 32³ cells, against 13.5–15, 25.5–26, 39–40 and 56.5–58.5
+//! before (`docs/performance.md`). The undrained step, where `S̃` is the stabilisation and
+//! its diagonal augmentation, takes about as many iterations as before (0–4 % more).
 //!
 //! # The transposed solve
 //!
@@ -80,15 +112,19 @@
 
 use std::sync::Arc;
 
-use super::amg::NearNullspace;
-use super::precond::PrecondState;
-use super::{LinearError, Orientation, Preconditioner, SparseMatrix, SparsePattern};
+use super::amg::{Amg, NearNullspace, STRENGTH_THRESHOLD};
+use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
 /// Name used in errors.
 const NAME: &str = "block";
 
+/// Strength threshold `θ` of the finest level of the AMG of `S̃` (module documentation, "The
+/// AMG of the Schur block"); the displacement block keeps [`STRENGTH_THRESHOLD`].
+pub const SCHUR_STRENGTH_THRESHOLD: f64 = 0.02;
+
 /// Which unknowns of a coupled system are displacements and which are pore pressures, and the
-/// rigid-body modes of the displacements: what [`Preconditioner::Block`] needs besides the
+/// rigid-body modes of the displacements: what
+/// [`Preconditioner::Block`](super::Preconditioner::Block) needs besides the
 /// matrix, handed over by
 /// [`LinearSolver::set_block_split`](super::LinearSolver::set_block_split).
 #[derive(Clone, Debug, PartialEq)]
@@ -144,16 +180,15 @@ impl BlockSplit {
 }
 
 /// One diagonal block, `A_uu` or `S̃`, as a matrix of its own: its pattern, where each of its
-/// entries is in `A` (`None` for a diagonal entry added to the pattern), and its
-/// preconditioner.
+/// entries is in `A` (`None` for a diagonal entry added to the pattern), and its AMG.
 #[derive(Debug)]
 struct DiagonalBlock {
     /// The block's values (the pattern is the restriction of `A`'s, with the diagonal).
     matrix: SparseMatrix,
     /// Per entry of `matrix`, its position in `A`'s values.
     source: Vec<Option<usize>>,
-    /// `Ã⁻¹`.
-    inverse: PrecondState,
+    /// `Ã⁻¹`: the AMG hierarchy (built by [`DiagonalBlock::factorize`]).
+    inverse: Option<Amg>,
 }
 
 impl DiagonalBlock {
@@ -164,8 +199,7 @@ impl DiagonalBlock {
         members: &[usize],
         local: &[usize],
         in_block: impl Fn(usize) -> bool,
-        kind: Preconditioner,
-    ) -> Result<Self, LinearError> {
+    ) -> Self {
         let p = &*a.pattern;
         let mut entries = Vec::new();
         for (lj, &j) in members.iter().enumerate() {
@@ -190,12 +224,11 @@ impl DiagonalBlock {
                 }
             }
         }
-        let inverse = PrecondState::new(kind, &pattern)?;
-        Ok(Self {
+        Self {
             matrix: SparseMatrix::zeros(pattern),
             source,
-            inverse,
-        })
+            inverse: None,
+        }
     }
 
     /// Copies the block's values from `a`.
@@ -205,10 +238,24 @@ impl DiagonalBlock {
         }
     }
 
+    /// Builds the AMG of the block's values with `near_nullspace` (the constant vector when
+    /// `None`) and the strength threshold `theta`.
+    fn factorize(
+        &mut self,
+        near_nullspace: Option<&NearNullspace>,
+        theta: f64,
+    ) -> Result<(), LinearError> {
+        self.inverse = None;
+        self.inverse = Some(Amg::new(&self.matrix, near_nullspace, theta)?);
+        Ok(())
+    }
+
     /// `z ← Ã⁻¹ z` (or `Ã⁻ᵀ z`).
     fn solve_in_place(&self, orientation: Orientation, z: &mut [f64]) {
         self.inverse
-            .solve_in_place(&self.matrix.pattern, orientation, z);
+            .as_ref()
+            .expect("the hierarchy is built by `factorize`")
+            .apply(orientation, z);
     }
 }
 
@@ -245,8 +292,8 @@ impl Block {
         }
         let is_u = |i: usize| !split.is_pressure(i);
         let is_p = |i: usize| split.is_pressure(i);
-        let mut uu = DiagonalBlock::new(a, &u, &local, is_u, Preconditioner::Amg)?;
-        let mut schur = DiagonalBlock::new(a, &p, &local, is_p, Preconditioner::Amg)?;
+        let mut uu = DiagonalBlock::new(a, &u, &local, is_u);
+        let mut schur = DiagonalBlock::new(a, &p, &local, is_p);
         let pat = &*a.pattern;
         let up: Vec<Vec<(usize, f64)>> = (p.iter())
             .map(|&j| {
@@ -282,9 +329,8 @@ impl Block {
                 .expect("the block's pattern holds its diagonal");
             schur.matrix.values[d] -= coupling;
         }
-        uu.inverse
-            .factorize(&uu.matrix, Some(&split.displacement_modes), None)?;
-        schur.inverse.factorize(&schur.matrix, None, None)?;
+        uu.factorize(Some(&split.displacement_modes), STRENGTH_THRESHOLD)?;
+        schur.factorize(None, SCHUR_STRENGTH_THRESHOLD)?;
         Ok(Self {
             u,
             p,
