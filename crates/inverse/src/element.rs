@@ -401,13 +401,7 @@ impl ElementProblem {
     pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
         let n = self.observations();
         if cotangent.len() != n {
-            return Err(AdjointError::Observation {
-                field: "cotangent".into(),
-                msg: format!(
-                    "has {} value(s); expected one per observation, {n}",
-                    cotangent.len()
-                ),
-            });
+            return Err(AdjointError::cotangent_length(cotangent.len(), n));
         }
         (0..self.params.len())
             .map(|k| {

@@ -85,3 +85,13 @@ pub enum AdjointError {
         what: String,
     },
 }
+
+impl AdjointError {
+    /// A cotangent of `got` values for `expected` observed quantities.
+    pub fn cotangent_length(got: usize, expected: usize) -> Self {
+        Self::Observation {
+            field: "cotangent".into(),
+            msg: format!("has {got} value(s); expected one per observed quantity, {expected}"),
+        }
+    }
+}

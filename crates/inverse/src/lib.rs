@@ -63,8 +63,6 @@ pub use objective::{Objective, Pullback, ScalarObjective, TrackedPositions};
 pub use observe::{MonitorBox, Observations, VelocityMonitors, choose};
 pub use optimise::{Adam, Evaluation, Lbfgs, LevenbergMarquardt, Optimiser};
 pub use params::{Acts, MaterialField, Param};
-pub use problem::{
-    Control, GaussNewtonModel, GradientCost, Problem, run_observed, run_residuals, run_value,
-};
+pub use problem::{Control, GaussNewtonModel, GradientCost, Problem, run_collected, run_value};
 pub use step::ReverseStep;
 pub use variable::{Transform, Variable, softplus, softplus_inverse};

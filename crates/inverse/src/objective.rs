@@ -166,6 +166,20 @@ impl<const D: usize> Objective<D> for TrackedPositions<D> {
     }
 }
 
+/// Observed vectors per step (a tracked particle's position, a monitor box's mean velocity):
+/// the data and weight `w` of each component of those observed after `step`, appended to
+/// `out` ([`ScalarObjective::data`]).
+pub(crate) fn vector_data<const D: usize>(
+    targets: &BTreeMap<usize, Vec<(usize, Vector<f64, D>)>>,
+    step: usize,
+    weight: f64,
+    out: &mut Vec<(f64, f64)>,
+) {
+    for (_, target) in targets.get(&step).into_iter().flatten() {
+        out.extend(target.iter().map(|&d| (d, weight)));
+    }
+}
+
 /// The name of axis `a`.
 pub(crate) fn axis(a: usize) -> char {
     ['x', 'y', 'z'][a]
@@ -180,9 +194,7 @@ impl<const D: usize> ScalarObjective<D> for TrackedPositions<D> {
     }
 
     fn data(&self, step: usize, out: &mut Vec<(f64, f64)>) {
-        for (_, target) in self.targets.get(&step).into_iter().flatten() {
-            out.extend(target.iter().map(|&d| (d, self.weight)));
-        }
+        vector_data(&self.targets, step, self.weight, out);
     }
 
     fn labels(&self, step: usize, out: &mut Vec<String>) {

@@ -5,7 +5,9 @@
 use crate::adjoint_state::ParticleAdjoint;
 use crate::deposit::DepositProfile;
 use crate::error::AdjointError;
-use crate::objective::{Objective, ScalarObjective, TrackedPositions, axis, least_squares_term};
+use crate::objective::{
+    Objective, ScalarObjective, TrackedPositions, axis, least_squares_term, vector_data,
+};
 use loam_core::tensor::Vector;
 use loam_core::{Particles, Scalar};
 use loam_explicit::{Config, Solver};
@@ -164,9 +166,7 @@ impl<const D: usize> ScalarObjective<D> for VelocityMonitors<D> {
     }
 
     fn data(&self, step: usize, out: &mut Vec<(f64, f64)>) {
-        for (_, target) in self.targets.get(&step).into_iter().flatten() {
-            out.extend(target.iter().map(|&d| (d, self.weight)));
-        }
+        vector_data(&self.targets, step, self.weight, out);
     }
 
     fn labels(&self, step: usize, out: &mut Vec<String>) {

@@ -322,7 +322,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
     /// As [`Problem::loss`].
     pub fn observe(&self, theta: &[f64]) -> Result<Vec<f64>, AdjointError> {
         let (config, particles) = self.setup(theta)?;
-        run_observed(config, particles, self.steps, &self.objective)
+        run_collected(config, particles, self.steps, |s, p, out| {
+            self.objective.observed(s, p, out)
+        })
     }
 
     /// `∂y/∂θ_k` of every observed quantity ([`Problem::observe`]) by a forward-mode dual run
@@ -333,7 +335,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
     /// As [`Problem::loss`].
     pub fn observe_tangent(&self, theta: &[f64], k: usize) -> Result<Vec<f64>, AdjointError> {
         let (config, particles) = self.seeded(theta, k)?;
-        let y = run_observed(config, particles, self.steps, &self.objective)?;
+        let y = run_collected(config, particles, self.steps, |s, p, out| {
+            self.objective.observed(s, p, out)
+        })?;
         Ok(y.iter().map(|y| y.eps).collect())
     }
 
@@ -358,13 +362,7 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
             at += data.len();
         }
         if at != cotangent.len() {
-            return Err(AdjointError::Observation {
-                field: "cotangent".into(),
-                msg: format!(
-                    "has {} value(s); expected one per observed quantity, {at}",
-                    cotangent.len()
-                ),
-            });
+            return Err(AdjointError::cotangent_length(cotangent.len(), at));
         }
         let pullback = Pullback {
             objective: &self.objective,
@@ -492,7 +490,9 @@ impl<const D: usize, O: ScalarObjective<D>> Problem<D, O> {
         let mut columns = Vec::with_capacity(n);
         for k in 0..n {
             let (config, particles) = self.seeded(theta, k)?;
-            let r = run_residuals(config, particles, self.steps, &self.objective)?;
+            let r = run_collected(config, particles, self.steps, |s, p, out| {
+                self.objective.residuals(s, p, out)
+            })?;
             if k == 0 {
                 residuals = r.iter().map(|r| r.re).collect();
             }
@@ -593,39 +593,21 @@ pub fn run_value<T: Scalar, const D: usize, O: ScalarObjective<D>>(
     Ok(loss)
 }
 
-/// The observed quantities of every step over a forward run of `steps` steps, in the order
-/// of the steps ([`ScalarObjective::observed`]).
+/// What `collect(step, state, out)` appends to `out` for every state of a forward run of
+/// `steps` steps (step 0 the initial state), in the order of the steps: the observed
+/// quantities ([`ScalarObjective::observed`]) or the residuals
+/// ([`ScalarObjective::residuals`]) of a run, in any scalar type.
 ///
 /// # Errors
 /// A run that is refused or stops.
-pub fn run_observed<T: Scalar, const D: usize, O: ScalarObjective<D>>(
+pub fn run_collected<T: Scalar, const D: usize>(
     config: Config<T, D>,
     particles: Particles<T, D>,
     steps: usize,
-    objective: &O,
+    mut collect: impl FnMut(usize, &Particles<T, D>, &mut Vec<T>) + Send,
 ) -> Result<Vec<T>, AdjointError> {
     let mut out = Vec::new();
-    run_each(config, particles, steps, |s, p| {
-        objective.observed(s, p, &mut out)
-    })?;
-    Ok(out)
-}
-
-/// The residuals of every `ℓ_n` over a forward run of `steps` steps, in the order of the
-/// steps ([`ScalarObjective::residuals`]).
-///
-/// # Errors
-/// A run that is refused or stops.
-pub fn run_residuals<T: Scalar, const D: usize, O: ScalarObjective<D>>(
-    config: Config<T, D>,
-    particles: Particles<T, D>,
-    steps: usize,
-    objective: &O,
-) -> Result<Vec<T>, AdjointError> {
-    let mut out = Vec::new();
-    run_each(config, particles, steps, |s, p| {
-        objective.residuals(s, p, &mut out)
-    })?;
+    run_each(config, particles, steps, |s, p| collect(s, p, &mut out))?;
     Ok(out)
 }
 

@@ -195,13 +195,7 @@ impl<const D: usize> ImplicitProblem<D> {
     pub fn vjp(&self, theta: &[f64], cotangent: &[f64]) -> Result<Vec<f64>, AdjointError> {
         let n = self.observations.items.len();
         if cotangent.len() != n {
-            return Err(AdjointError::Observation {
-                field: "cotangent".into(),
-                msg: format!(
-                    "has {} value(s); expected one per observation, {n}",
-                    cotangent.len()
-                ),
-            });
+            return Err(AdjointError::cotangent_length(cotangent.len(), n));
         }
         self.with_run(theta, |config, particles, run| {
             adjoint::pull_back(

@@ -20,8 +20,8 @@ use loam_core::Particles;
 use loam_core::tensor::Vector;
 use loam_explicit::Solver;
 use loam_inverse::{
-    Checkpoints, Control, MaterialField, Objective, Param, Problem, TrackedPositions, check,
-    gradient, run_residuals,
+    Checkpoints, Control, MaterialField, Objective, Param, Problem, ScalarObjective,
+    TrackedPositions, check, gradient, run_collected,
 };
 use num_dual::Dual64;
 use std::collections::BTreeMap;
@@ -169,7 +169,10 @@ fn gauss_newton_diagonal<const D: usize>(
         let mut at = theta.to_vec();
         at[k] += step;
         let (config, particles) = problem.setup(&at).expect("setup");
-        run_residuals(config, particles, problem.steps, &problem.objective).expect("run")
+        run_collected(config, particles, problem.steps, |s, p, out| {
+            problem.objective.residuals(s, p, out)
+        })
+        .expect("run")
     };
     let (plus, minus) = (residuals(delta), residuals(-delta));
     let column: f64 = (plus.iter().zip(&minus))
