@@ -26,6 +26,8 @@
 //!   unknowns E, ν, the hydraulic conductivity, one point of the strip's load and gravity;
 //!   the loss tracks the settlement under the strip and the pore pressures of two piezometers
 //!   under it after every step;
+//! - `implicit_consolidation_3d`, the same in 3D under a square load (a quarter by
+//!   symmetry, 512 particles, 7 steps): unknowns E, the conductivity and gravity;
 //! - `implicit_consolidation_clay`, the same on prestressed Modified Cam-Clay (K0 = 0.6, OCR
 //!   = 1.5), which yields under the strip as it drains, and whose shear modulus, the
 //!   stabilisation's weight, follows its mean effective stress: unknowns λ, κ, the
@@ -90,8 +92,8 @@ fn setup(file: &str, load_steps: usize) -> (ImplicitConfig<2>, Particles<f64, 2>
 
 /// The observations `quantities` after load steps, valued from the run of `problem` at its
 /// scene's values.
-fn observe(
-    problem: &mut ImplicitProblem<2>,
+fn observe<const D: usize>(
+    problem: &mut ImplicitProblem<D>,
     quantities: &[(usize, Quantity, f64)],
 ) -> Result<(), VerifyError> {
     let run = run_recorded(&problem.config, &problem.initial, None).map_err(failed)?;
@@ -103,9 +105,9 @@ fn observe(
 }
 
 /// The checks on `problem` 5 % away from its scene's values.
-fn check_problem(
+fn check_problem<const D: usize>(
     label: &'static str,
-    problem: &ImplicitProblem<2>,
+    problem: &ImplicitProblem<D>,
 ) -> Result<Outcome, VerifyError> {
     let scene_values = problem.values().map_err(failed)?;
     let theta: Vec<f64> = (scene_values.iter().enumerate())
@@ -250,33 +252,35 @@ fn clay_footing() -> Result<Outcome, VerifyError> {
 }
 
 /// The particle of `initial` nearest to `at`.
-fn nearest(initial: &Particles<f64, 2>, at: [f64; 2]) -> usize {
+fn nearest<const D: usize>(initial: &Particles<f64, D>, at: [f64; D]) -> usize {
     (0..initial.len())
         .min_by(|&a, &b| {
-            let d = |p: usize| (initial.x[p][0] - at[0]).abs() + (initial.x[p][1] - at[1]).abs();
+            let d = |p: usize| (0..D).map(|k| (initial.x[p][k] - at[k]).abs()).sum::<f64>();
             d(a).total_cmp(&d(b))
         })
         .expect("particles")
 }
 
-/// The strip load on a saturated layer (coupled u–p, scene `file`) with respect to
-/// `params`: the settlement under the strip's centre and the pore pressures of two
-/// piezometers under it after every step.
-fn consolidation(
+/// The strip (2D) or square (3D) load on a saturated layer (coupled u–p, scene `file`)
+/// with respect to `params`: the settlement under the load's centre (the surface above the
+/// origin) and the pore pressures of two piezometers under it, 0.6 m and 0.3 m above the
+/// base, after every step.
+fn consolidation<const D: usize>(
     label: &'static str,
     file: &str,
     params: Vec<ImplicitParam>,
 ) -> Result<Outcome, VerifyError> {
-    let built = scenes::build::<2>(&scenes::scene(file));
+    let built = scenes::build::<D>(&scenes::scene(file));
     let config = built
         .implicit_config()
         .expect("the scene's solver is implicit");
     let initial = built.particles;
-    let surface = nearest(&initial, [0.0, 1.0]);
-    let piezometers = [nearest(&initial, [0.0, 0.6]), nearest(&initial, [0.0, 0.3])];
+    let above = |height: f64| std::array::from_fn(|k| if k == D - 1 { height } else { 0.0 });
+    let surface = nearest(&initial, above(1.0));
+    let piezometers = [nearest(&initial, above(0.6)), nearest(&initial, above(0.3))];
     let mut quantities = Vec::new();
     for step in 1..=config.load_steps {
-        quantities.push((step, Quantity::displacement(surface, 1), 1e-4));
+        quantities.push((step, Quantity::displacement(surface, D - 1), 1e-4));
         for &particle in &piezometers {
             quantities.push((step, Quantity::PorePressure { particle }, 100.0));
         }
@@ -324,7 +328,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         j2_footing()?,
         newmark(newmark_steps)?,
         clay_footing()?,
-        consolidation(
+        consolidation::<2>(
             "consolidation (u–p)",
             "implicit_consolidation",
             vec![
@@ -335,7 +339,16 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
                 ImplicitParam::Gravity(1),
             ],
         )?,
-        consolidation(
+        consolidation::<3>(
+            "consolidation in 3D (u–p)",
+            "implicit_consolidation_3d",
+            vec![
+                ImplicitParam::Material(0, MaterialField::Young),
+                ImplicitParam::Conductivity(0),
+                ImplicitParam::Gravity(2),
+            ],
+        )?,
+        consolidation::<2>(
             "clay consolidation (u–p)",
             "implicit_consolidation_clay",
             vec![

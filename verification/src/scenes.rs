@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 33] = [
+pub const SCENES: [CaseScene; 34] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -71,6 +71,7 @@ pub const SCENES: [CaseScene; 33] = [
     case_scene!("implicit_footing"),
     case_scene!("implicit_clay_footing"),
     case_scene!("implicit_consolidation"),
+    case_scene!("implicit_consolidation_3d"),
     case_scene!("implicit_consolidation_clay"),
     case_scene!("implicit_cantilever_newmark"),
 ];

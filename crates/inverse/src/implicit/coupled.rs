@@ -29,11 +29,18 @@
 //!   its gradient by the particle's inputs with multi-lane duals. The unknowns enter a
 //!   particle only through the stencil sums `(ΔF, p̂, ∇ⁿp̂, Δx)` ([`StencilSums`]), so the
 //!   duals seed those (and the state components the step reads, and the excess), and the
-//!   gradient by the unknowns follows by the chain rule through the shape functions. With
-//!   `λ = 0` one evaluation per particle, its `(ΔF, p̂, ∇ⁿp̂)` seeded, gives both the
-//!   right-hand side and the kernel's derivative that `J` is assembled from; the final
-//!   gradient takes [`LANES`] inputs at a time; each parameter's share is one `Dual64`
-//!   evaluation with the parameter seeded;
+//!   gradient by the unknowns follows by the chain rule through the shape functions. Two
+//!   evaluations per particle and sub-step:
+//!   1. *pass 1*, with `λ = 0`: the kernel alone ([`coupled_update`]) with the sums
+//!      `(ΔF, p̂, ∇ⁿp̂)` seeded ([`coupled_lanes`]: 7 in 2D, 13 in 3D) gives the derivative of
+//!      its rows, which `J` is assembled from, and of the end excess and history
+//!      ([`SumsJacobian`]); the right-hand side `∂ψ/∂(Δu, p̂)|_{λ=0}` is that derivative
+//!      contracted with the weights `ψ` puts on them ([`Local::sums_partial`]);
+//!   2. *the final pass*, with `λ`: the whole step with the state components the step reads
+//!      and the excess seeded (8 lanes for a 2D particle without history, at most
+//!      [`LANES`] a time), the sums held; their partials are again pass 1's derivative
+//!      contracted, now with `λ`'s weights. Each parameter's share is one `Dual64`
+//!      evaluation with the parameter seeded;
 //! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
 //!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
 //!
@@ -59,8 +66,13 @@ use nalgebra::SVector;
 use num_dual::{Derivative, Dual64, DualSVec64};
 use rayon::prelude::*;
 
-/// Inputs differentiated per evaluation of the reverse pass's gradients.
+/// Inputs differentiated per evaluation of the final pass's gradient.
 pub const LANES: usize = 16;
+
+/// The final pass's lanes for a particle with at most this many differentiated inputs (the
+/// state of a 2D particle without history: position, `Fⁿ`, mass and excess): a dual's cost
+/// grows with its lanes, not with those seeded.
+const NARROW_LANES: usize = 8;
 
 /// What one particle sees of the pore fluid in a sub-step, besides its state.
 #[derive(Clone, Copy, Debug)]
@@ -126,9 +138,6 @@ pub struct CoupledParticle<T, const D: usize> {
     pub increment: T,
     /// Stabilisation weight `w = Vⁿ/G`.
     pub stabilisation: T,
-    /// The kernel's rows, [`CoupledTangent`] order: the momentum `V⁰ (τ′ − α Jⁿ ΔJ p I) ΔF⁻ᵀ`
-    /// row by row, the volume term, the flux.
-    pub rows: Vec<T>,
 }
 
 /// The sums over a particle's stencil through which the nodal unknowns `u(flat, c)` enter
@@ -174,6 +183,10 @@ impl<T: Scalar + From<f64>, const D: usize> StencilSums<T, D> {
 /// The particle's part of a coupled sub-step with the stencil sums that `sums` gives for its
 /// stencil ([`StencilSums::of`] for the nodal unknowns); `None` where the particle inverts.
 #[allow(clippy::too_many_arguments)]
+// Inlined into the final pass's lane loop, the kernel's duals were moved by `memcpy` (6.7
+// million calls, 0.28 G instructions over the consolidation example's reverse pass);
+// called, they are not.
+#[inline(never)]
 pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     setting: &Setting<'_, D>,
     fluid: &FluidSetting<'_, D>,
@@ -191,18 +204,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         grad_p_hat: grad,
         dx,
     } = sums(&stencil);
-    let shear = material.shear_modulus_in(&state.history);
-    let frozen = FlowFrozen {
-        excess,
-        hydrostatic: fluid.hydrostatic(&state.x),
-        weight: det(&state.f) * T::cst(setting.volume0)
-            / if shear.re() > 0.0 {
-                shear
-            } else {
-                T::cst(f64::MIN_POSITIVE)
-            },
-        leakage: hydraulic.mobility * T::cst(fluid.conductance),
-    };
+    let frozen = frozen(setting, fluid, material, hydraulic, state, excess);
     let c = coupled_update(
         material,
         &CoupledStart {
@@ -245,11 +247,31 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         excess: c.excess,
         increment: c.excess - excess,
         stabilisation: frozen.weight,
-        rows: (c.momentum.transpose().iter().copied())
-            .chain(std::iter::once(c.volume))
-            .chain(c.flux.iter().copied())
-            .collect(),
     })
+}
+
+/// What the kernel holds of a particle's start state: its excess and hydrostatic pore
+/// pressure, the stabilisation weight `wₚ = Vⁿ/G` and the drained surface's leakage.
+fn frozen<T: Scalar + From<f64>, const D: usize>(
+    setting: &Setting<'_, D>,
+    fluid: &FluidSetting<'_, D>,
+    material: &Material<T>,
+    hydraulic: &Hydraulic<T>,
+    state: &ParticleState<T, D>,
+    excess: T,
+) -> FlowFrozen<T> {
+    let shear = material.shear_modulus_in(&state.history);
+    FlowFrozen {
+        excess,
+        hydrostatic: fluid.hydrostatic(&state.x),
+        weight: det(&state.f) * T::cst(setting.volume0)
+            / if shear.re() > 0.0 {
+                shear
+            } else {
+                T::cst(f64::MIN_POSITIVE)
+            },
+        leakage: hydraulic.mobility * T::cst(fluid.conductance),
+    }
 }
 
 /// The weights of a particle's outputs in `ψₚ` (module docs).
@@ -385,28 +407,161 @@ impl<const D: usize> Local<'_, D> {
     }
 
     /// The differentiated inputs of the final pass: the state's components that the step
-    /// reads (not the velocity, nor the history of a material that carries none), the
-    /// excess and the stencil sums.
+    /// reads (not the velocity, nor the history of a material that carries none, nor in 2D
+    /// the history tensor's out-of-plane entries `(a, 2)`, `(2, a)` with `a < 2`), and the
+    /// excess. The stencil sums are not among them: their partials follow from pass 1's
+    /// derivative ([`Local::sums_partial`]).
+    ///
+    /// A plane-strain history tensor (the elastic left Cauchy–Green tensor of every model
+    /// that carries one) keeps those entries zero, and their end values do not move with any
+    /// in-plane input (they are odd under the reflection `z → −z`, the inputs even), so their
+    /// adjoints never reach the gradient: the initial states' tangents are zero there too.
     fn lanes(&self) -> Vec<usize> {
         let h0 = D + D * D;
         let hl = loam_core::constitutive::HISTORY_LEN;
+        let in_plane = |k: usize| -> bool {
+            let (r, c) = ((k - 1) / 3, (k - 1) % 3);
+            D == 3 || k == 0 || k == hl - 1 || (r < D && c < D) || (r == 2 && c == 2)
+        };
         (0..h0)
-            .chain((h0..h0 + hl).filter(|_| self.carries))
+            .chain(
+                (0..hl)
+                    .filter(|&k| self.carries && in_plane(k))
+                    .map(|k| h0 + k),
+            )
             .chain([state_len(D) - 1, state_len(D)])
-            .chain(Self::UNKNOWNS..Self::UNKNOWNS + coupled_lanes(D))
             .collect()
     }
 
-    /// `∂ψₚ/∂z` (inputs order) by the chain rule through the stencil sums: the inputs `lanes`
-    /// (state components and excess by index, stencil sums from [`Local::UNKNOWNS`]) are
-    /// differentiated with `L`-lane duals, `L` at a time, the unknowns held in the stencil sums;
-    /// then `∂ψ/∂Δu_ic = Σ_d ∂ψ/∂ΔF_cd ∂_d N_i + x̄'_c N_i` (the end position
-    /// `x' = x + Δx` is read by `ψ` alone), `∂ψ/∂p̂_i = ∂ψ/∂p̂ N_i + ∂ψ/∂∇ⁿp̂ · ∇N_i`, and the
-    /// inputs that pass through unchanged (velocity; history of a material that carries
-    /// none) take their end weights.
+    /// `∂ψₚ/∂(ΔF, p̂, ∇ⁿp̂)` with the particle's state held, from pass 1's derivative of its
+    /// step by the stencil sums ([`SumsJacobian`]). `ψ` reads the sums through the kernel's
+    /// rows, weighted per row by the stencil's cotangents
     ///
-    /// Returns the gradient and the step of the last chunk.
-    fn gradient<const L: usize>(
+    /// ```text
+    /// ∂ψ/∂momentum_kd = Σ_i a_ik ∂_d N_i,   ∂ψ/∂volume = Σ_i b_i N_i = Bₚ,   ∂ψ/∂flux_d = Σ_i b_i ∂_d N_i,
+    /// ```
+    ///
+    /// through the end deformation gradient `F' = ΔF Fⁿ` (`∂ψ/∂ΔF_rc = Σ_k F̄'_rk Fⁿ_ck`), the
+    /// end excess (weight `p̄' + s wₚ (Bₚ − B̄)`, the stabilisation's share through
+    /// `Δpₚ = p_e' − p_e`) and the end history (weights `s̄'` of its components). `w` is the
+    /// particle's stabilisation weight `wₚ`.
+    fn sums_partial(&self, jac: &SumsJacobian, cot: &CoupledCotangent<'_, D>, w: f64) -> Vec<f64> {
+        let lanes = coupled_lanes(D);
+        let mut weights = vec![0.0; lanes];
+        let mut b_p = 0.0;
+        for (&f, (n, g)) in self.flats.iter().zip(&self.shape) {
+            let (a, b) = (cot.internal[f], cot.fluid[f]);
+            for k in 0..D {
+                for d in 0..D {
+                    weights[k * D + d] += a[k] * g[d];
+                }
+                weights[D * D + 1 + k] += b * g[k];
+            }
+            b_p += b * n;
+        }
+        weights[D * D] = b_p;
+        let mut out = vec![0.0; lanes];
+        for (o, w) in weights.iter().enumerate() {
+            for (x, j) in out.iter_mut().zip(&jac.rows[o * lanes..(o + 1) * lanes]) {
+                *x += w * j;
+            }
+        }
+        let excess = cot.excess + cot.scale * w * (b_p - cot.patch.1);
+        for (x, j) in out.iter_mut().zip(&jac.excess) {
+            *x += excess * j;
+        }
+        let h0 = D + D * D;
+        for (h, row) in jac.history.chunks(lanes).enumerate() {
+            let weight = cot.end[h0 + h];
+            if weight != 0.0 {
+                for (x, j) in out.iter_mut().zip(row) {
+                    *x += weight * j;
+                }
+            }
+        }
+        let f = &self.state.f;
+        for r in 0..D {
+            for c in 0..D {
+                out[r * D + c] += (0..D)
+                    .map(|k| cot.end[D + r * D + k] * f[(c, k)])
+                    .sum::<f64>();
+            }
+        }
+        out
+    }
+
+    /// Pass 1's evaluation: the kernel alone ([`coupled_update`]) at the inputs `z`, its
+    /// `L` = [`coupled_lanes`] stencil sums `(ΔF, p̂, ∇ⁿp̂)` seeded and the state held. Returns
+    /// the kernel's derivative `A` (what the tangent `J` is assembled from), the derivative
+    /// of the rows, the end excess and the end history by the sums, and `(Δpₚ, wₚ)`; `None`
+    /// where the particle inverts.
+    fn linearise<const L: usize>(
+        &self,
+        z: &[f64],
+        mats: &[Material<DualSVec64<L>>],
+        hydraulic: &Hydraulic<DualSVec64<L>>,
+    ) -> Option<(CoupledTangent<L>, SumsJacobian, (f64, f64))> {
+        let lift = |v: f64| DualSVec64::<L>::from_re(v);
+        let seeded = |v: f64, l: usize| {
+            let mut e = SVector::<f64, L>::zeros();
+            e[l] = 1.0;
+            DualSVec64::new(v, Derivative::some(e))
+        };
+        let state = Self::state_of(&z.iter().copied().map(lift).collect::<Vec<_>>());
+        let real = StencilSums::of(&self.setting.stencil(&Self::state_of(z)), self.unknowns(z));
+        let delta_f =
+            Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seeded(real.delta_f[(r, c)], r * D + c));
+        let p_hat = seeded(real.p_hat, D * D);
+        let grad =
+            Vector::<DualSVec64<L>, D>::from_fn(|r, _| seeded(real.grad_p_hat[r], D * D + 1 + r));
+        let material = &mats[self.material];
+        let excess = lift(self.excess);
+        let frozen = frozen(
+            &self.setting,
+            &self.fluid,
+            material,
+            hydraulic,
+            &state,
+            excess,
+        );
+        let start = CoupledStart {
+            f_n: &state.f,
+            history: &state.history,
+            volume0: self.setting.volume0,
+            fluid: &frozen,
+        };
+        let (dt, scale) = (self.fluid.dt, self.fluid.scale);
+        let c = coupled_update(
+            material, &start, hydraulic, dt, scale, &delta_f, p_hat, &grad,
+        )?;
+        let lanes = |v: &DualSVec64<L>| -> [f64; L] {
+            std::array::from_fn(|k| v.eps.0.as_ref().map_or(0.0, |e| e[k]))
+        };
+        let momentum = c.momentum.transpose();
+        let rows: Vec<&DualSVec64<L>> = (momentum.iter())
+            .chain(std::iter::once(&c.volume))
+            .chain(c.flux.iter())
+            .collect();
+        let a: CoupledTangent<L> = std::array::from_fn(|o| lanes(rows[o]));
+        let history = if self.carries {
+            (c.state.components().iter()).flat_map(lanes).collect()
+        } else {
+            Vec::new()
+        };
+        let jacobian = SumsJacobian {
+            rows: a.iter().flatten().copied().collect(),
+            excess: lanes(&c.excess).to_vec(),
+            history,
+        };
+        Some((a, jacobian, (c.excess.re - self.excess, frozen.weight.re)))
+    }
+
+    /// The partials of `ψₚ` by the inputs `lanes` (state components and excess, by index)
+    /// with the unknowns held, by `L`-lane duals, `L` at a time; the entries of the lanes
+    /// not differentiated, and the stencil sums', are zero. Returns the partials (the state's
+    /// components, the excess, then the [`coupled_lanes`] sums) and the step of the last
+    /// chunk.
+    fn partials<const L: usize>(
         &self,
         z: &[f64],
         lanes: &[usize],
@@ -423,20 +578,16 @@ impl<const D: usize> Local<'_, D> {
         let mut dz = vec![0.0; sums + coupled_lanes(D)];
         let mut last = None;
         for chunk in lanes.chunks(L) {
-            let seed = |k: usize| -> DualSVec64<L> {
+            let seed = |k: usize| -> Option<DualSVec64<L>> {
+                let l = chunk.iter().position(|&j| j == k)?;
                 let mut e = SVector::<f64, L>::zeros();
-                if let Some(l) = chunk.iter().position(|&j| j == k) {
-                    e[l] = 1.0;
-                }
-                DualSVec64::new(0.0, Derivative::some(e))
+                e[l] = 1.0;
+                Some(DualSVec64::new(0.0, Derivative::some(e)))
             };
             let seeded: Vec<DualSVec64<L>> = (z[..sums].iter().enumerate())
-                .map(|(k, &v)| {
-                    if chunk.contains(&k) {
-                        DualSVec64::from_re(v) + seed(k)
-                    } else {
-                        DualSVec64::from_re(v)
-                    }
+                .map(|(k, &v)| match seed(k) {
+                    Some(e) => DualSVec64::from_re(v) + e,
+                    None => DualSVec64::from_re(v),
                 })
                 .collect();
             let u = self.unknowns(z);
@@ -448,17 +599,7 @@ impl<const D: usize> Local<'_, D> {
                 &Self::state_of(&seeded),
                 seeded[state_len(D)],
                 &loads,
-                |stencil| {
-                    let mut s = StencilSums::of(stencil, |f, c| DualSVec64::from_re(u(f, c)));
-                    for r in 0..D {
-                        for c in 0..D {
-                            s.delta_f[(r, c)] += seed(sums + r * D + c);
-                        }
-                        s.grad_p_hat[r] += seed(sums + D * D + 1 + r);
-                    }
-                    s.p_hat += seed(sums + D * D);
-                    s
-                },
+                |stencil| StencilSums::of(stencil, |f, c| DualSVec64::from_re(u(f, c))),
             )?;
             let psi = cot.psi(&step);
             if let Some(e) = psi.eps.0.as_ref() {
@@ -468,7 +609,17 @@ impl<const D: usize> Local<'_, D> {
             }
             last = Some(step);
         }
-        let mut out = vec![0.0; z.len()];
+        Some((dz, last?))
+    }
+
+    /// `∂ψₚ/∂z` (inputs order) from the partials `dz` ([`Local::partials`]) by the chain rule
+    /// through the stencil sums: `∂ψ/∂Δu_ic = Σ_d ∂ψ/∂ΔF_cd ∂_d N_i + x̄'_c N_i` (the end
+    /// position `x' = x + Δx` is read by `ψ` alone), `∂ψ/∂p̂_i = ∂ψ/∂p̂ N_i + ∂ψ/∂∇ⁿp̂ · ∇N_i`,
+    /// and the inputs that pass through unchanged (velocity; history of a material that
+    /// carries none) take their end weights.
+    fn chain(&self, dz: &[f64], inputs: usize, cot: &CoupledCotangent<'_, D>) -> Vec<f64> {
+        let sums = Self::UNKNOWNS;
+        let mut out = vec![0.0; inputs];
         out[..sums].copy_from_slice(&dz[..sums]);
         let h0 = D + D * D;
         let hl = loam_core::constitutive::HISTORY_LEN;
@@ -484,8 +635,18 @@ impl<const D: usize> Local<'_, D> {
             }
             o[D] = d[D * D] * w + (0..D).map(|e| d[D * D + 1 + e] * g[e]).sum::<f64>();
         }
-        Some((out, last?))
+        out
     }
+}
+
+/// The derivative of a particle's step by its stencil sums `(ΔF, p̂, ∇ⁿp̂)` with its state
+/// held, from pass 1 ([`Held::adjoint`]); each row has [`coupled_lanes`] entries: the
+/// kernel's rows ([`CoupledTangent`] order), the end excess, and the end history's
+/// components where the material carries one (none otherwise: its history passes through).
+struct SumsJacobian {
+    rows: Vec<f64>,
+    excess: Vec<f64>,
+    history: Vec<f64>,
 }
 
 /// The per-particle settings of a coupled sub-step.
@@ -633,8 +794,9 @@ struct Held<'a, const D: usize> {
     step: usize,
 }
 
-/// A sub-step's adjoint `λ` with each particle's `(Δpₚ, wₚ)` ([`Held::adjoint`]).
-type Adjoint = (Vec<f64>, Vec<(f64, f64)>);
+/// A sub-step's adjoint `λ` with each particle's `(Δpₚ, wₚ)` and the derivative of its step
+/// by its stencil sums ([`Held::adjoint`]).
+type Adjoint = (Vec<f64>, Vec<(f64, f64)>, Vec<SumsJacobian>);
 
 impl<const D: usize> Held<'_, D> {
     /// The sub-step's adjoint `λ` from `Jᵀλ = ∂ψ/∂(Δu, p̂)|_{λ=0}`, and each particle's
@@ -656,9 +818,7 @@ impl<const D: usize> Held<'_, D> {
         let (no_forces, no_fluid) = (vec![Vector::<f64, D>::zeros(); nodes], vec![0.0; nodes]);
         let hydraulic: Vec<Hydraulic<DualSVec64<L>>> =
             fluid.hydraulic.iter().map(Hydraulic::lift).collect();
-        let sums: Vec<usize> =
-            (Local::<D>::UNKNOWNS..Local::<D>::UNKNOWNS + coupled_lanes(D)).collect();
-        type Linear<const L: usize> = (Vec<f64>, CoupledTangent<L>, (f64, f64));
+        type Linear<const L: usize> = (Vec<f64>, CoupledTangent<L>, (f64, f64), SumsJacobian);
         let linearised: Vec<Option<Linear<L>>> = (0..self.local.len())
             .into_par_iter()
             .map(|p| {
@@ -672,20 +832,18 @@ impl<const D: usize> Held<'_, D> {
                     patch: (0.0, 0.0),
                     scale: l.fluid.scale,
                 };
-                let (g, step) =
-                    l.gradient(&self.inputs[p], &sums, mats, &hydraulic[l.material], &cot)?;
-                let lanes = |v: &DualSVec64<L>| -> [f64; L] {
-                    std::array::from_fn(|k| v.eps.0.as_ref().map_or(0.0, |e| e[k]))
-                };
-                let a = std::array::from_fn(|o| lanes(&step.rows[o]));
-                Some((g, a, (step.increment.re, step.stabilisation.re)))
+                let z = &self.inputs[p];
+                let (a, jacobian, w) = l.linearise(z, mats, &hydraulic[l.material])?;
+                let mut dz = vec![0.0; Local::<D>::UNKNOWNS + coupled_lanes(D)];
+                dz[Local::<D>::UNKNOWNS..].copy_from_slice(&l.sums_partial(&jacobian, &cot, w.1));
+                Some((l.chain(&dz, z.len(), &cot), a, w, jacobian))
             })
             .collect();
         let linearised: Vec<Linear<L>> = (linearised.into_iter().enumerate())
             .map(|(p, s)| s.ok_or_else(|| inverted(self.step, p)))
             .collect::<Result<_, _>>()?;
         let mut rhs = vec![0.0; system.len()];
-        for (l, (g, _, _)) in self.local.iter().zip(&linearised) {
+        for (l, (g, ..)) in self.local.iter().zip(&linearised) {
             scatter(system, &l.flats, g, &mut rhs);
         }
         let mut lambda = vec![0.0; system.len()];
@@ -701,7 +859,8 @@ impl<const D: usize> Held<'_, D> {
                     source,
                 })?;
         }
-        Ok((lambda, linearised.iter().map(|l| l.2).collect()))
+        let (increments, jacobians) = linearised.into_iter().map(|l| (l.2, l.3)).unzip();
+        Ok((lambda, increments, jacobians))
     }
 }
 
@@ -725,6 +884,8 @@ pub fn reverse<const D: usize>(
     let n = initial.len();
     let nodes = config.grid.num_nodes();
     let mats: Vec<Material<DualSVec64<LANES>>> =
+        config.materials.iter().map(|m| m.lift()).collect();
+    let narrow: Vec<Material<DualSVec64<NARROW_LANES>>> =
         config.materials.iter().map(|m| m.lift()).collect();
     let balance_rates: Vec<Vec<Vector<f64, D>>> = (params.iter())
         .map(|q| q.balance_tangent(config, initial))
@@ -759,6 +920,8 @@ pub fn reverse<const D: usize>(
             .collect();
         let hydraulic: Vec<Hydraulic<DualSVec64<LANES>>> =
             fluid.hydraulic.iter().map(Hydraulic::lift).collect();
+        let narrow_hydraulic: Vec<Hydraulic<DualSVec64<NARROW_LANES>>> =
+            fluid.hydraulic.iter().map(Hydraulic::lift).collect();
         let held = Held {
             system,
             local: &local,
@@ -768,7 +931,7 @@ pub fn reverse<const D: usize>(
             excess: &ebar,
             step: sub.step,
         };
-        let (lambda, increments) = match D {
+        let (lambda, increments, jacobians) = match D {
             2 => held.adjoint::<7>(&solver.materials().dual7, fluid, &mut linear)?,
             3 => held.adjoint::<13>(&solver.materials().dual13, fluid, &mut linear)?,
             _ => unreachable!("D is 2 or 3"),
@@ -805,7 +968,17 @@ pub fn reverse<const D: usize>(
                     patch: patches[p],
                     scale: l.fluid.scale,
                 };
-                let (g, _) = l.gradient(z, &l.lanes(), &mats, &hydraulic[l.material], &cot)?;
+                let lanes = l.lanes();
+                let mut dz = if lanes.len() <= NARROW_LANES {
+                    let h = &narrow_hydraulic[l.material];
+                    l.partials(z, &lanes, &narrow, h, &cot)?.0
+                } else {
+                    l.partials(z, &lanes, &mats, &hydraulic[l.material], &cot)?
+                        .0
+                };
+                let sums = l.sums_partial(&jacobians[p], &cot, increments[p].1);
+                dz[Local::<D>::UNKNOWNS..].copy_from_slice(&sums);
+                let g = l.chain(&dz, z.len(), &cot);
                 let mut shares = vec![0.0; params.len()];
                 for (j, q) in params.iter().enumerate() {
                     shares[j] = match *q {
