@@ -429,6 +429,36 @@ impl<const D: usize> StepSystem<D> {
             .for_each(|(k, m)| *k += m);
     }
 
+    /// The pressure mass matrix of the step, `M_ij = Σ_p w_p N_i(x_p) N_j(x_p)` over the free
+    /// pressure unknowns, with the stabilisation's weights `w_p = Vⁿ_p / G_p` (the skeleton's
+    /// compliance, so that a stiffer material weighs less, as in the undrained Schur
+    /// complement `≈ Σ_p Vⁿ_p/(K_p + 4G_p/3) N_i N_j`): what the block preconditioner's Schur
+    /// approximation takes its shape from ([`crate::linear::BlockSplit::with_pressure_mass`]).
+    /// Zero on the displacement rows.
+    ///
+    /// # Panics
+    /// On a step without pore fluid.
+    pub fn pressure_mass(&self) -> SparseMatrix {
+        let flow = self.fluid();
+        let mut m = SparseMatrix::zeros(self.pattern.clone());
+        let mut local: Vec<(Placed, f64)> = Vec::new();
+        for (frozen, particle) in self.frozen.iter().zip(&flow.particles) {
+            local.clear();
+            frozen.stencil.for_each(|n| {
+                if let NodeDof::Free { dof, sign } = self.dofs.get(n.flat, D) {
+                    local.push((self.place(dof, sign), n.weight));
+                }
+            });
+            for (row, n_row) in &local {
+                for (col, n_col) in &local {
+                    m.values[self.slot_placed(row, col)] +=
+                        row.sign * col.sign * particle.weight * n_row * n_col;
+                }
+            }
+        }
+        m
+    }
+
     /// Assembles the stabilisation's tangent into `k` (see
     /// [`StepSystem::add_stabilisation_tangent`]): per patch, a dense block over the nodes
     /// of its particles' stencils, added to `k` once.

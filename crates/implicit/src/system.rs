@@ -485,9 +485,14 @@ impl<const D: usize> StepSystem<D> {
 
     /// The displacement–pressure split of a coupled step's unknowns (component `D` the pore
     /// pressure), with the rigid-body modes of the displacement unknowns at their owner nodes'
-    /// positions: what the block preconditioner needs besides the tangent.
+    /// positions and the pressure mass matrix ([`StepSystem::pressure_mass`]): what the block
+    /// preconditioner needs besides the tangent.
+    ///
+    /// # Panics
+    /// On a step without pore fluid.
     pub fn block_split(&self) -> BlockSplit {
         BlockSplit::new::<D>(&self.owners(), |flat| self.node_position(flat))
+            .with_pressure_mass(&self.pressure_mass())
     }
 
     /// Hands `linear` what its preconditioner needs besides the tangent: the near-nullspace of

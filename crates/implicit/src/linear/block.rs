@@ -33,8 +33,12 @@
 //! ([`SCHUR_STRENGTH_THRESHOLD`], below) of the approximate Schur complement
 //!
 //! ```text
-//! S̃ = A_pp − diag(A_pu D_uu⁻¹ A_up),    D_uu = diag(A_uu).
+//! S̃ = A_pp + D^½ M̂ D^½,    D = −diag(A_pu D_uu⁻¹ A_up),   D_uu = diag(A_uu),
+//!                          M̂ = diag(M)^−½ M diag(M)^−½,
 //! ```
+//!
+//! `M` the pressure mass matrix of the step ([`BlockSplit::with_pressure_mass`]; `S̃ = A_pp + D`
+//! without one).
 //!
 //! With exact blocks (`Ã_uu = A_uu`, `S̃ = S = A_pp − A_pu A_uu⁻¹ A_up`) the right-preconditioned
 //! operator is `A M⁻¹ = [[I, 0], [A_pu A_uu⁻¹, I]]`, whose minimal polynomial is `(λ − 1)²`:
@@ -51,7 +55,7 @@
 //!
 //! **The Schur approximation.** The fixed-stress split adds to the pressure block the
 //! (lumped) storage `α²/K_dr` that the skeleton's volume change contributes when the mean
-//! stress is held fixed. `diag(A_pu D_uu⁻¹ A_up)` is its algebraic counterpart: the coupling
+//! stress is held fixed. `D = −diag(A_pu D_uu⁻¹ A_up)` is its algebraic counterpart: the coupling
 //! of each pressure with itself through the skeleton, with the stiffness lumped to its
 //! diagonal; it needs no material parameters, keeps the pattern of `A_pp`, and costs one pass
 //! over the coupling blocks. The exact formula is used, so the sign convention of the fluid
@@ -62,12 +66,31 @@
 //! four nodes apart (9³ neighbours in 3D against the 7³ of `A_pp`), and its storage and setup
 //! would exceed the rest of the preconditioner.
 //!
+//! **Its shape.** `D` alone is a lumped approximation of the undrained `S`: it drops the
+//! couplings of neighbouring pressures, which in a mass matrix are as large as the diagonal
+//! (a row of the trilinear mass matrix sums to `(3/2)³` times its diagonal, of the quadratic
+//! B-splines' to `(120/66)³`). `D^½ M̂ D^½` keeps `D` on the diagonal and gives the
+//! off-diagonal entries the mass matrix's shape, `√(d_q d_r) M_qr / √(M_qq M_rr)`; it is
+//! positive definite like `M`, needs no material parameter (the mass is weighted by the
+//! stabilisation's `Vⁿ/G`, and only its ratios are used), and stays inside the pattern of
+//! `A_pp` (`M` couples the nodes of one particle's stencil). In the drained limit the Darcy
+//! Laplacian dominates `S̃` and the shape changes nothing. GMRES iterations per Newton
+//! iteration in the undrained step, with `D` alone → with the shape (`docs/performance.md`,
+//! *The Schur approximation's shape*): the 3D footing at 20³ cells 55 → 28; the 1 m cube at
+//! 8³ cells 39 → 23 (linear shapes) and 91 → 41 (quadratic B-splines), and in its later
+//! steps at `κ` = 1e-12 m²/(Pa·s) 38 → 23 and 85 → 40; Terzaghi's column (2D, quadratic
+//! B-splines) 27 → 12, and 15.5 → 8 in the consolidation steps; the Q1–Q1 systems of
+//! `block_tests` 27 → 19 (2D) and 33 → 18 (3D). Scaling the whole augmentation by 0.5 … 2 moved the counts by at most 15 %
+//! (its optimum is near 1); solving with `S̃` exactly (a dense LU instead of the V-cycle)
+//! took 36 instead of 41 (quadratic cube), so what is left to the exact Schur complement is
+//! the approximation, not its V-cycle.
+//!
 //! An AMG V-cycle with the constant near-nullspace rather than ILU(0) solves with `S̃`: on the
 //! Q1–Q1 test systems of this module (`block_tests`) GMRES with ILU(0) on `S̃` needed 19 → 34
 //! iterations from 16² to 32² elements in 2D at mobilities of 1e-8 … 1e-4 m²/(Pa·s), where the
 //! pressure block is a Laplacian whose ILU(0) is not mesh-independent, and with the AMG 11 → 13;
 //! in 3D (6³ → 12³ elements) 15 → 22 against 13 → 17 (13 → 13 with the threshold below). In
-//! the undrained limit both are alike (`S̃` is then dominated by its diagonal augmentation).
+//! the undrained limit both are alike (`S̃` is then dominated by its augmentation).
 //!
 //! # The AMG of the Schur block
 //!
@@ -134,6 +157,10 @@ pub struct BlockSplit {
     /// The rigid-body modes of the displacement unknowns, numbered in increasing order of
     /// their global index.
     displacement_modes: NearNullspace,
+    /// The nonzero entries `(row, column, M_rc)` of the pressure mass matrix
+    /// ([`BlockSplit::with_pressure_mass`]), numbered like the pressure unknowns (in
+    /// increasing order of their global index); empty without one.
+    pressure_mass: Vec<(usize, usize, f64)>,
 }
 
 impl BlockSplit {
@@ -160,7 +187,39 @@ impl BlockSplit {
         Self {
             pressure,
             displacement_modes: NearNullspace::rigid_body::<D>(&displacements, position),
+            pressure_mass: Vec::new(),
         }
+    }
+
+    /// The split with the pressure mass matrix `M_qr = Σ_p w_p N_q(x_p) N_r(x_p)` of the
+    /// system's pressure unknowns (its pressure–pressure entries are read, the rest of `mass`
+    /// is ignored), which shapes the Schur approximation (module documentation, "The Schur
+    /// approximation"): only its sparsity and the ratios `M_qr / √(M_qq M_rr)` are used, so the
+    /// weights `w_p` need only be right relative to each other.
+    ///
+    /// # Panics
+    /// If `mass` does not have one row per unknown of the split.
+    pub fn with_pressure_mass(mut self, mass: &SparseMatrix) -> Self {
+        let pattern = &*mass.pattern;
+        assert_eq!(pattern.n(), self.len(), "pressure mass vs split unknowns");
+        let mut local = vec![usize::MAX; self.len()];
+        let mut count = 0;
+        for (i, l) in local.iter_mut().enumerate() {
+            if self.pressure[i] {
+                *l = count;
+                count += 1;
+            }
+        }
+        self.pressure_mass = (0..pattern.n())
+            .filter(|&j| self.pressure[j])
+            .flat_map(|j| pattern.col_range(j).map(move |k| (j, k)))
+            .filter_map(|(j, k)| {
+                let i = pattern.row_idx()[k];
+                let v = mass.values[k];
+                (self.pressure[i] && v != 0.0).then_some((local[i], local[j], v))
+            })
+            .collect();
+        self
     }
 
     /// Number of unknowns.
@@ -238,6 +297,36 @@ impl DiagonalBlock {
         }
     }
 
+    /// Adds the Schur approximation's augmentation `D^½ M̂ D^½` to the block (module
+    /// documentation, "The Schur approximation"): `d` on the diagonal, and where the mass
+    /// entries `mass` (block numbering) are given and `d_q, d_r, M_qq, M_rr > 0`,
+    /// `√(d_q d_r) M_qr / √(M_qq M_rr)` off it (entries outside the block's pattern are
+    /// dropped).
+    fn augment(&mut self, d: &[f64], mass: &[(usize, usize, f64)]) {
+        let pattern = &*self.matrix.pattern;
+        for (j, d_j) in d.iter().enumerate() {
+            let k = pattern
+                .diagonal_position(j)
+                .expect("the block's pattern holds its diagonal");
+            self.matrix.values[k] += d_j;
+        }
+        let mut diagonal = vec![0.0; d.len()];
+        for &(i, j, m) in mass {
+            if i == j {
+                diagonal[i] = m;
+            }
+        }
+        for &(i, j, m) in mass {
+            let (mi, mj) = (diagonal[i], diagonal[j]);
+            if i == j || mi <= 0.0 || mj <= 0.0 || d[i] <= 0.0 || d[j] <= 0.0 {
+                continue;
+            }
+            if let Some(k) = pattern.position(i, j) {
+                self.matrix.values[k] += (d[i] * d[j]).sqrt() * m / (mi * mj).sqrt();
+            }
+        }
+    }
+
     /// Builds the AMG of the block's values with `near_nullspace` (the constant vector when
     /// `None`) and the strength threshold `theta`.
     fn factorize(
@@ -312,23 +401,20 @@ impl Block {
                 row: u[row],
             });
         }
-        // S̃ = A_pp − diag(A_pu D_uu⁻¹ A_up): (A_pu D⁻¹ A_up)_jj = Σ_k a_jk a_kj / a_kk over
-        // the displacement unknowns k coupled with pressure j.
+        // The augmentation's diagonal d = −diag(A_pu D_uu⁻¹ A_up):
+        // (A_pu D⁻¹ A_up)_jj = Σ_k a_jk a_kj / a_kk over the displacements k coupled with j.
+        let augmentation: Vec<f64> = (p.iter().zip(&up))
+            .map(|(&j, column)| {
+                -(column.iter())
+                    .filter_map(|&(lk, a_kj)| {
+                        pat.position(j, u[lk])
+                            .map(|jk| a.values[jk] * a_kj / diag_uu[lk])
+                    })
+                    .sum::<f64>()
+            })
+            .collect();
         schur.fill(a);
-        for (lj, &j) in p.iter().enumerate() {
-            let coupling: f64 = (up[lj].iter())
-                .filter_map(|&(lk, a_kj)| {
-                    pat.position(j, u[lk])
-                        .map(|jk| a.values[jk] * a_kj / diag_uu[lk])
-                })
-                .sum();
-            let d = schur
-                .matrix
-                .pattern
-                .diagonal_position(lj)
-                .expect("the block's pattern holds its diagonal");
-            schur.matrix.values[d] -= coupling;
-        }
+        schur.augment(&augmentation, &split.pressure_mass);
         uu.factorize(Some(&split.displacement_modes), STRENGTH_THRESHOLD)?;
         schur.factorize(None, SCHUR_STRENGTH_THRESHOLD)?;
         Ok(Self {

@@ -25,10 +25,13 @@ const E: f64 = 20e6;
 const BIOT: f64 = 1.0;
 const DT: f64 = 1.0;
 
-/// A coupled system and its split.
+/// A coupled system and its split, with the pressure mass `∫ N_q N_r / G` (the weights of
+/// a coupled step's [`StepSystem::pressure_mass`](crate::system::StepSystem::pressure_mass)).
 struct Biot {
     a: SparseMatrix,
     split: BlockSplit,
+    /// The split without the pressure mass: the Schur augmentation's diagonal alone.
+    diagonal_split: BlockSplit,
 }
 
 /// Values and physical gradients of the `2^D` Q1 shape functions of a cell of side `h` at the
@@ -85,6 +88,7 @@ impl Biot {
         let m = corners.len();
         let size = m * (D + 1);
         let mut ke = vec![vec![0.0; size]; size];
+        let mut me = vec![vec![0.0; size]; size];
         let stiffness = element_stiffness::<D>(h);
         for v in 0..m {
             for w in 0..m {
@@ -115,6 +119,7 @@ impl Biot {
                     let mass = n[q] * n[v];
                     ke[q * (D + 1) + D][v * (D + 1) + D] +=
                         scale * scale * weight * (DT * kappa * laplace + mass / shear);
+                    me[q * (D + 1) + D][v * (D + 1) + D] += weight * mass / shear;
                 }
             }
         }
@@ -125,11 +130,17 @@ impl Biot {
             }
         }
         let a = assemble(k, D + 1, &ke, &corners, flat, &dof, unknowns.len());
-        let split = BlockSplit::new::<D>(&unknowns, |node| {
+        let mass = assemble(k, D + 1, &me, &corners, flat, &dof, unknowns.len());
+        let diagonal_split = BlockSplit::new::<D>(&unknowns, |node| {
             let idx = multi(node);
             std::array::from_fn(|a| idx[a] as f64 * h)
         });
-        Self { a, split }
+        let split = diagonal_split.clone().with_pressure_mass(&mass);
+        Self {
+            a,
+            split,
+            diagonal_split,
+        }
     }
 
     fn n(&self) -> usize {
@@ -141,6 +152,21 @@ impl Biot {
         let mut solver = LinearSolver::new(kind);
         solver.set_block_split(Some(self.split.clone()));
         solver
+    }
+
+    /// GMRES+block iterations to a relative residual of 1e-8 on `A x = b` (or `Aᵀ x = b`)
+    /// with the preconditioner built on `split`.
+    fn iterations(&self, split: &BlockSplit, transpose: bool) -> usize {
+        let b = load(self.n());
+        let mut x = vec![0.0; b.len()];
+        let mut solver = LinearSolver::new(gmres(1e-8));
+        solver.set_block_split(Some(split.clone()));
+        let stats = if transpose {
+            solver.solve_transpose(&self.a, &b, &mut x)
+        } else {
+            solver.solve(&self.a, &b, &mut x)
+        };
+        stats.expect("GMRES+block converges").iterations
     }
 
     /// Solves `A x = b` (or `Aᵀ x = b`) with `kind`; panics on failure.
@@ -251,9 +277,9 @@ fn iteration_counts<const D: usize>(sizes: [usize; 2], mobilities: &[f64]) -> Ve
 
 /// Mesh and mobility independence: refining the grid twice grows the GMRES+block count by at
 /// most a factor 1.5, at every mobility from 1e-12 to 1e-4 m²/(Pa·s), plain and transposed;
-/// and across those eight decades the count varies by at most a factor 3 (the pressure block
-/// changes from the stabilisation alone to a Laplacian 10⁹ times larger, and only the
-/// diagonal Schur augmentation follows the change).
+/// and across those eight decades, where the pressure block changes from the stabilisation
+/// alone to a Laplacian 10⁹ times larger, the count varies by at most a factor 2.2 (measured:
+/// 10–20 in 2D, 12–20 in 3D; with the Schur augmentation's diagonal alone it was 13–30).
 #[test]
 fn block_iteration_counts_do_not_grow_with_the_mesh_or_the_mobility() {
     let mobilities = [1e-12, 1e-10, 1e-8, 1e-6, 1e-4];
@@ -269,7 +295,43 @@ fn block_iteration_counts_do_not_grow_with_the_mesh_or_the_mobility() {
         }
         let all = counts.iter().flatten();
         let (min, max) = (all.clone().min().unwrap(), all.max().unwrap());
-        assert!(*max as f64 <= 3.0 * *min as f64, "{counts:?}");
+        assert!(*max as f64 <= 2.2 * *min as f64, "{counts:?}");
+    }
+}
+
+/// Near the undrained limit the pressure block is the stabilisation alone and the Schur
+/// complement `S ≈ A_pp + B A_uu⁻¹ Bᵀ` is spectrally a pressure mass matrix. The
+/// augmentation shaped like that mass (`D^½ M̂ D^½`) keeps the couplings of neighbouring
+/// pressures that its diagonal `D` alone drops (a Q1 mass matrix's row sum is `(3/2)^D` times
+/// its diagonal), so GMRES needs markedly fewer iterations, plain and transposed; in the flow-dominated limit, where the Darcy Laplacian dominates `S̃`, the
+/// shape changes nothing. The thresholds, 0.75 and 1.1 of the diagonal version's count, are
+/// loose against the measured ratios (printed), so the test checks the effect, not the digits.
+#[test]
+fn the_mass_shaped_schur_augmentation_cuts_the_undrained_iterations() {
+    let cases = [
+        (Biot::new::<2>(32, 1e-12), "2D undrained"),
+        (Biot::new::<3>(10, 1e-12), "3D undrained"),
+        (Biot::new::<2>(32, 1e-4), "2D drained"),
+        (Biot::new::<3>(10, 1e-4), "3D drained"),
+    ];
+    for (system, label) in cases {
+        for transpose in [false, true] {
+            let shaped = system.iterations(&system.split, transpose);
+            let diagonal = system.iterations(&system.diagonal_split, transpose);
+            println!(
+                "{label}, transpose {transpose}: {shaped} iterations with the mass shape, \
+                 {diagonal} with the diagonal alone"
+            );
+            let bound = if label.ends_with("undrained") {
+                0.75
+            } else {
+                1.1
+            };
+            assert!(
+                shaped as f64 <= bound * diagonal as f64,
+                "{label} transpose {transpose}: {shaped} vs {diagonal}"
+            );
+        }
     }
 }
 

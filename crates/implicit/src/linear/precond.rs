@@ -26,7 +26,8 @@ pub enum Preconditioner {
     Amg,
     /// The block upper-triangular preconditioner of a coupled displacement–pressure system
     /// (see [`super::block`]): `M = [[Ã_uu, A_up], [0, S̃]]` with one AMG V-cycle for
-    /// `Ã_uu⁻¹` and one for `S̃⁻¹`, `S̃ = A_pp − diag(A_pu diag(A_uu)⁻¹ A_up)`, the split handed
+    /// `Ã_uu⁻¹` and one for `S̃⁻¹`, `S̃ = A_pp + D^½ M̂ D^½` with `D = −diag(A_pu diag(A_uu)⁻¹ A_up)`
+    /// and `M̂` the shape of the pressure mass matrix, the split handed
     /// over by [`LinearSolver::set_block_split`](super::LinearSolver::set_block_split). Not
     /// symmetric: for BiCGSTAB and GMRES.
     Block,
