@@ -32,6 +32,15 @@
 //! by its inverse ([`Flow::scale`]), so that the two blocks of the residual are forces and
 //! the two blocks of the unknowns lengths, and Newton's tolerances hold for both.
 //!
+//! **Time integration.** Backward Euler by default; the variable-step BDF2 of
+//! [`TimeIntegration::Bdf2`] (second order) subtracts `c₁` times each particle's fluid-content
+//! change over the previous step from its volume term and weights the flows by `c₂`: the
+//! kernel reads `c₁ ΔΞⁿ_p` from [`FlowFrozen::carried`] and `c₂ Δt` as the step's `Δt`
+//! ([`Flow::dt`]). The stabilisation below is a rate term too (a pseudo-storage of the
+//! pressure's fluctuation), so it is integrated alike: its increments `Δp_p` less
+//! `c₁ Δp_pⁿ` ([`FlowFrozen::carried_increment`]). (Left as a backward-Euler increment, it
+//! would keep the scheme first order wherever it acts, and weight it by `1/c₂`.)
+//!
 //! **Stabilisation.** Equal-order interpolation of `u` and `p` does not satisfy the inf–sup
 //! condition: near the undrained limit (`Δt κ → 0`, `S → 0`) the pressure oscillates from
 //! node to node. The polynomial pressure projection (Bochev–Dohrmann; White & Borja for
@@ -134,6 +143,13 @@ pub struct FlowFrozen<T = f64> {
     /// Leakage `κ A_p / ℓ_p` of a particle on a drained free surface (m³/(Pa·s); m²/(Pa·s)
     /// in 2D), zero elsewhere ([`SurfaceDrain`]).
     pub leakage: T,
+    /// The share `c₁ ΔΞⁿ_p` of the particle's fluid-content change over the previous step
+    /// that a BDF2 step carries (m³; m² in 2D; [`TimeIntegration::Bdf2`]), zero under
+    /// backward Euler.
+    pub carried: T,
+    /// The share `c₁ Δp_eⁿ_p` of the particle's excess-pressure increment over the previous
+    /// step that a BDF2 step carries into the stabilisation (Pa), zero under backward Euler.
+    pub carried_increment: T,
 }
 
 impl FlowFrozen<f64> {
@@ -144,6 +160,8 @@ impl FlowFrozen<f64> {
             hydrostatic: T::cst(self.hydrostatic),
             weight: T::cst(self.weight),
             leakage: T::cst(self.leakage),
+            carried: T::cst(self.carried),
+            carried_increment: T::cst(self.carried_increment),
         }
     }
 }
@@ -151,7 +169,8 @@ impl FlowFrozen<f64> {
 /// The pore fluid of a coupled step (module docs).
 #[derive(Clone, Debug)]
 pub struct Flow {
-    /// Time step `Δt` (s); zero for an undrained step.
+    /// The weight of the step's flows (s): the time step `Δt` under backward Euler,
+    /// `c₂ Δt` under BDF2 ([`TimeIntegration`]); zero for an undrained step.
     pub dt: f64,
     /// `G_ref/h` (Pa/m): the pore pressure is `scale` times its unknown, and the fluid rows
     /// are scaled by it.
@@ -175,8 +194,12 @@ pub struct Flow {
 pub struct Coupled<T: Scalar, const D: usize> {
     /// `V⁰ (τ′ − α J p I) ΔF⁻ᵀ`.
     pub momentum: Tensor<T, D>,
-    /// `scale · Vⁿ [α (ΔJ − 1) + S Δp]`.
+    /// `scale · (ΔΞ − c₁ ΔΞⁿ)` plus the leakage of a drained free surface, with the
+    /// fluid-content change `ΔΞ` ([`Coupled::content`]).
     pub volume: T,
+    /// The particle's fluid-content change over the step, `ΔΞ = Vⁿ [α (ΔJ − 1) + S Δp]`
+    /// (m³; m² in 2D): the volume of water it expels.
+    pub content: T,
     /// `scale · Δt Vⁿ ΔJ κ (ΔFᵀΔF)⁻¹ ∇ⁿp_e`.
     pub flux: Vector<T, D>,
     /// Effective Kirchhoff stress `τ′`.
@@ -231,10 +254,9 @@ pub fn coupled_update<T: Scalar, const D: usize>(
     let dfinv = inverse(delta_f)?;
     let alpha = hydraulic.biot;
     let momentum = s - dfinv.transpose() * (alpha * p * dj * vn);
-    let volume = (alpha * (dj - T::one()) + hydraulic.storage * (excess - fluid.excess))
-        * vn
-        * T::cst(scale)
-        + excess * fluid.leakage * T::cst(scale * dt);
+    let content = (alpha * (dj - T::one()) + hydraulic.storage * (excess - fluid.excess)) * vn;
+    let volume =
+        (content - fluid.carried) * T::cst(scale) + excess * fluid.leakage * T::cst(scale * dt);
     let mobility = hydraulic.permeability.factor(dj * jn)? * hydraulic.mobility;
     let flux = dfinv
         * (dfinv.transpose() * grad_p_hat)
@@ -242,6 +264,7 @@ pub fn coupled_update<T: Scalar, const D: usize>(
     Some(Coupled {
         momentum,
         volume,
+        content,
         flux,
         tau,
         state,
@@ -380,7 +403,8 @@ impl<const D: usize> StepSystem<D> {
         Ok(f)
     }
 
-    /// `Δp_p = scale p̂_p − p_eⁿ_p` of every particle of a patch.
+    /// `Δp_p = scale p̂_p − p_eⁿ_p` of every particle of a patch, less the share of the
+    /// previous step's a BDF2 step carries ([`FlowFrozen::carried_increment`]).
     fn pressure_increments(&self, patch: &[usize], x: &[f64]) -> Vec<f64> {
         let flow = self.fluid();
         patch
@@ -390,7 +414,7 @@ impl<const D: usize> StepSystem<D> {
                 self.frozen[p]
                     .stencil
                     .for_each(|n| p_hat += n.weight * self.dofs.value(n.flat, D, x));
-                flow.scale * p_hat - flow.particles[p].excess
+                flow.scale * p_hat - flow.particles[p].excess - flow.particles[p].carried_increment
             })
             .collect()
     }
@@ -839,6 +863,51 @@ pub struct PoreFluid<const D: usize> {
     pub inflow: Vec<Inflow>,
     /// The particles of drained free surfaces.
     pub drains: Vec<SurfaceDrain>,
+    /// The time discretisation of the fluid balance.
+    pub time_integration: TimeIntegration,
+}
+
+/// The time discretisation of the fluid balance `dΞ/dt + ∇·q = 0` (`Ξ` the fluid content,
+/// `q` the Darcy flux) over a step from `tⁿ` to `tⁿ⁺¹ = tⁿ + Δt`, the mixture balance being
+/// quasi-static at `tⁿ⁺¹`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimeIntegration {
+    /// Backward Euler, first order: `ΔΞ + Δt ∇·qⁿ⁺¹ = 0`. Its lag on a decaying mode
+    /// `exp(−λt)` grows as `λ²Δt t/2`.
+    #[default]
+    BackwardEuler,
+    /// The two-step backward differentiation formula with variable steps, second order and
+    /// L-stable: with `ω = Δt/Δtⁿ⁻¹` the ratio to the previous step,
+    ///
+    /// ```text
+    /// ΔΞ − c₁ ΔΞⁿ + c₂ Δt ∇·qⁿ⁺¹ = 0,   c₁ = ω²/(1 + 2ω),  c₂ = (1 + ω)/(1 + 2ω)
+    /// ```
+    ///
+    /// (`ΔΞⁿ` the previous step's change, carried per particle: [`FlowFrozen::carried`]),
+    /// `ω = 1` giving `ΔΞ − ΔΞⁿ/3 + (2/3) Δt ∇·q = 0`. A step takes backward Euler instead
+    /// when there is no previous step with time (the first, or the one after the undrained
+    /// loading: the load's jump is not a smooth change to extrapolate) or when it is more
+    /// than [`TimeIntegration::MAX_RATIO`] times the previous one.
+    Bdf2,
+}
+
+impl TimeIntegration {
+    /// The largest step ratio `ω` a BDF2 step takes: the formula is zero-stable for
+    /// `ω < 1 + √2`, and 2 keeps a margin.
+    pub const MAX_RATIO: f64 = 2.0;
+
+    /// `(c₁, c₂)` of a step of `dt` after one of `previous` (zero when there was none with
+    /// time): `(0, 1)`, backward Euler, unless BDF2 applies (variant docs).
+    pub fn weights(self, dt: f64, previous: f64) -> (f64, f64) {
+        let omega = dt / previous;
+        match self {
+            Self::Bdf2 if previous > 0.0 && dt > 0.0 && omega <= Self::MAX_RATIO => (
+                omega * omega / (1.0 + 2.0 * omega),
+                (1.0 + omega) / (1.0 + 2.0 * omega),
+            ),
+            _ => (0.0, 1.0),
+        }
+    }
 }
 
 /// A particle of a drained free surface, which moves with the soil (unlike a drained grid

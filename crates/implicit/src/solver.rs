@@ -2,7 +2,7 @@
 //! in half when Newton fails.
 
 use crate::dofs::DofMap;
-use crate::flow::{Flow, FlowFrozen, PoreFluid};
+use crate::flow::{Flow, FlowFrozen, PoreFluid, TimeIntegration};
 use crate::kernel::Frozen;
 use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
@@ -241,6 +241,20 @@ pub struct ImplicitSolver<const D: usize> {
     structure: Mutex<Option<Arc<Structure>>>,
     /// Total displacement of the force-controlled components of each constraint.
     constraint_displacements: Vec<Vector<f64, D>>,
+    /// A coupled run with BDF2: the last accepted (sub-)step's time step and each particle's
+    /// fluid-content change over it ([`crate::flow::TimeIntegration::Bdf2`]).
+    fluid_history: Option<FluidHistory>,
+}
+
+/// What a BDF2 step needs of the step before it.
+#[derive(Clone, Debug)]
+struct FluidHistory {
+    /// Its time step `Δtⁿ⁻¹` (s; zero for an undrained step).
+    dt: f64,
+    /// Per particle, its fluid-content change `ΔΞⁿ_p` (m³; m² in 2D).
+    content: Vec<f64>,
+    /// Per particle, its excess-pressure increment `Δp_eⁿ_p` (Pa).
+    increment: Vec<f64>,
 }
 
 impl<const D: usize> ImplicitSolver<D> {
@@ -317,6 +331,7 @@ impl<const D: usize> ImplicitSolver<D> {
             load_factor: 0.0,
             steps: 0,
             structure: Mutex::new(None),
+            fluid_history: None,
         })
     }
 
@@ -505,9 +520,18 @@ impl<const D: usize> ImplicitSolver<D> {
     /// [`crate::flow`]): the time step, the scale `G_ref/h` with `G_ref` the volume-weighted
     /// mean shear modulus of the particles, and per particle the start-of-step excess and
     /// hydrostatic pressures and the stabilisation weight `Vⁿ/G`; the stabilisation's patches
-    /// group the particles by grid cell, in a deterministic order.
+    /// group the particles by grid cell, in a deterministic order. A BDF2 step carries `c₁`
+    /// of each particle's last fluid-content change and weights its flows by `c₂`
+    /// ([`crate::flow::TimeIntegration::weights`]).
     fn flow(&self, fluid: &PoreFluid<D>, p: &Particles<f64, D>, from: f64, to: f64) -> Flow {
         let dt = fluid.schedule.at(to).0 - fluid.schedule.at(from).0;
+        let history = self
+            .fluid_history
+            .as_ref()
+            .filter(|h| h.content.len() == p.len());
+        let (carry, weight) = fluid
+            .time_integration
+            .weights(dt, history.map_or(0.0, |h| h.dt));
         let shear: Vec<f64> = (0..p.len())
             .map(|i| {
                 self.config.materials[p.material[i] as usize]
@@ -528,6 +552,8 @@ impl<const D: usize> ImplicitSolver<D> {
                     hydrostatic,
                     weight: volume[i] / shear[i],
                     leakage: 0.0,
+                    carried: history.map_or(0.0, |h| carry * h.content[i]),
+                    carried_increment: history.map_or(0.0, |h| carry * h.increment[i]),
                 }
             })
             .collect();
@@ -550,7 +576,7 @@ impl<const D: usize> ImplicitSolver<D> {
             Vec::new()
         };
         Flow {
-            dt,
+            dt: weight * dt,
             scale: g_ref / self.config.grid.h,
             hydraulic: fluid.hydraulic.clone(),
             particles,
@@ -790,6 +816,18 @@ impl<const D: usize> ImplicitSolver<D> {
             start: particles,
             solution: &x,
         });
+        if let Some(fluid) = &self.config.pore_fluid
+            && fluid.time_integration == TimeIntegration::Bdf2
+        {
+            let start = &system.flow.as_ref().expect("a coupled step").particles;
+            self.fluid_history = Some(FluidHistory {
+                dt: fluid.schedule.at(to).0 - fluid.schedule.at(from).0,
+                content: update.iter().map(|u| u.fluid_content).collect(),
+                increment: (update.iter().zip(start))
+                    .map(|(u, s)| u.excess_pore_pressure - s.excess)
+                    .collect(),
+            });
+        }
         for (i, u) in update.into_iter().enumerate() {
             particles.x[i] += u.displacement;
             particles.v[i] += u.velocity_increment;

@@ -972,17 +972,17 @@ impl<const D: usize> StepSystem<D> {
             .map(|p| {
                 let fr = &self.frozen[p];
                 let g = self.delta_f_real(p, x);
-                let (tau, state, excess) = match &self.flow {
+                let (tau, state, excess, content) = match &self.flow {
                     Some(_) => {
                         let c = self
                             .coupled_real(p, x, materials)
                             .ok_or(Inverted { particle: p })?;
-                        (c.tau, c.state, c.excess)
+                        (c.tau, c.state, c.excess, c.content)
                     }
                     None => {
                         let (_, tau, state) = particle_stress(&materials.real[fr.material], fr, &g)
                             .ok_or(Inverted { particle: p })?;
-                        (tau, state, 0.0)
+                        (tau, state, 0.0, 0.0)
                     }
                 };
                 let f = g * fr.f_n;
@@ -1006,6 +1006,7 @@ impl<const D: usize> StepSystem<D> {
                     stress: tau / j,
                     state,
                     excess_pore_pressure: excess,
+                    fluid_content: content,
                 })
             })
             .collect()
@@ -1030,4 +1031,7 @@ pub struct ParticleUpdate<const D: usize> {
     /// Excess pore pressure `p_e` at the end of a coupled step (Pa, compression positive;
     /// zero otherwise).
     pub excess_pore_pressure: f64,
+    /// Fluid-content change `ΔΞ` over a coupled step, the volume of water the particle
+    /// expelled ([`crate::flow::Coupled::content`]; m³, m² in 2D; zero otherwise).
+    pub fluid_content: f64,
 }

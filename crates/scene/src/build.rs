@@ -6,7 +6,7 @@ use crate::output::{Field, WaterTable};
 use crate::schema::{
     ConsolidationSpec, DEFAULT_FLUID_GAMMA, DEFAULT_LINEAR_MAX_ITERATIONS, DEFAULT_LINEAR_REL_TOL,
     Device, LinearKind, LinearSpec, MaterialSpec, NewtonSpec, PermeabilityLaw, Scene, SolverKind,
-    SolverSpec, TimeUnit,
+    SolverSpec, TimeScheme, TimeUnit,
 };
 use loam_core::constitutive::{
     DruckerPrager, Elasticity, Lame, Model, ModifiedCamClay, MohrCoulomb, Preconsolidation, Shear,
@@ -16,7 +16,7 @@ use loam_core::{
     Shape, TimeStep, Transfer,
 };
 use loam_implicit::NewtonSettings;
-use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule};
+use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule, TimeIntegration};
 use loam_implicit::linear::LinearSolverKind;
 use loam_implicit::strength_reduction::SearchSettings;
 use nalgebra::SVector;
@@ -580,6 +580,10 @@ impl Scene {
             schedule,
             inflow: Vec::new(),
             drains: Vec::new(),
+            time_integration: match p.consolidation.map(|k| k.scheme) {
+                Some(TimeScheme::Bdf2) => TimeIntegration::Bdf2,
+                _ => TimeIntegration::BackwardEuler,
+            },
         })
     }
 

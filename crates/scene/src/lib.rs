@@ -85,5 +85,5 @@ pub use schema::{
     DEFAULT_FLUID_GAMMA, Device, Face, FosSpec, FrictionSpec, GridSpec, InflowSpec,
     InitialStressSpec, LinearKind, LinearSpec, LoadSpec, MaterialSpec, NewtonSpec, ObstacleKind,
     ObstacleSpec, OutputSpec, PermeabilityLaw, PointLoadSpec, PoreFluidSpec, ProbeSpec,
-    RotationSpec, Scene, SolverKind, SolverSpec, SurfaceSpec, TimeUnit, TractionSpec,
+    RotationSpec, Scene, SolverKind, SolverSpec, SurfaceSpec, TimeScheme, TimeUnit, TractionSpec,
 };

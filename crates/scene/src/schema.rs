@@ -629,10 +629,29 @@ pub struct ConsolidationSpec {
     /// The unit of `time_step`, `end_time` and of the times the run writes (default `"s"`).
     #[serde(default)]
     pub time_unit: TimeUnit,
+    /// The time discretisation of the pore water's mass balance (default
+    /// `"backward_euler"`).
+    #[serde(default)]
+    pub scheme: TimeScheme,
 }
 
 fn default_growth() -> f64 {
     1.0
+}
+
+/// `solver.consolidation.scheme`: how a coupled run integrates the pore water's mass
+/// balance over a time step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeScheme {
+    /// Backward Euler: first order, and what the adjoint (`loam gradient`, `loam invert`)
+    /// differentiates.
+    #[default]
+    BackwardEuler,
+    /// The two-step backward differentiation formula with variable steps: second order,
+    /// L-stable, steps growing by at most 2 (a step after the undrained loading, or more than
+    /// twice the one before it, takes backward Euler).
+    Bdf2,
 }
 
 impl ConsolidationSpec {

@@ -152,6 +152,15 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
     let footing = repo("examples/inverse/footing_clay.toml");
     let dam = repo("examples/inverse/dambreak_small.toml");
     let layer = repo("examples/inverse/consolidation_layer.toml");
+    // The same layer integrated by BDF2, which the adjoint does not differentiate.
+    let layer_bdf2 = dir.path().join("layer_bdf2.toml");
+    let layer_text = std::fs::read_to_string(&layer).unwrap();
+    assert!(layer_text.contains("growth = 1.3\n"));
+    std::fs::write(
+        &layer_bdf2,
+        layer_text.replace("growth = 1.3\n", "growth = 1.3\nscheme = \"bdf2\"\n"),
+    )
+    .unwrap();
     let on = |scene: &Path| format!("scene = \"{}\"\n", scene.display());
     let young = "[[parameters]]\nname = \"materials[0].young\"\ninitial = 1.2e6\ntruth = 1.0e6\n";
     let synth = "[synthetic]\nids = [31]\n";
@@ -307,6 +316,14 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
             ),
             "observations.piezometers[0].at",
             "expected 2 finite coordinates",
+        ),
+        (
+            format!(
+                "{}{young}{synth}[[observations.piezometers]]\nname = \"p\"\nat = [0.0, 1.5]\n",
+                on(&layer_bdf2)
+            ),
+            "solver.consolidation.scheme",
+            "differentiates backward Euler steps only",
         ),
     ];
     std::fs::write(

@@ -3,7 +3,7 @@
 
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule};
+use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule, TimeIntegration};
 use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
 
 /// Deterministic pseudo-random numbers in [−1, 1).
@@ -77,6 +77,7 @@ fn block<const D: usize>(
             schedule,
             inflow: Vec::new(),
             drains: Vec::new(),
+            time_integration: TimeIntegration::BackwardEuler,
         }),
     };
     (config, particles)
@@ -332,5 +333,79 @@ fn the_pressure_mass_integrates_the_stabilisation_weights() {
                 "{moment} vs {weighted}"
             );
         }
+    }
+}
+
+/// The BDF2 weights: `c₁ = ω²/(1 + 2ω)`, `c₂ = (1 + ω)/(1 + 2ω)` (`ΔΞ − ΔΞⁿ/3 + (2/3) Δt ∇·q`
+/// at equal steps), and backward Euler `(0, 1)` without a previous step with time, beyond the
+/// largest ratio, or with the default scheme.
+#[test]
+fn bdf2_weights_follow_the_step_ratio() {
+    let close = |(a, b): (f64, f64), (c, d): (f64, f64)| (a - c).abs() + (b - d).abs() < 1e-15;
+    let bdf2 = TimeIntegration::Bdf2;
+    assert!(close(bdf2.weights(1.0, 1.0), (1.0 / 3.0, 2.0 / 3.0)));
+    // ω = 2: c₁ = 4/5, c₂ = 3/5; ω = 1/2: c₁ = 1/8, c₂ = 3/4.
+    assert!(close(bdf2.weights(2.0, 1.0), (0.8, 0.6)));
+    assert!(close(bdf2.weights(0.5, 1.0), (0.125, 0.75)));
+    for (dt, previous) in [(1.0, 0.0), (2.5, 1.0), (0.0, 1.0)] {
+        assert_eq!(
+            bdf2.weights(dt, previous),
+            (0.0, 1.0),
+            "{dt} after {previous}"
+        );
+    }
+    assert_eq!(TimeIntegration::BackwardEuler.weights(1.0, 1.0), (0.0, 1.0));
+}
+
+/// The order in time of the consolidation of the saturated block of [`block`] (2D, linear
+/// elastic, c_v ≈ 1.3 m²/s over about 1 m: T_v ≈ 0.2 at t = 0.2 s; the pressure stabilisation
+/// on, and busy: the initial pressures are noisy): the pore pressures at t = 0.2 s with 4, 8
+/// and 16 equal steps against a run of 512 BDF2 steps (whose own time error is ~(1/32)² of
+/// the 16-step run's). Every error halves with the step under backward Euler (observed order
+/// 0.8–1.3; measured 1.02) and falls 4× under BDF2 (order ≥ 1.7; measured 1.9 and 2.2: the
+/// first step after the undrained loading takes backward Euler, a local error of second order
+/// that leaves the global order at two), and BDF2 is the more accurate at every step. (With
+/// the stabilisation integrated as a backward-Euler increment instead, BDF2 fell to first
+/// order here and converged to another limit.)
+#[test]
+fn bdf2_converges_at_second_order_in_time() {
+    let soil = Material::elastic(ModelKind::LinearElastic, 1e7, 0.3, 1800.0);
+    let end = 0.2;
+    let run = |scheme: TimeIntegration, steps: usize| {
+        let (mut config, mut particles) = block::<2>(soil.clone(), Shape::QuadraticBspline, true);
+        let fluid = config.pore_fluid.as_mut().expect("coupled");
+        fluid.schedule = Schedule::geometric(1, end / steps as f64, 1.0, end);
+        fluid.time_integration = scheme;
+        config.load_steps = fluid.schedule.steps();
+        let mut solver = ImplicitSolver::new(config, &particles).expect("valid");
+        while !solver.finished() {
+            solver.step(&mut particles).expect("converges");
+        }
+        assert!((solver.time() - end).abs() < 1e-12);
+        particles.pore_pressure
+    };
+    let reference = run(TimeIntegration::Bdf2, 512);
+    let error = |p: Vec<f64>| {
+        p.iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max)
+    };
+    let errors = |scheme| [4, 8, 16].map(|n| error(run(scheme, n)));
+    let euler = errors(TimeIntegration::BackwardEuler);
+    let bdf2 = errors(TimeIntegration::Bdf2);
+    for k in 0..2 {
+        let order = |e: &[f64; 3]| (e[k] / e[k + 1]).log2();
+        assert!(
+            (0.8..=1.3).contains(&order(&euler)),
+            "backward Euler: errors {euler:?}"
+        );
+        assert!(order(&bdf2) >= 1.7, "BDF2: errors {bdf2:?}");
+    }
+    for k in 0..3 {
+        assert!(
+            bdf2[k] < euler[k],
+            "BDF2 {bdf2:?} against backward Euler {euler:?}"
+        );
     }
 }

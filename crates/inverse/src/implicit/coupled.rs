@@ -271,6 +271,9 @@ fn frozen<T: Scalar + From<f64>, const D: usize>(
                 T::cst(f64::MIN_POSITIVE)
             },
         leakage: hydraulic.mobility * T::cst(fluid.conductance),
+        // The adjoint differentiates backward Euler steps only (`check_supported`).
+        carried: T::zero(),
+        carried_increment: T::zero(),
     }
 }
 

@@ -2,7 +2,8 @@
 //! the materials, `[solver.consolidation]`, and that every drained face bounds the soil.
 
 use super::Checker;
-use crate::schema::{Face, LinearKind, PermeabilityLaw, Scene, SolverKind};
+use crate::schema::{Face, LinearKind, PermeabilityLaw, Scene, SolverKind, TimeScheme};
+use loam_implicit::flow::TimeIntegration;
 use loam_implicit::linear::Preconditioner;
 
 /// The hydraulic keys of a material: only used with a `[pore_fluid]`.
@@ -166,6 +167,17 @@ impl Scene {
                     c.issue(
                         "solver.consolidation.growth",
                         format!("must be at least 1, got {}", k.growth),
+                    );
+                    false
+                } else if k.scheme == TimeScheme::Bdf2 && k.growth > TimeIntegration::MAX_RATIO {
+                    c.issue(
+                        "solver.consolidation.growth",
+                        format!(
+                            "scheme = \"bdf2\" takes steps that grow by at most {} (beyond, \
+                             it is not zero-stable), got {}",
+                            TimeIntegration::MAX_RATIO,
+                            k.growth
+                        ),
                     );
                     false
                 } else {

@@ -191,6 +191,17 @@ fn coupled_rules_name_the_field() {
             "solver.consolidation.growth: must be at least 1, got 0.5",
         ),
         (
+            "end_time = 55600.0",
+            "end_time = 55600.0\ngrowth = 2.5\nscheme = \"bdf2\"",
+            "solver.consolidation.growth: scheme = \"bdf2\" takes steps that grow by at most 2 \
+             (beyond, it is not zero-stable), got 2.5",
+        ),
+        (
+            "end_time = 55600.0",
+            "end_time = 55600.0\nscheme = \"crank_nicolson\"",
+            "solver.consolidation.scheme: unknown variant `crank_nicolson`",
+        ),
+        (
             "time_step = 100.0",
             "time_step = 1e-6",
             "solver.consolidation.time_step: 0.000001 s to reach end_time = 55600 s makes",
