@@ -26,6 +26,9 @@
 //!   unknowns E, ν, the hydraulic conductivity, one point of the strip's load and gravity;
 //!   the loss tracks the settlement under the strip and the pore pressures of two piezometers
 //!   under it after every step;
+//! - the same layer with the fluid balance integrated by BDF2 (every step after the first
+//!   drained one carries the previous step's fluid-content change and pressure increment):
+//!   unknowns E, the conductivity and the point of the load;
 //! - `implicit_consolidation_3d`, the same in 3D under a square load (a quarter by
 //!   symmetry, 512 particles, 7 steps): unknowns E, the conductivity and gravity;
 //! - `implicit_consolidation_clay`, the same on prestressed Modified Cam-Clay (K0 = 0.6, OCR
@@ -52,6 +55,7 @@
 use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_text};
 use loam_core::Particles;
 use loam_implicit::ImplicitConfig;
+use loam_implicit::flow::TimeIntegration;
 use loam_inverse::implicit::{
     ImplicitObservations, ImplicitParam, ImplicitProblem, Observation, Quantity, check,
     run_recorded,
@@ -268,12 +272,16 @@ fn nearest<const D: usize>(initial: &Particles<f64, D>, at: [f64; D]) -> usize {
 fn consolidation<const D: usize>(
     label: &'static str,
     file: &str,
+    scheme: TimeIntegration,
     params: Vec<ImplicitParam>,
 ) -> Result<Outcome, VerifyError> {
     let built = scenes::build::<D>(&scenes::scene(file));
-    let config = built
+    let mut config = built
         .implicit_config()
         .expect("the scene's solver is implicit");
+    if let Some(fluid) = config.pore_fluid.as_mut() {
+        fluid.time_integration = scheme;
+    }
     let initial = built.particles;
     let above = |height: f64| std::array::from_fn(|k| if k == D - 1 { height } else { 0.0 });
     let surface = nearest(&initial, above(1.0));
@@ -331,6 +339,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         consolidation::<2>(
             "consolidation (u–p)",
             "implicit_consolidation",
+            TimeIntegration::BackwardEuler,
             vec![
                 ImplicitParam::Material(0, MaterialField::Young),
                 ImplicitParam::Material(0, MaterialField::Poisson),
@@ -339,9 +348,20 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
                 ImplicitParam::Gravity(1),
             ],
         )?,
+        consolidation::<2>(
+            "consolidation, BDF2 (u–p)",
+            "implicit_consolidation",
+            TimeIntegration::Bdf2,
+            vec![
+                ImplicitParam::Material(0, MaterialField::Young),
+                ImplicitParam::Conductivity(0),
+                ImplicitParam::PointLoad(0, 1),
+            ],
+        )?,
         consolidation::<3>(
             "consolidation in 3D (u–p)",
             "implicit_consolidation_3d",
+            TimeIntegration::BackwardEuler,
             vec![
                 ImplicitParam::Material(0, MaterialField::Young),
                 ImplicitParam::Conductivity(0),
@@ -351,6 +371,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         consolidation::<2>(
             "clay consolidation (u–p)",
             "implicit_consolidation_clay",
+            TimeIntegration::BackwardEuler,
             vec![
                 ImplicitParam::Material(0, MaterialField::Lambda),
                 ImplicitParam::Material(0, MaterialField::Kappa),

@@ -172,6 +172,9 @@ pub struct Flow {
     /// The weight of the step's flows (s): the time step `Δt` under backward Euler,
     /// `c₂ Δt` under BDF2 ([`TimeIntegration`]); zero for an undrained step.
     pub dt: f64,
+    /// `c₁` of a BDF2 step ([`TimeIntegration::weights`]): the share of the previous step's
+    /// fluid-content change and pressure increment it carries; zero under backward Euler.
+    pub carry: f64,
     /// `G_ref/h` (Pa/m): the pore pressure is `scale` times its unknown, and the fluid rows
     /// are scaled by it.
     pub scale: f64,
@@ -897,14 +900,19 @@ impl TimeIntegration {
     pub const MAX_RATIO: f64 = 2.0;
 
     /// `(c₁, c₂)` of a step of `dt` after one of `previous` (zero when there was none with
-    /// time): `(0, 1)`, backward Euler, unless BDF2 applies (variant docs).
+    /// time): `(0, 1)`, backward Euler, unless BDF2 applies (variant docs). The ratio is
+    /// compared with [`TimeIntegration::MAX_RATIO`] to a relative `1e-9`: steps that double
+    /// (`growth = 2`) are differences of the schedule's times and come out a few ulp either
+    /// side of 2.
     pub fn weights(self, dt: f64, previous: f64) -> (f64, f64) {
         let omega = dt / previous;
         match self {
-            Self::Bdf2 if previous > 0.0 && dt > 0.0 && omega <= Self::MAX_RATIO => (
-                omega * omega / (1.0 + 2.0 * omega),
-                (1.0 + omega) / (1.0 + 2.0 * omega),
-            ),
+            Self::Bdf2 if previous > 0.0 && dt > 0.0 && omega <= Self::MAX_RATIO * (1.0 + 1e-9) => {
+                (
+                    omega * omega / (1.0 + 2.0 * omega),
+                    (1.0 + omega) / (1.0 + 2.0 * omega),
+                )
+            }
             _ => (0.0, 1.0),
         }
     }

@@ -33,4 +33,6 @@ pub use balance::{Balance, balance_initial_stress, balance_rate};
 pub use dofs::NodeDof;
 pub use loam_core::{NodeConstraint, PointLoad};
 pub use newton::{NewtonReport, NewtonSettings, TangentMethod};
-pub use solver::{AcceptedStep, ImplicitConfig, ImplicitError, ImplicitSolver, StepReport};
+pub use solver::{
+    AcceptedStep, FluidHistory, ImplicitConfig, ImplicitError, ImplicitSolver, StepReport,
+};

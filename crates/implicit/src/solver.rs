@@ -167,8 +167,11 @@ pub struct AcceptedStep<'a, const D: usize> {
     pub to: f64,
     /// The particles at its start.
     pub start: &'a Particles<f64, D>,
-    /// The converged unknowns `Δu` of [`ImplicitSolver::system`]`(start, from, to)`.
+    /// The converged unknowns `Δu` of
+    /// [`ImplicitSolver::system_after`]`(start, from, to, history)`.
     pub solution: &'a [f64],
+    /// What a BDF2 step read of the step before it (`None` for every other step).
+    pub history: Option<&'a FluidHistory>,
 }
 
 /// Lets every node that particles reach but that is too weakly supported to take part in the
@@ -246,15 +249,16 @@ pub struct ImplicitSolver<const D: usize> {
     fluid_history: Option<FluidHistory>,
 }
 
-/// What a BDF2 step needs of the step before it.
-#[derive(Clone, Debug)]
-struct FluidHistory {
+/// What a BDF2 step needs of the (sub-)step before it
+/// ([`crate::flow::TimeIntegration::Bdf2`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FluidHistory {
     /// Its time step `Δtⁿ⁻¹` (s; zero for an undrained step).
-    dt: f64,
+    pub dt: f64,
     /// Per particle, its fluid-content change `ΔΞⁿ_p` (m³; m² in 2D).
-    content: Vec<f64>,
+    pub content: Vec<f64>,
     /// Per particle, its excess-pressure increment `Δp_eⁿ_p` (Pa).
-    increment: Vec<f64>,
+    pub increment: Vec<f64>,
 }
 
 impl<const D: usize> ImplicitSolver<D> {
@@ -375,6 +379,21 @@ impl<const D: usize> ImplicitSolver<D> {
         from: f64,
         to: f64,
     ) -> Result<StepSystem<D>, ImplicitError> {
+        self.system_after(p, from, to, self.fluid_history.as_ref())
+    }
+
+    /// [`ImplicitSolver::system`] of a step that follows one whose BDF2 history is `history`
+    /// (`None`: a backward-Euler step): how the adjoint rebuilds a recorded step.
+    ///
+    /// # Errors
+    /// As [`ImplicitSolver::system`].
+    pub fn system_after(
+        &self,
+        p: &Particles<f64, D>,
+        from: f64,
+        to: f64,
+        history: Option<&FluidHistory>,
+    ) -> Result<StepSystem<D>, ImplicitError> {
         let cfg = &self.config;
         let grid = &cfg.grid;
         let mut frozen = Vec::with_capacity(p.len());
@@ -484,7 +503,7 @@ impl<const D: usize> ImplicitSolver<D> {
             *cache = Some(system.structure().clone());
         }
         if let Some(fluid) = &cfg.pore_fluid {
-            system.flow = Some(self.flow(fluid, p, from, to));
+            system.flow = Some(self.flow(fluid, p, from, to, history));
             system.add_inflow(&fluid.inflow);
         }
         if let Some(dt) = cfg.dynamics {
@@ -523,12 +542,16 @@ impl<const D: usize> ImplicitSolver<D> {
     /// group the particles by grid cell, in a deterministic order. A BDF2 step carries `c₁`
     /// of each particle's last fluid-content change and weights its flows by `c₂`
     /// ([`crate::flow::TimeIntegration::weights`]).
-    fn flow(&self, fluid: &PoreFluid<D>, p: &Particles<f64, D>, from: f64, to: f64) -> Flow {
+    fn flow(
+        &self,
+        fluid: &PoreFluid<D>,
+        p: &Particles<f64, D>,
+        from: f64,
+        to: f64,
+        history: Option<&FluidHistory>,
+    ) -> Flow {
         let dt = fluid.schedule.at(to).0 - fluid.schedule.at(from).0;
-        let history = self
-            .fluid_history
-            .as_ref()
-            .filter(|h| h.content.len() == p.len());
+        let history = history.filter(|h| h.content.len() == p.len());
         let (carry, weight) = fluid
             .time_integration
             .weights(dt, history.map_or(0.0, |h| h.dt));
@@ -577,6 +600,7 @@ impl<const D: usize> ImplicitSolver<D> {
         };
         Flow {
             dt: weight * dt,
+            carry: if history.is_some() { carry } else { 0.0 },
             scale: g_ref / self.config.grid.h,
             hydraulic: fluid.hydraulic.clone(),
             particles,
@@ -815,6 +839,11 @@ impl<const D: usize> ImplicitSolver<D> {
             to,
             start: particles,
             solution: &x,
+            history: system
+                .flow
+                .as_ref()
+                .filter(|f| f.carry != 0.0)
+                .and(self.fluid_history.as_ref()),
         });
         if let Some(fluid) = &self.config.pore_fluid
             && fluid.time_integration == TimeIntegration::Bdf2

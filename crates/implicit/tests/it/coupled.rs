@@ -347,7 +347,15 @@ fn bdf2_weights_follow_the_step_ratio() {
     // ω = 2: c₁ = 4/5, c₂ = 3/5; ω = 1/2: c₁ = 1/8, c₂ = 3/4.
     assert!(close(bdf2.weights(2.0, 1.0), (0.8, 0.6)));
     assert!(close(bdf2.weights(0.5, 1.0), (0.125, 0.75)));
-    for (dt, previous) in [(1.0, 0.0), (2.5, 1.0), (0.0, 1.0)] {
+    // A doubling step computed as a difference of times, a few ulp above 2, is still BDF2.
+    let (t1, t2) = (0.1, 0.1 + 0.2);
+    assert!((t2 - t1) / t1 > 2.0);
+    let (c1, c2) = bdf2.weights(t2 - t1, t1);
+    assert!(
+        (c1 - 0.8).abs() < 1e-14 && (c2 - 0.6).abs() < 1e-14,
+        "{c1} {c2}"
+    );
+    for (dt, previous) in [(1.0, 0.0), (2.5, 1.0), (2.001, 1.0), (0.0, 1.0)] {
         assert_eq!(
             bdf2.weights(dt, previous),
             (0.0, 1.0),

@@ -44,6 +44,14 @@
 //! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
 //!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
 //!
+//! A BDF2 step also reads the previous step's fluid-content change `ΔΞⁿₚ` and excess-pressure
+//! increment `Δp_eⁿₚ` (`c₁ ΔΞⁿ` enters the fluid rows, `c₁ Δp_eⁿ` the stabilisation's
+//! increment, [`loam_implicit::flow::TimeIntegration::Bdf2`]), and hands on its own `ΔΞₚ` and
+//! `Δpₚ`: they are two more inputs of the particle ([`FluidInputs`]) and two more outputs,
+//! weighted in `ψₚ` by their adjoints `ΔΞ̄ₚ`, `Δp̄ₚ` from the next sub-step's reverse (zero
+//! after the last, and through a backward-Euler step, which reads them with `c₁ = 0`). The
+//! recorded sub-step keeps what it read ([`super::record::SubStep::fluid_history`]).
+//!
 //! The row scale `s = G_ref/h` is held in both: the physical solution does not depend on it
 //! (it scales the pressure unknowns and the fluid rows alike), so it carries no derivative.
 
@@ -87,6 +95,22 @@ pub struct FluidSetting<'a, const D: usize> {
     pub conductance: f64,
     /// Volume rate `Q` of water fed through the particle (zero elsewhere).
     pub inflow: f64,
+    /// `c₁` of a BDF2 step, the share of the previous step's fluid-content change and
+    /// pressure increment it carries; zero under backward Euler.
+    pub carry: f64,
+}
+
+/// A particle's pore-fluid inputs to a coupled sub-step: its start excess pore pressure and
+/// what a BDF2 step reads of the previous step, `c₁ ΔΞⁿ` and `c₁ Δp_eⁿ` ([`FlowFrozen`]; a
+/// backward-Euler step reads them with `c₁ = 0`).
+#[derive(Clone, Copy, Debug)]
+pub struct FluidInputs<T> {
+    /// Excess pore pressure `p_e` at the start (Pa).
+    pub excess: T,
+    /// The previous step's fluid-content change `ΔΞⁿ` (m³; m² in 2D).
+    pub content: T,
+    /// The previous step's excess-pressure increment `Δp_eⁿ` (Pa).
+    pub increment: T,
 }
 
 impl<const D: usize> FluidSetting<'_, D> {
@@ -134,8 +158,13 @@ pub struct CoupledParticle<T, const D: usize> {
     pub end: ParticleState<T, D>,
     /// End excess pore pressure `p_e' = s p̂` (Pa).
     pub excess: T,
-    /// `Δp = p_e' − p_e`.
+    /// `Δp = p_e' − p_e`, which the next step carries under BDF2.
     pub increment: T,
+    /// The fluid-content change `ΔΞ` ([`loam_implicit::flow::Coupled::content`]), which the
+    /// next step carries under BDF2.
+    pub content: T,
+    /// The stabilisation's increment `Δp − c₁ Δp_eⁿ` (`Δp` under backward Euler).
+    pub stabilised: T,
     /// Stabilisation weight `w = Vⁿ/G`.
     pub stabilisation: T,
 }
@@ -193,7 +222,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     material: &Material<T>,
     hydraulic: &Hydraulic<T>,
     state: &ParticleState<T, D>,
-    excess: T,
+    inputs: &FluidInputs<T>,
     loads: &Loads<T, D>,
     sums: impl FnOnce(&Stencil<T, D>) -> StencilSums<T, D>,
 ) -> Option<CoupledParticle<T, D>> {
@@ -204,7 +233,7 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
         grad_p_hat: grad,
         dx,
     } = sums(&stencil);
-    let frozen = frozen(setting, fluid, material, hydraulic, state, excess);
+    let frozen = frozen(setting, fluid, material, hydraulic, state, inputs);
     let c = coupled_update(
         material,
         &CoupledStart {
@@ -245,24 +274,28 @@ pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
             mass: state.mass,
         },
         excess: c.excess,
-        increment: c.excess - excess,
+        increment: c.excess - inputs.excess,
+        content: c.content,
+        stabilised: c.excess - inputs.excess - frozen.carried_increment,
         stabilisation: frozen.weight,
     })
 }
 
 /// What the kernel holds of a particle's start state: its excess and hydrostatic pore
-/// pressure, the stabilisation weight `wₚ = Vⁿ/G` and the drained surface's leakage.
+/// pressure, the stabilisation weight `wₚ = Vⁿ/G`, the drained surface's leakage and the
+/// shares `c₁ ΔΞⁿ`, `c₁ Δp_eⁿ` a BDF2 step carries.
 fn frozen<T: Scalar + From<f64>, const D: usize>(
     setting: &Setting<'_, D>,
     fluid: &FluidSetting<'_, D>,
     material: &Material<T>,
     hydraulic: &Hydraulic<T>,
     state: &ParticleState<T, D>,
-    excess: T,
+    inputs: &FluidInputs<T>,
 ) -> FlowFrozen<T> {
+    let carry = T::cst(fluid.carry);
     let shear = material.shear_modulus_in(&state.history);
     FlowFrozen {
-        excess,
+        excess: inputs.excess,
         hydrostatic: fluid.hydrostatic(&state.x),
         weight: det(&state.f) * T::cst(setting.volume0)
             / if shear.re() > 0.0 {
@@ -271,9 +304,8 @@ fn frozen<T: Scalar + From<f64>, const D: usize>(
                 T::cst(f64::MIN_POSITIVE)
             },
         leakage: hydraulic.mobility * T::cst(fluid.conductance),
-        // The adjoint differentiates backward Euler steps only (`check_supported`).
-        carried: T::zero(),
-        carried_increment: T::zero(),
+        carried: carry * inputs.content,
+        carried_increment: carry * inputs.increment,
     }
 }
 
@@ -290,6 +322,10 @@ pub struct CoupledCotangent<'a, const D: usize> {
     pub end: &'a [f64],
     /// `p̄'` of the end excess pressure.
     pub excess: f64,
+    /// The weight of the fluid-content change `ΔΞ` (what the next BDF2 step makes of it).
+    pub content: f64,
+    /// The weight of the increment `Δp = p_e' − p_e` (likewise).
+    pub increment: f64,
     /// The particle's patch: `(m, B̄)` (module docs).
     pub patch: (f64, f64),
     /// Row scale `s`.
@@ -326,10 +362,18 @@ impl<const D: usize> CoupledCotangent<'_, D> {
                 psi += v * T::cst(*w);
             }
         }
+        for (v, w) in [
+            (step.content, self.content),
+            (step.increment, self.increment),
+        ] {
+            if w != 0.0 {
+                psi += v * T::cst(w);
+            }
+        }
         let (m, b_bar) = self.patch;
         psi + step.excess * T::cst(self.excess)
             + step.stabilisation
-                * (step.increment - T::cst(m))
+                * (step.stabilised - T::cst(m))
                 * (b_p - T::cst(b_bar))
                 * T::cst(self.scale)
     }
@@ -340,7 +384,8 @@ struct Local<'a, const D: usize> {
     setting: Setting<'a, D>,
     fluid: FluidSetting<'a, D>,
     state: ParticleState<f64, D>,
-    excess: f64,
+    /// The pore-fluid inputs ([`FluidInputs`]).
+    fluid_inputs: FluidInputs<f64>,
     loads: Loads<f64, D>,
     material: usize,
     /// Whether the material reads and updates its history ([`carries_history`]).
@@ -352,10 +397,12 @@ struct Local<'a, const D: usize> {
 }
 
 impl<const D: usize> Local<'_, D> {
-    /// Inputs: the state's components, the excess, then `D + 1` unknowns per stencil node.
+    /// Inputs: the state's components, the pore-fluid inputs (excess, `ΔΞⁿ`, `Δp_eⁿ`), then
+    /// `D + 1` unknowns per stencil node.
     fn inputs(&self, system: &StepSystem<D>, x: &[f64]) -> Vec<f64> {
         let mut z = self.state.components();
-        z.push(self.excess);
+        let f = &self.fluid_inputs;
+        z.extend([f.excess, f.content, f.increment]);
         for &f in &self.flats {
             z.extend((0..=D).map(|c| system.dofs.value(f, c, x)));
         }
@@ -364,7 +411,17 @@ impl<const D: usize> Local<'_, D> {
 
     /// Index of the first unknown among the inputs, and of the first stencil sum among the
     /// differentiated inputs (`ΔF` row by row, `p̂`, `∇ⁿp̂`: [`coupled_lanes`] of them).
-    const UNKNOWNS: usize = state_len(D) + 1;
+    const UNKNOWNS: usize = state_len(D) + 3;
+
+    /// The pore-fluid inputs of input vector `z`.
+    fn fluid_of<T: Scalar>(z: &[T]) -> FluidInputs<T> {
+        let k = state_len(D);
+        FluidInputs {
+            excess: z[k],
+            content: z[k + 1],
+            increment: z[k + 2],
+        }
+    }
 
     /// The unknowns of input vector `z` as `u(flat, c)`.
     fn unknowns<'s, T: Scalar>(&'s self, z: &'s [T]) -> impl Fn(usize, usize) -> T + 's {
@@ -403,7 +460,7 @@ impl<const D: usize> Local<'_, D> {
             material,
             hydraulic,
             &Self::state_of(z),
-            z[state_len(D)],
+            &Self::fluid_of(z),
             loads,
             |stencil| StencilSums::of(stencil, u),
         )
@@ -412,7 +469,8 @@ impl<const D: usize> Local<'_, D> {
     /// The differentiated inputs of the final pass: the state's components that the step
     /// reads (not the velocity, nor the history of a material that carries none, nor in 2D
     /// the history tensor's out-of-plane entries `(a, 2)`, `(2, a)` with `a < 2`), and the
-    /// excess. The stencil sums are not among them: their partials follow from pass 1's
+    /// excess. The previous step's `ΔΞⁿ` and `Δp_eⁿ` are not among them
+    /// ([`Local::carried_partials`]), nor are the stencil sums: their partials follow from pass 1's
     /// derivative ([`Local::sums_partial`]).
     ///
     /// A plane-strain history tensor (the elastic left Cauchy–Green tensor of every model
@@ -445,9 +503,10 @@ impl<const D: usize> Local<'_, D> {
     /// ```
     ///
     /// through the end deformation gradient `F' = ΔF Fⁿ` (`∂ψ/∂ΔF_rc = Σ_k F̄'_rk Fⁿ_ck`), the
-    /// end excess (weight `p̄' + s wₚ (Bₚ − B̄)`, the stabilisation's share through
-    /// `Δpₚ = p_e' − p_e`) and the end history (weights `s̄'` of its components). `w` is the
-    /// particle's stabilisation weight `wₚ`.
+    /// end excess (weight `p̄' + Δp̄ + s wₚ (Bₚ − B̄)`, the stabilisation's share and the next
+    /// step's `Δp̄` through `Δpₚ = p_e' − p_e`), the fluid-content change (weight `ΔΞ̄`) and the
+    /// end history (weights `s̄'` of its components). `w` is the particle's stabilisation
+    /// weight `wₚ`.
     fn sums_partial(&self, jac: &SumsJacobian, cot: &CoupledCotangent<'_, D>, w: f64) -> Vec<f64> {
         let lanes = coupled_lanes(D);
         let mut weights = vec![0.0; lanes];
@@ -469,9 +528,14 @@ impl<const D: usize> Local<'_, D> {
                 *x += w * j;
             }
         }
-        let excess = cot.excess + cot.scale * w * (b_p - cot.patch.1);
+        let excess = cot.excess + cot.increment + cot.scale * w * (b_p - cot.patch.1);
         for (x, j) in out.iter_mut().zip(&jac.excess) {
             *x += excess * j;
+        }
+        if cot.content != 0.0 {
+            for (x, j) in out.iter_mut().zip(&jac.content) {
+                *x += cot.content * j;
+            }
         }
         let h0 = D + D * D;
         for (h, row) in jac.history.chunks(lanes).enumerate() {
@@ -493,11 +557,35 @@ impl<const D: usize> Local<'_, D> {
         out
     }
 
+    /// `∂ψₚ/∂(ΔΞⁿ, Δp_eⁿ)`, the partials by what a BDF2 step reads of the previous one, in
+    /// closed form: they enter the step only as `c₁ ΔΞⁿ` subtracted from the fluid content in
+    /// the volume row (`ψ` reads the row as `s Bₚ · volume`) and `c₁ Δp_eⁿ` subtracted from
+    /// the stabilisation's increment, and no output depends on them, so
+    ///
+    /// ```text
+    /// ∂ψ/∂ΔΞⁿ = −c₁ s Bₚ,   ∂ψ/∂Δp_eⁿ = −c₁ s wₚ (Bₚ − B̄)
+    /// ```
+    ///
+    /// (`Bₚ = Σ_i b_i N_i`). Two more lanes in [`Local::partials`] would give the same at
+    /// twice the cost of the final pass of a 2D particle without history; the forward-mode
+    /// oracle [`model_tangents`] differentiates them by duals.
+    fn carried_partials(&self, cot: &CoupledCotangent<'_, D>, w: f64) -> (f64, f64) {
+        if self.fluid.carry == 0.0 {
+            return (0.0, 0.0);
+        }
+        let b_p: f64 = (self.flats.iter().zip(&self.shape))
+            .map(|(&f, (n, _))| cot.fluid[f] * n)
+            .sum();
+        let c = self.fluid.carry * cot.scale;
+        (-c * b_p, -c * w * (b_p - cot.patch.1))
+    }
+
     /// Pass 1's evaluation: the kernel alone ([`coupled_update`]) at the inputs `z`, its
     /// `L` = [`coupled_lanes`] stencil sums `(ΔF, p̂, ∇ⁿp̂)` seeded and the state held. Returns
     /// the kernel's derivative `A` (what the tangent `J` is assembled from), the derivative
-    /// of the rows, the end excess and the end history by the sums, and `(Δpₚ, wₚ)`; `None`
-    /// where the particle inverts.
+    /// of the rows, the end excess, the fluid-content change and the end history by the
+    /// sums, and `(Δpₚ, wₚ)` (`Δpₚ` the stabilisation's, [`CoupledParticle::stabilised`]);
+    /// `None` where the particle inverts.
     fn linearise<const L: usize>(
         &self,
         z: &[f64],
@@ -518,14 +606,14 @@ impl<const D: usize> Local<'_, D> {
         let grad =
             Vector::<DualSVec64<L>, D>::from_fn(|r, _| seeded(real.grad_p_hat[r], D * D + 1 + r));
         let material = &mats[self.material];
-        let excess = lift(self.excess);
+        let inputs = Self::fluid_of(&z.iter().copied().map(lift).collect::<Vec<_>>());
         let frozen = frozen(
             &self.setting,
             &self.fluid,
             material,
             hydraulic,
             &state,
-            excess,
+            &inputs,
         );
         let start = CoupledStart {
             f_n: &state.f,
@@ -554,9 +642,11 @@ impl<const D: usize> Local<'_, D> {
         let jacobian = SumsJacobian {
             rows: a.iter().flatten().copied().collect(),
             excess: lanes(&c.excess).to_vec(),
+            content: lanes(&c.content).to_vec(),
             history,
         };
-        Some((a, jacobian, (c.excess.re - self.excess, frozen.weight.re)))
+        let stabilised = c.excess.re - inputs.excess.re - frozen.carried_increment.re;
+        Some((a, jacobian, (stabilised, frozen.weight.re)))
     }
 
     /// The partials of `ψₚ` by the inputs `lanes` (state components and excess, by index)
@@ -600,7 +690,7 @@ impl<const D: usize> Local<'_, D> {
                 &mats[self.material],
                 hydraulic,
                 &Self::state_of(&seeded),
-                seeded[state_len(D)],
+                &Self::fluid_of(&seeded),
                 &loads,
                 |stencil| StencilSums::of(stencil, |f, c| DualSVec64::from_re(u(f, c))),
             )?;
@@ -644,11 +734,13 @@ impl<const D: usize> Local<'_, D> {
 
 /// The derivative of a particle's step by its stencil sums `(ΔF, p̂, ∇ⁿp̂)` with its state
 /// held, from pass 1 ([`Held::adjoint`]); each row has [`coupled_lanes`] entries: the
-/// kernel's rows ([`CoupledTangent`] order), the end excess, and the end history's
-/// components where the material carries one (none otherwise: its history passes through).
+/// kernel's rows ([`CoupledTangent`] order), the end excess, the fluid-content change, and
+/// the end history's components where the material carries one (none otherwise: its history
+/// passes through).
 struct SumsJacobian {
     rows: Vec<f64>,
     excess: Vec<f64>,
+    content: Vec<f64>,
     history: Vec<f64>,
 }
 
@@ -669,6 +761,7 @@ fn locals<'a, const D: usize>(
     for q in &fluid.inflow {
         inflow[q.particle] += q.rate;
     }
+    let history = replay.sub.fluid_history.as_ref();
     (0..initial.len())
         .map(|p| {
             let setting = replay.setting(p);
@@ -687,9 +780,14 @@ fn locals<'a, const D: usize>(
                     scale: flow.scale,
                     conductance: conductance[p],
                     inflow: inflow[p],
+                    carry: flow.carry,
                 },
                 state,
-                excess: flow.particles[p].excess,
+                fluid_inputs: FluidInputs {
+                    excess: flow.particles[p].excess,
+                    content: history.map_or(0.0, |h| h.content[p]),
+                    increment: history.map_or(0.0, |h| h.increment[p]),
+                },
                 loads: replay.loads(p),
                 material,
                 carries: carries_history(&materials[material]),
@@ -793,6 +891,8 @@ struct Held<'a, const D: usize> {
     end: &'a [Vec<f64>],
     /// `p̄'` per particle.
     excess: &'a [f64],
+    /// `ΔΞ̄` and `Δp̄` per particle (what the next BDF2 step makes of them).
+    carried: &'a [(f64, f64)],
     /// The load step (for errors).
     step: usize,
 }
@@ -832,6 +932,8 @@ impl<const D: usize> Held<'_, D> {
                     fluid: &no_fluid,
                     end: &self.end[p],
                     excess: self.excess[p],
+                    content: self.carried[p].0,
+                    increment: self.carried[p].1,
                     patch: (0.0, 0.0),
                     scale: l.fluid.scale,
                 };
@@ -897,6 +999,8 @@ pub fn reverse<const D: usize>(
     let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
     let mut sbar = vec![vec![0.0; state_len(D)]; n];
     let mut ebar = vec![0.0; n];
+    // `(ΔΞ̄, Δp̄)` of the sub-step's outputs that the next one carries under BDF2.
+    let mut carried = vec![(0.0, 0.0); n];
     let mut grad = vec![0.0; params.len()];
     for (i, sub) in run.substeps.iter().enumerate().skip(first).rev() {
         let seeds = SubStep::ends_step(&run.substeps, i)
@@ -932,6 +1036,7 @@ pub fn reverse<const D: usize>(
             reactions: a_r,
             end: &sbar,
             excess: &ebar,
+            carried: &carried,
             step: sub.step,
         };
         let (lambda, increments, jacobians) = match D {
@@ -968,6 +1073,8 @@ pub fn reverse<const D: usize>(
                     fluid: &fluid_w,
                     end: &sbar[p],
                     excess: ebar[p],
+                    content: carried[p].0,
+                    increment: carried[p].1,
                     patch: patches[p],
                     scale: l.fluid.scale,
                 };
@@ -981,6 +1088,8 @@ pub fn reverse<const D: usize>(
                 };
                 let sums = l.sums_partial(&jacobians[p], &cot, increments[p].1);
                 dz[Local::<D>::UNKNOWNS..].copy_from_slice(&sums);
+                let k = state_len(D);
+                (dz[k + 1], dz[k + 2]) = l.carried_partials(&cot, increments[p].1);
                 let g = l.chain(&dz, z.len(), &cot);
                 let mut shares = vec![0.0; params.len()];
                 for (j, q) in params.iter().enumerate() {
@@ -1014,6 +1123,7 @@ pub fn reverse<const D: usize>(
             let (g, shares) = r.ok_or_else(|| inverted(p))?;
             sbar[p].copy_from_slice(&g[..state_len(D)]);
             ebar[p] = g[state_len(D)];
+            carried[p] = (g[state_len(D) + 1], g[state_len(D) + 2]);
             grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
         }
     }
@@ -1057,6 +1167,8 @@ pub fn model_tangents<const D: usize>(
         sdot[p] = t;
     }
     let mut edot = vec![0.0; n];
+    // The derivatives of each particle's `(ΔΞ, Δp)` over the last sub-step.
+    let mut carried_dot = vec![(0.0, 0.0); n];
     let balance_rate = param.balance_tangent(config, initial)?;
     let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
     let mut tangents = vec![0.0; observations.items.len()];
@@ -1086,7 +1198,10 @@ pub fn model_tangents<const D: usize>(
                     let mut z: Vec<Dual64> = (l.state.components().iter().zip(&sdot[p]))
                         .map(|(&v, &t)| Dual64::new(v, t))
                         .collect();
-                    z.push(Dual64::new(l.excess, edot[p]));
+                    let f = &l.fluid_inputs;
+                    z.push(Dual64::new(f.excess, edot[p]));
+                    z.push(Dual64::new(f.content, carried_dot[p].0));
+                    z.push(Dual64::new(f.increment, carried_dot[p].1));
                     for &f in &l.flats {
                         for c in 0..=D {
                             let eps = match system.dofs.get(f, c) {
@@ -1124,12 +1239,12 @@ pub fn model_tangents<const D: usize>(
             let (mut w, mut wp) = (Dual64::from_re(0.0), Dual64::from_re(0.0));
             for &p in patch {
                 w += held[p].stabilisation;
-                wp += held[p].stabilisation * held[p].increment;
+                wp += held[p].stabilisation * held[p].stabilised;
             }
             let mean = wp / w;
             for &p in patch {
                 let r = held[p].stabilisation
-                    * (held[p].increment - mean)
+                    * (held[p].stabilised - mean)
                     * Dual64::from_re(flow.scale);
                 for node in &held[p].nodes {
                     add(node.flat, D, (r * node.weight).eps);
@@ -1141,6 +1256,7 @@ pub fn model_tangents<const D: usize>(
         for (p, s) in moved.iter().enumerate() {
             sdot[p] = s.end.tangent();
             edot[p] = s.excess.eps;
+            carried_dot[p] = (s.content.eps, s.increment.eps);
         }
         if SubStep::ends_step(&run.substeps, i) {
             let observed =

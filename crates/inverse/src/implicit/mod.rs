@@ -39,7 +39,6 @@ pub use record::{Schedule, Trajectory, run_recorded};
 use crate::error::AdjointError;
 use loam_core::Particles;
 use loam_implicit::ImplicitConfig;
-use loam_implicit::flow::TimeIntegration;
 use std::time::Instant;
 
 /// A least-squares loss over an implicit run (quasi-static or Newmark) as a function of parameters `θ`.
@@ -82,22 +81,8 @@ impl<const D: usize> ImplicitProblem<D> {
     }
 
     /// Refuses force-controlled constraints (the seeds and parameters know prescribed
-    /// displacements only) and BDF2 consolidation steps (the reverse pass replays each step
-    /// from its start state alone, which a BDF2 step's carried fluid content is not part of).
+    /// displacements only).
     fn check_supported(&self) -> Result<(), AdjointError> {
-        if self
-            .config
-            .pore_fluid
-            .as_ref()
-            .is_some_and(|f| f.time_integration != TimeIntegration::BackwardEuler)
-        {
-            return Err(AdjointError::Unsupported {
-                what: "solver.consolidation.scheme".into(),
-                why: "\"bdf2\": the implicit adjoint differentiates backward Euler steps only; \
-                      set scheme = \"backward_euler\" (the default)"
-                    .into(),
-            });
-        }
         if let Some(i) = self
             .config
             .constraints

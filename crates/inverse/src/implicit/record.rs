@@ -6,7 +6,7 @@ use loam_core::Particles;
 use loam_core::constitutive::MaterialState;
 use loam_core::tensor::{Tensor, Vector};
 use loam_implicit::system::StepSystem;
-use loam_implicit::{ImplicitConfig, ImplicitSolver};
+use loam_implicit::{FluidHistory, ImplicitConfig, ImplicitSolver};
 
 /// One accepted (sub-)step: the particle state at its start, its load factors and its
 /// converged unknowns. A load step cut into halves is the sequence of its accepted sub-steps.
@@ -30,6 +30,8 @@ pub struct SubStep<const D: usize> {
     pub pore_pressure: Vec<f64>,
     /// Converged unknowns `Δu`.
     pub solution: Vec<f64>,
+    /// What it read of the sub-step before it as a BDF2 step (`None` for every other step).
+    pub fluid_history: Option<FluidHistory>,
 }
 
 /// A recorded implicit run (quasi-static or Newmark): per accepted sub-step what its reverse needs, and the
@@ -158,6 +160,7 @@ pub fn run_recorded<const D: usize>(
                 v: a.start.v.clone(),
                 pore_pressure: a.start.pore_pressure.clone(),
                 solution: a.solution.to_vec(),
+                fluid_history: a.history.cloned(),
             });
         };
         let report = match schedule {
@@ -198,7 +201,12 @@ impl<'a, const D: usize> Replay<'a, D> {
         sub: &'a SubStep<D>,
     ) -> Result<Self, AdjointError> {
         let config = solver.config();
-        let system = solver.system(&sub.particles(initial), sub.from, sub.to)?;
+        let system = solver.system_after(
+            &sub.particles(initial),
+            sub.from,
+            sub.to,
+            sub.fluid_history.as_ref(),
+        )?;
         let mut point = vec![Vector::<f64, D>::zeros(); initial.len()];
         for l in &config.point_loads {
             point[l.particle] += Vector::<f64, D>::from(l.force);
