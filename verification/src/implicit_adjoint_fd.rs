@@ -16,6 +16,10 @@
 //!   also move the history that carries the initial stress (held as data, as the balance
 //!   is), and K0, which moves the initial stress itself, its history and its balance; the
 //!   loss as for the J2 footing;
+//! - the same footing pushed by a force of 40 kN/m instead (a force-controlled constraint:
+//!   the footing's nodes share one vertical unknown, which carries the force); unknowns
+//!   σ_y, E and the hardening; the loss is the settlement under the footing after every
+//!   load step and that of the point beside it;
 //! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
 //!   density (which now also sets the inertia); the loss tracks the tip's deflection and
@@ -29,6 +33,11 @@
 //! - the same layer with the fluid balance integrated by BDF2 (every step after the first
 //!   drained one carries the previous step's fluid-content change and pressure increment):
 //!   unknowns E, the conductivity and the point of the load;
+//! - `implicit_mandel`, Mandel's problem at a reduced size: a saturated specimen under a
+//!   rigid, smooth plate that carries a constant force (force-controlled), drained on its
+//!   free side, over 6 steps growing by 2 through the Mandel–Cryer rise of the centre
+//!   pressure; unknowns E, ν and the conductivity; the loss tracks the plate's settlement
+//!   and two piezometers on the axis after every step;
 //! - `implicit_consolidation_3d`, the same in 3D under a square load (a quarter by
 //!   symmetry, 512 particles, 7 steps): unknowns E, the conductivity and gravity;
 //! - `implicit_consolidation_clay`, the same on prestressed Modified Cam-Clay (K0 = 0.6, OCR
@@ -219,6 +228,41 @@ fn footing(
     check_problem(label, &problem)
 }
 
+/// The vertical force on the half footing of `implicit_footing` when it is force-controlled
+/// (N per metre): about 0.8 of the load its 3 cm settlement takes (49.3 kN/m), so the clay
+/// under it yields, and hardens, without the footing plunging.
+const FOOTING_FORCE: f64 = -4.0e4;
+
+/// The J2 footing pushed by a force instead of a settlement (a force-controlled constraint:
+/// the footing's nodes share one vertical unknown, which carries the force): σ_y, E and the
+/// hardening; the loss tracks the settlement of the surface under the footing's middle after
+/// every load step and that of a surface point beside it after the last.
+fn force_footing() -> Result<Outcome, VerifyError> {
+    let load_steps = 4;
+    let (mut config, initial) = setup("implicit_footing", load_steps);
+    let footing = &mut config.constraints[0];
+    footing.displacement[1] = None;
+    footing.force[1] = Some(FOOTING_FORCE);
+    let under = nearest(&initial, [0.25, 1.0]);
+    let side = nearest(&initial, [0.8, 1.0]);
+    let mut quantities: Vec<(usize, Quantity, f64)> = (1..=load_steps)
+        .map(|step| (step, Quantity::displacement(under, 1), 1e-3))
+        .collect();
+    quantities.push((load_steps, Quantity::displacement(side, 1), 1e-3));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::YieldStress),
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Hardening),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem("force-controlled footing", &problem)
+}
+
 /// The J2 footing: σ_y, E, the hardening, the settlement.
 ///
 /// It runs the scene's 4 load steps at both sizes: the cut that the case exercises comes
@@ -334,6 +378,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
     let outcomes = [
         cantilever(load_steps)?,
         j2_footing()?,
+        force_footing()?,
         newmark(newmark_steps)?,
         clay_footing()?,
         consolidation::<2>(
@@ -356,6 +401,16 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
                 ImplicitParam::Material(0, MaterialField::Young),
                 ImplicitParam::Conductivity(0),
                 ImplicitParam::PointLoad(0, 1),
+            ],
+        )?,
+        consolidation::<2>(
+            "Mandel, force-controlled plate (u–p)",
+            "implicit_mandel",
+            TimeIntegration::BackwardEuler,
+            vec![
+                ImplicitParam::Material(0, MaterialField::Young),
+                ImplicitParam::Material(0, MaterialField::Poisson),
+                ImplicitParam::Conductivity(0),
             ],
         )?,
         consolidation::<3>(

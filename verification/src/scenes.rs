@@ -39,7 +39,7 @@ macro_rules! case_scene {
 }
 
 /// Every reference scene, in the order of [`crate::cases`].
-pub const SCENES: [CaseScene; 34] = [
+pub const SCENES: [CaseScene; 35] = [
     case_scene!("axial_bar"),
     case_scene!("axial_bar_newmark"),
     case_scene!("newmark_energy"),
@@ -73,6 +73,7 @@ pub const SCENES: [CaseScene; 34] = [
     case_scene!("implicit_consolidation"),
     case_scene!("implicit_consolidation_3d"),
     case_scene!("implicit_consolidation_clay"),
+    case_scene!("implicit_mandel"),
     case_scene!("implicit_cantilever_newmark"),
 ];
 

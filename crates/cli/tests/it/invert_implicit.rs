@@ -424,6 +424,18 @@ fn a_bdf2_consolidation_gradient_checks() {
     );
 }
 
+/// `examples/inverse/mandel_plate.toml`: Mandel's specimen under a force-controlled plate
+/// (its nodes share one vertical unknown, which carries the force), E and the conductivity
+/// from the plate's settlement and the centre's pore pressure. `--check` confirms the
+/// adjoint through the shared unknown against the forward-mode dual run (the command fails
+/// otherwise).
+#[test]
+fn a_force_controlled_plate_gradient_checks() {
+    let file = repo("examples/inverse/mandel_plate.toml");
+    let out = loam(&["gradient", file.to_str().unwrap(), "--check"]);
+    assert!(out.status.success(), "{}", text(&out));
+}
+
 /// An implicit inversion stopped after 2 iterations and resumed to 5 ends where a run of 5
 /// iterations ends, bit for bit (the optimiser's state is checkpointed).
 #[test]

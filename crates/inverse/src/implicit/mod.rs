@@ -80,9 +80,14 @@ impl<const D: usize> ImplicitProblem<D> {
         self.observations.validate(&self.config, &self.initial)
     }
 
-    /// Refuses force-controlled constraints (the seeds and parameters know prescribed
-    /// displacements only).
+    /// Refuses force-controlled constraints in Newmark dynamics (the reverse of the mass
+    /// solve knows the grid's own unknowns, not a rigid group's shared one). In a
+    /// quasi-static or coupled run a force-controlled group is one shared unknown that the
+    /// reverse pass gathers and scatters like any other, and its force a constant load.
     fn check_supported(&self) -> Result<(), AdjointError> {
+        if self.config.dynamics.is_none() {
+            return Ok(());
+        }
         if let Some(i) = self
             .config
             .constraints
@@ -91,8 +96,8 @@ impl<const D: usize> ImplicitProblem<D> {
         {
             return Err(AdjointError::Unsupported {
                 what: format!("constraints[{i}].force"),
-                why: "the implicit adjoint knows prescribed displacements, not yet \
-                      force-controlled rigid groups"
+                why: "the implicit adjoint of Newmark dynamics knows prescribed displacements, \
+                      not force-controlled rigid groups"
                     .into(),
             });
         }

@@ -543,6 +543,34 @@ fn dynamic_run(
     run
 }
 
+/// The Newmark adjoint refuses a force-controlled constraint (the reverse of its mass solve
+/// knows the grid's own unknowns), naming it; the same constraint in the quasi-static run of
+/// the scene is taken.
+#[test]
+fn newmark_refuses_a_force_controlled_constraint() {
+    let (mut config, initial, items) = newmark_cantilever();
+    config.constraints.push(loam_core::NodeConstraint {
+        lo: [1.5, 2.5],
+        hi: [2.25, 2.5],
+        displacement: [None, None],
+        force: [None, Some(-100.0)],
+    });
+    let problem = |config: ImplicitConfig<2>| ImplicitProblem {
+        config,
+        initial: initial.clone(),
+        params: vec![ImplicitParam::Material(0, MaterialField::Young)],
+        observations: ImplicitObservations {
+            items: items.clone(),
+        },
+    };
+    let err = problem(config.clone()).validate().expect_err("refused");
+    assert!(err.to_string().contains("constraints[1].force"), "{err}");
+    config.dynamics = None;
+    problem(config)
+        .validate()
+        .expect("taken in a quasi-static run");
+}
+
 #[test]
 fn newmark_cantilever_adjoint_matches_dual_and_differences() {
     let (config, initial, items) = newmark_cantilever();
