@@ -101,8 +101,8 @@ pub struct FluidSetting<'a, const D: usize> {
 }
 
 /// A particle's pore-fluid inputs to a coupled sub-step: its start excess pore pressure and
-/// what a BDF2 step reads of the previous step, `c₁ ΔΞⁿ` and `c₁ Δp_eⁿ` ([`FlowFrozen`]; a
-/// backward-Euler step reads them with `c₁ = 0`).
+/// what a BDF2 step reads of the previous step, `ΔΞⁿ` and `Δp_eⁿ`, which `frozen` weights
+/// by `c₁` into [`FlowFrozen`] (a backward-Euler step has `c₁ = 0`).
 #[derive(Clone, Copy, Debug)]
 pub struct FluidInputs<T> {
     /// Excess pore pressure `p_e` at the start (Pa).
