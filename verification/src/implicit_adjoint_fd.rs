@@ -18,7 +18,7 @@
 //!   loss as for the J2 footing;
 //! - the same footing pushed by a force of 40 kN/m instead (a force-controlled constraint:
 //!   the footing's nodes share one vertical unknown, which carries the force); unknowns
-//!   σ_y, E and the hardening; the loss is the settlement under the footing after every
+//!   σ_y, E, the hardening and the force; the loss is the settlement under the footing after every
 //!   load step and that of the point beside it;
 //! - `implicit_cantilever_newmark`, the cantilever in Newmark dynamics (time steps of 0.04 s,
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
@@ -36,7 +36,7 @@
 //! - `implicit_mandel`, Mandel's problem at a reduced size: a saturated specimen under a
 //!   rigid, smooth plate that carries a constant force (force-controlled), drained on its
 //!   free side, over 6 steps growing by 2 through the Mandel–Cryer rise of the centre
-//!   pressure; unknowns E, ν and the conductivity; the loss tracks the plate's settlement
+//!   pressure; unknowns E, ν, the conductivity and the plate's force; the loss tracks the plate's settlement
 //!   and two piezometers on the axis after every step;
 //! - `implicit_consolidation_3d`, the same in 3D under a square load (a quarter by
 //!   symmetry, 512 particles, 7 steps): unknowns E, the conductivity and gravity;
@@ -234,8 +234,8 @@ fn footing(
 const FOOTING_FORCE: f64 = -4.0e4;
 
 /// The J2 footing pushed by a force instead of a settlement (a force-controlled constraint:
-/// the footing's nodes share one vertical unknown, which carries the force): σ_y, E and the
-/// hardening; the loss tracks the settlement of the surface under the footing's middle after
+/// the footing's nodes share one vertical unknown, which carries the force): σ_y, E, the
+/// hardening and the force; the loss tracks the settlement of the surface under the footing's middle after
 /// every load step and that of a surface point beside it after the last.
 fn force_footing() -> Result<Outcome, VerifyError> {
     let load_steps = 4;
@@ -256,6 +256,7 @@ fn force_footing() -> Result<Outcome, VerifyError> {
             ImplicitParam::Material(0, MaterialField::YieldStress),
             ImplicitParam::Material(0, MaterialField::Young),
             ImplicitParam::Material(0, MaterialField::Hardening),
+            ImplicitParam::ConstraintForce(0, 1),
         ],
         observations: ImplicitObservations::default(),
     };
@@ -411,6 +412,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
                 ImplicitParam::Material(0, MaterialField::Young),
                 ImplicitParam::Material(0, MaterialField::Poisson),
                 ImplicitParam::Conductivity(0),
+                ImplicitParam::ConstraintForce(0, 1),
             ],
         )?,
         consolidation::<3>(

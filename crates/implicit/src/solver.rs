@@ -1,12 +1,12 @@
 //! Load stepping: freeze the particles, solve the step with Newton, commit, and cut the step
 //! in half when Newton fails.
 
-use crate::dofs::DofMap;
+use crate::dofs::{DofMap, NodeDof};
 use crate::flow::{Flow, FlowFrozen, PoreFluid, TimeIntegration};
 use crate::kernel::Frozen;
 use crate::linear::{LinearSolver, LinearSolverKind};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
-use crate::system::{Inverted, Materials, ParticleUpdate, StepSystem, Structure};
+use crate::system::{Controlled, Inverted, Materials, ParticleUpdate, StepSystem, Structure};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, NodeConstraint, Particles, PointLoad, Shape, Stencil};
@@ -457,7 +457,8 @@ impl<const D: usize> ImplicitSolver<D> {
         };
         follow_weak_nodes(grid, &frozen, &support, &active, &mut dofs);
         // Force-controlled components: the free components of the nodes in the box share
-        // one unknown, which carries the force.
+        // one unknown, which carries the force. Each tie renumbers the unknowns, so a group is
+        // remembered by one of its members and its unknown looked up once all are tied.
         let mut shared_forces = Vec::new();
         for (i, k) in cfg.constraints.iter().enumerate() {
             for c in 0..D {
@@ -479,7 +480,11 @@ impl<const D: usize> ImplicitSolver<D> {
                         self.steps + 1
                     ),
                 })?;
-                shared_forces.push((dof, force));
+                let member = (members.iter())
+                    .find(|&&(f, c)| matches!(dofs.get(f, c), NodeDof::Free { dof: d, .. } if d == dof))
+                    .copied()
+                    .expect("a member holds the shared unknown");
+                shared_forces.push((i, c, member, force));
             }
         }
         // Quasi-static loads ramp with the load factor; dynamic loads act in full, and so do
@@ -496,8 +501,17 @@ impl<const D: usize> ImplicitSolver<D> {
             p.mass[i] * g_factor * cfg.gravity + loads[i] + balance
         };
         let mut system = StepSystem::reusing(grid, frozen, dofs, force, previous.as_ref());
-        for (dof, f) in shared_forces {
-            system.f_ext[dof] += f * factor;
+        for (constraint, component, (f, c), force) in shared_forces {
+            let NodeDof::Free { dof, .. } = system.dofs.get(f, c) else {
+                unreachable!("a tied member stays free")
+            };
+            system.f_ext[dof] += force * factor;
+            system.controlled.push(Controlled {
+                constraint,
+                component,
+                dof,
+                factor,
+            });
         }
         if let Ok(mut cache) = self.structure.lock() {
             *cache = Some(system.structure().clone());
@@ -609,31 +623,39 @@ impl<const D: usize> ImplicitSolver<D> {
         }
     }
 
-    /// Reaction of every user constraint: the internal force on the prescribed components of
-    /// the grid nodes inside its box.
+    /// Reaction of every user constraint: on a prescribed component, the internal force on
+    /// the grid nodes inside its box; on a force-controlled one, the internal force on the
+    /// unknown its group shares, `Σ_{i ↦ w} sign_i f_i` (which balances the applied force;
+    /// nodes of the box that a wall holds on that axis push on the wall, not the group).
     fn constraint_forces(&self, system: &StepSystem<D>, x: &[f64]) -> Vec<Vector<f64, D>> {
         let Ok(f) = system.nodal_internal_force(x, &self.materials) else {
             return vec![Vector::zeros(); self.config.constraints.len()];
         };
         let grid = &self.config.grid;
-        self.config
-            .constraints
-            .iter()
+        let mut totals: Vec<Vector<f64, D>> = (self.config.constraints.iter())
             .map(|k| {
                 let mut total = Vector::<f64, D>::zeros();
                 for (n, fn_) in f.iter().enumerate() {
                     let pos: Vector<f64, D> = grid.node_position(grid.multi(n));
                     if k.contains(&std::array::from_fn(|a| pos[a]), grid.h) {
-                        for a in 0..D {
-                            if k.displacement[a].is_some() || k.force[a].is_some() {
-                                total[a] += fn_[a];
-                            }
+                        for a in (0..D).filter(|&a| k.displacement[a].is_some()) {
+                            total[a] += fn_[a];
                         }
                     }
                 }
                 total
             })
-            .collect()
+            .collect();
+        for c in &system.controlled {
+            for (n, fn_) in f.iter().enumerate() {
+                if let NodeDof::Free { dof, sign } = system.dofs.get(n, c.component)
+                    && dof == c.dof
+                {
+                    totals[c.constraint][c.component] += sign * fn_[c.component];
+                }
+            }
+        }
+        totals
     }
 
     /// Adds the converged increment `x` of every force-controlled component to its total:
@@ -650,7 +672,7 @@ impl<const D: usize> ImplicitSolver<D> {
                 let member = (0..grid.num_nodes()).find(|&f| {
                     let pos: Vector<f64, D> = grid.node_position(grid.multi(f));
                     k.contains(&std::array::from_fn(|a| pos[a]), grid.h)
-                        && matches!(system.dofs.get(f, c), crate::dofs::NodeDof::Free { .. })
+                        && matches!(system.dofs.get(f, c), NodeDof::Free { .. })
                 });
                 if let Some(f) = member {
                     total[c] += system.dofs.value(f, c, x);

@@ -209,6 +209,21 @@ impl Inertia {
     }
 }
 
+/// A force-controlled component of a user constraint in one step: its nodes share the unknown
+/// `dof`, and `f_ext[dof] = factor · F` with `F` the constraint's force component
+/// (`NodeConstraint::force`) and `factor` the step's load factor, so `∂f_ext[dof]/∂F = factor`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Controlled {
+    /// Index of the constraint (`ImplicitConfig::constraints`).
+    pub constraint: usize,
+    /// The force-controlled component.
+    pub component: usize,
+    /// The shared unknown.
+    pub dof: usize,
+    /// The load factor the force carries in this step.
+    pub factor: f64,
+}
+
 /// One load step's system.
 pub struct StepSystem<const D: usize> {
     /// Newmark inertia for dynamic steps (`None`: quasi-static).
@@ -224,6 +239,9 @@ pub struct StepSystem<const D: usize> {
     pub pattern: Arc<SparsePattern>,
     /// External force on the unknowns at the end of the step.
     pub f_ext: Vec<f64>,
+    /// The force-controlled components of the user constraints and the shared unknowns that
+    /// carry their forces (empty when there is none).
+    pub controlled: Vec<Controlled>,
     /// The sparsity pattern and its slot tables, shared with the next step when its unknowns
     /// are the same.
     structure: Arc<Structure>,
@@ -456,6 +474,7 @@ impl<const D: usize> StepSystem<D> {
             dofs,
             pattern: structure.pattern.clone(),
             f_ext,
+            controlled: Vec::new(),
             structure,
             b,
             grid: grid.clone(),

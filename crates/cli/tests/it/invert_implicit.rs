@@ -176,6 +176,14 @@ fn malformed_implicit_inversion_files_exit_2_naming_the_field() {
             "no such point load",
         ),
         (
+            format!(
+                "{}{synth}[[parameters]]\nname = \"constraints[0].force[0]\"\ninitial = 1.0\ntruth = 1.0\n",
+                on(&repo("verification/scenes/implicit_mandel.toml"))
+            ),
+            "parameters[0].name",
+            "not force-controlled",
+        ),
+        (
             format!("{}{young}[synthetic]\nids = [64]\n", on(&beam)),
             "synthetic.ids[0]",
             "64 particles",
@@ -426,14 +434,34 @@ fn a_bdf2_consolidation_gradient_checks() {
 
 /// `examples/inverse/mandel_plate.toml`: Mandel's specimen under a force-controlled plate
 /// (its nodes share one vertical unknown, which carries the force), E and the conductivity
-/// from the plate's settlement and the centre's pore pressure. `--check` confirms the
-/// adjoint through the shared unknown against the forward-mode dual run (the command fails
-/// otherwise).
+/// from the plate's settlement and the centre's pore pressure, here with the plate's force
+/// `constraints[0].force[1]` as a third parameter. `--check` confirms the adjoint through
+/// the shared unknown, and by the force on it, against the forward-mode dual run (the
+/// command fails otherwise).
 #[test]
 fn a_force_controlled_plate_gradient_checks() {
-    let file = repo("examples/inverse/mandel_plate.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let example = repo("examples/inverse/mandel_plate.toml");
+    let scene = repo("verification/scenes/implicit_mandel.toml");
+    let text_in = std::fs::read_to_string(&example).unwrap().replace(
+        "scene = \"../../verification/scenes/implicit_mandel.toml\"",
+        &format!("scene = \"{}\"", scene.display()),
+    );
+    let file = dir.path().join("mandel_force.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "{text_in}\n[[parameters]]\nname = \"constraints[0].force[1]\"\ninitial = -1.2e4\ntruth = -1.0e4\nscale = 1.0e4\n"
+        ),
+    )
+    .unwrap();
     let out = loam(&["gradient", file.to_str().unwrap(), "--check"]);
     assert!(out.status.success(), "{}", text(&out));
+    assert!(
+        text(&out).contains("constraints[0].force[1]"),
+        "{}",
+        text(&out)
+    );
 }
 
 /// An implicit inversion stopped after 2 iterations and resumed to 5 ends where a run of 5

@@ -250,6 +250,7 @@ pub fn set_implicit(s: &mut Scene, params: &[ImplicitParam], theta: &[f64]) {
             }
             ImplicitParam::PointLoad(k, a) => s.point_loads[k].force[a] = v,
             ImplicitParam::Displacement(k, a) => s.constraints[k].displacement[a] = Some(v),
+            ImplicitParam::ConstraintForce(k, a) => s.constraints[k].force[a] = Some(v),
             ImplicitParam::Conductivity(k) => s.materials[k].hydraulic_conductivity = Some(v),
         }
     }

@@ -101,6 +101,36 @@ fn a_loaded_plate_compresses_a_confined_column_uniformly() {
     }
 }
 
+/// A plate pushed down and sideways: each force-controlled component has its own shared
+/// unknown, and in equilibrium the internal force of the group on each equals the force it
+/// carries. The sideways force shears the column, so the plate moves with it.
+#[test]
+fn an_inclined_force_is_carried_by_both_shared_unknowns() {
+    let (q, s) = (1e4, 2e3);
+    let elastic = Material::elastic(ModelKind::LinearElastic, E, NU, 1000.0);
+    let mut config = column(Shape::Linear, elastic, HEIGHT, q * WIDTH);
+    config.constraints[0].force[0] = Some(s * WIDTH);
+    let mut p = particles();
+    let mut solver = ImplicitSolver::new(config, &p).expect("valid");
+    let mut report = None;
+    while !solver.finished() {
+        report = Some(solver.step(&mut p).expect("converges"));
+    }
+    let report = report.expect("two steps");
+    // Newton converges to ‖R‖ ≤ 1e-8 of the load, so the reactions hold to 1e-6.
+    let reaction = report.constraint_forces[0];
+    assert!(
+        (reaction[0] / (s * WIDTH) - 1.0).abs() < 1e-6,
+        "{reaction:?}"
+    );
+    assert!(
+        (reaction[1] / -(q * WIDTH) - 1.0).abs() < 1e-6,
+        "{reaction:?}"
+    );
+    let plate = report.constraint_displacements[0];
+    assert!(plate[0] > 0.0 && plate[1] < 0.0, "plate moved by {plate:?}");
+}
+
 #[test]
 fn the_tangent_with_a_shared_unknown_is_the_derivative_of_the_residual() {
     // Quadratic B-splines: the plate's box holds the surface row and the row above it, so

@@ -37,6 +37,7 @@ use crate::params::MaterialField;
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::linear::{LinearSolver, LinearSolverKind};
+use loam_implicit::system::StepSystem;
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
 use num_dual::Dual64;
 use rayon::prelude::*;
@@ -303,8 +304,11 @@ fn reverse_from<const D: usize>(
                         ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
                             lin.load_share(&cot)[a]
                         }
-                        // The solid alone has no pore fluid (a coupled run takes its own pass).
-                        ImplicitParam::PointLoad(..) | ImplicitParam::Conductivity(_) => continue,
+                        // The solid alone has no pore fluid (a coupled run takes its own pass);
+                        // a constraint's force acts on its shared unknown, below.
+                        ImplicitParam::PointLoad(..)
+                        | ImplicitParam::Conductivity(_)
+                        | ImplicitParam::ConstraintForce(..) => continue,
                         // Through the initial history, below, and the balancing forces.
                         ImplicitParam::K0(_) => match balance_rates[j].get(p) {
                             Some(rate) => lin.balance_share(&cot).dot(rate),
@@ -334,6 +338,7 @@ fn reverse_from<const D: usize>(
             sbar[p] = s;
             grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
         }
+        add_controlled_shares(system, &lambda, params, &mut grad);
     }
     // The parameters the initial state depends on (the density through the masses, a
     // prestressed body's constants and K0 through its history): s̄₀ · ds₀/dθ.
@@ -343,4 +348,22 @@ fn reverse_from<const D: usize>(
         }
     }
     Ok(grad)
+}
+
+/// The shares of the constraints' forces in `params`: a force-controlled component puts
+/// `f_ext = ℓ F` (load factor `ℓ`) on its shared unknown ([`loam_implicit::system::Controlled`]), whose
+/// weight in `ψ` is the adjoint `λ` there, so `dψ/dF = ℓ λ_dof`.
+pub(super) fn add_controlled_shares<const D: usize>(
+    system: &StepSystem<D>,
+    lambda: &[f64],
+    params: &[ImplicitParam],
+    grad: &mut [f64],
+) {
+    for (g, q) in grad.iter_mut().zip(params) {
+        if let ImplicitParam::ConstraintForce(k, a) = *q {
+            for c in (system.controlled.iter()).filter(|c| c.constraint == k && c.component == a) {
+                *g += lambda[c.dof] * c.factor;
+            }
+        }
+    }
 }

@@ -1096,6 +1096,8 @@ pub fn reverse<const D: usize>(
                     shares[j] = match *q {
                         // Through the masses (the initial state's tangent).
                         ImplicitParam::Material(_, MaterialField::Density) => continue,
+                        // On the constraint's shared unknown, below.
+                        ImplicitParam::ConstraintForce(..) => continue,
                         ImplicitParam::Displacement(..) => {
                             let rate = rates[j].as_ref().expect("rates of displacements");
                             (l.flats.iter().enumerate())
@@ -1126,6 +1128,7 @@ pub fn reverse<const D: usize>(
             carried[p] = (g[state_len(D) + 1], g[state_len(D) + 2]);
             grad.iter_mut().zip(&shares).for_each(|(g, s)| *g += s);
         }
+        super::adjoint::add_controlled_shares(system, &lambda, params, &mut grad);
     }
     for (g, q) in grad.iter_mut().zip(params) {
         for (p, t) in q.initial_tangent(config, initial) {
@@ -1251,6 +1254,7 @@ pub fn model_tangents<const D: usize>(
                 }
             }
         }
+        super::tangent::add_controlled_rate(system, param, &mut r_dot);
         let u_dot = super::tangent::solve_tangent(&solver, &replay, &mut linear, &r_dot)?;
         let moved = evaluate(&u_dot)?;
         for (p, s) in moved.iter().enumerate() {

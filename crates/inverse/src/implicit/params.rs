@@ -29,6 +29,10 @@ pub enum ImplicitParam {
     /// Component `a` of the total prescribed displacement of constraint `k`
     /// (`ImplicitConfig::constraints[k]`).
     Displacement(usize, usize),
+    /// Component `a` of the total force of force-controlled constraint `k`
+    /// (`ImplicitConfig::constraints[k].force[a]`): the force on the unknown its nodes share,
+    /// `f_ext = ℓ F` at load factor `ℓ` ([`loam_implicit::system::Controlled`]).
+    ConstraintForce(usize, usize),
     /// `K0 = σ′_h/σ′_v` of the geostatic initial stress of material `k`'s particles
     /// (`materials[k].k0`; see [`ImplicitParam::k0_rates`]): it moves their initial stress,
     /// the history that carries it and, where the scene balances it, the balancing forces.
@@ -47,6 +51,7 @@ impl fmt::Display for ImplicitParam {
             Self::Gravity(a) => write!(f, "gravity[{a}]"),
             Self::PointLoad(k, a) => write!(f, "point_loads[{k}].force[{a}]"),
             Self::Displacement(k, a) => write!(f, "constraints[{k}].displacement[{a}]"),
+            Self::ConstraintForce(k, a) => write!(f, "constraints[{k}].force[{a}]"),
         }
     }
 }
@@ -65,7 +70,8 @@ impl FromStr for ImplicitParam {
                 "unknown parameter `{s}`; expected `materials[k].<constant>` (a constant of the \
                  material's model: {}), `materials[k].k0`, \
                  `materials[k].hydraulic_conductivity`, `gravity[a]`, \
-                 `point_loads[k].force[a]` or `constraints[k].displacement[a]`",
+                 `point_loads[k].force[a]`, `constraints[k].displacement[a]` or \
+                 `constraints[k].force[a]`",
                 constants.join(", ")
             )
         };
@@ -84,6 +90,9 @@ impl FromStr for ImplicitParam {
         }
         if let Some((k, a)) = pair("constraints", ".displacement") {
             return Ok(Self::Displacement(k, a));
+        }
+        if let Some((k, a)) = pair("constraints", ".force") {
+            return Ok(Self::ConstraintForce(k, a));
         }
         if let Some((a, rest)) = indexed(s, "gravity") {
             return rest
@@ -165,16 +174,30 @@ impl ImplicitParam {
             }
             Self::Displacement(k, a) => {
                 let a = self.component::<D>(a)?;
-                let c = config.constraints.get(k).ok_or_else(|| {
-                    self.error(format!(
-                        "no such constraint: the scene has {}",
-                        config.constraints.len()
-                    ))
-                })?;
-                c.displacement[a]
-                    .ok_or_else(|| self.error("this component of the constraint is free"))
+                self.constraint(config, k)?.displacement[a]
+                    .ok_or_else(|| self.error("this component of the constraint is not prescribed"))
+            }
+            Self::ConstraintForce(k, a) => {
+                let a = self.component::<D>(a)?;
+                self.constraint(config, k)?.force[a].ok_or_else(|| {
+                    self.error("this component of the constraint is not force-controlled")
+                })
             }
         }
+    }
+
+    /// User constraint `k` of `config`.
+    fn constraint<'a, const D: usize>(
+        &self,
+        config: &'a ImplicitConfig<D>,
+        k: usize,
+    ) -> Result<&'a loam_core::NodeConstraint<D>, AdjointError> {
+        config.constraints.get(k).ok_or_else(|| {
+            self.error(format!(
+                "no such constraint: the scene has {}",
+                config.constraints.len()
+            ))
+        })
     }
 
     /// A component index checked against the dimension `D`.
@@ -224,6 +247,7 @@ impl ImplicitParam {
             Self::Gravity(a) => config.gravity[a] = value,
             Self::PointLoad(k, a) => config.point_loads[k].force[a] = value,
             Self::Displacement(k, a) => config.constraints[k].displacement[a] = Some(value),
+            Self::ConstraintForce(k, a) => config.constraints[k].force[a] = Some(value),
             Self::Conductivity(k) => {
                 if !(value > 0.0 && value.is_finite()) {
                     return Err(self.error(format!("must be positive, got {value}")));
@@ -430,6 +454,7 @@ mod tests {
             ImplicitParam::Gravity(1),
             ImplicitParam::PointLoad(2, 0),
             ImplicitParam::Displacement(0, 1),
+            ImplicitParam::ConstraintForce(1, 0),
             ImplicitParam::Conductivity(2),
         ] {
             assert_eq!(p.to_string().parse::<ImplicitParam>(), Ok(p));
@@ -438,6 +463,7 @@ mod tests {
             "materials[0].viscosity",
             "point_loads[0].force",
             "constraints[1].displacement[x]",
+            "constraints[1].force",
             "friction[0]",
         ] {
             let err = bad.parse::<ImplicitParam>().unwrap_err();

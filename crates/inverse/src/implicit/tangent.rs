@@ -25,7 +25,7 @@ use crate::error::AdjointError;
 use loam_core::tensor::Vector;
 use loam_core::{Material, Particles};
 use loam_implicit::linear::{LinearSolver, LinearSolverKind};
-use loam_implicit::system::MASS_REGULARISATION;
+use loam_implicit::system::{MASS_REGULARISATION, StepSystem};
 use loam_implicit::{ImplicitConfig, ImplicitError, ImplicitSolver, NodeDof};
 use num_dual::Dual64;
 use rayon::prelude::*;
@@ -181,6 +181,7 @@ pub fn model_tangents<const D: usize>(
             }
             None => None,
         };
+        add_controlled_rate(system, param, &mut r_dot);
         let u_dot = solve_tangent(&solver, &replay, &mut linear, &r_dot)?;
         let moved = evaluate(&u_dot, false)?;
         for (p, s) in moved.iter().enumerate() {
@@ -246,6 +247,21 @@ pub fn model_tangents<const D: usize>(
         }
     }
     Ok(tangents)
+}
+
+/// Adds `ḟ_ext` of a constraint's force to `r_dot` (`ṙ = −Ṙ`, `R = f_int − f_ext`): the force
+/// `F` of a force-controlled component acts on its shared unknown as `ℓ F` at load factor `ℓ`
+/// ([`loam_implicit::system::Controlled`]).
+pub(super) fn add_controlled_rate<const D: usize>(
+    system: &StepSystem<D>,
+    param: ImplicitParam,
+    r_dot: &mut [f64],
+) {
+    if let ImplicitParam::ConstraintForce(k, a) = param {
+        for c in (system.controlled.iter()).filter(|c| c.constraint == k && c.component == a) {
+            r_dot[c.dof] += c.factor;
+        }
+    }
 }
 
 /// `Δu̇` from `J Δu̇ = ṙ` (`ṙ = −Ṙ`) with the sub-step's tangent at its converged unknowns.
