@@ -24,6 +24,9 @@
 //!   about a twelfth of its first period, the tip load applied suddenly): unknowns E, ν, the tip load and the
 //!   density (which now also sets the inertia); the loss tracks the tip's deflection and
 //!   velocity after every time step and the clamp's vertical reaction after the last;
+//! - the same with the tip load carried by a rigid plate over the beam's end (a
+//!   force-controlled constraint, whose force a Newmark residual holds twice: directly and
+//!   through the start force): unknowns E, the density and the plate's force;
 //! - `implicit_consolidation`, coupled u–p: a strip load on a saturated elastic layer under a
 //!   water table, applied undrained and held while the layer drains through its top surface
 //!   (a drained free surface) over 10 steps growing by 2 (the pressure stabilisation on);
@@ -62,7 +65,7 @@
 //! - the footing's cut sub-steps **≥ 1**, so that the cut replay is exercised.
 
 use crate::{CaseReport, Metric, Size, VerifyError, scenes, write_text};
-use loam_core::Particles;
+use loam_core::{NodeConstraint, Particles};
 use loam_implicit::ImplicitConfig;
 use loam_implicit::flow::TimeIntegration;
 use loam_inverse::implicit::{
@@ -364,6 +367,47 @@ fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
     check_cantilever("newmark cantilever", config, initial, quantities)
 }
 
+/// The Newmark cantilever with its tip load carried by a rigid plate instead of the point
+/// load: the nodes at x = 2.25 and 2.5 m (the beam's end and the column beyond it), y = 2 …
+/// 2.5 m, share one vertical unknown that carries the load (force-controlled). E, the density
+/// and the plate's force, which a Newmark step's residual holds twice (directly and through
+/// its start force); the loss tracks the tip's deflection and velocity after every time step
+/// and the clamp's vertical reaction after the last.
+fn newmark_plate(steps: usize) -> Result<Outcome, VerifyError> {
+    let (mut config, initial) = setup("implicit_cantilever_newmark", steps);
+    config.dynamics = Some(NEWMARK_DURATION / steps as f64);
+    let load = config.point_loads.remove(0);
+    config.constraints.push(NodeConstraint {
+        lo: [2.2, 1.9],
+        hi: [2.6, 2.6],
+        displacement: [None, None],
+        force: [None, Some(load.force[1])],
+    });
+    let plate = config.constraints.len() - 1;
+    let mut quantities = Vec::new();
+    for step in 1..=steps {
+        quantities.push((step, Quantity::displacement(load.particle, 1), 0.01));
+        quantities.push((step, Quantity::velocity(load.particle, 1), 0.1));
+    }
+    let reaction = Quantity::Reaction {
+        constraint: 0,
+        component: 1,
+    };
+    quantities.push((steps, reaction, 100.0));
+    let mut problem = ImplicitProblem {
+        config,
+        initial,
+        params: vec![
+            ImplicitParam::Material(0, MaterialField::Young),
+            ImplicitParam::Material(0, MaterialField::Density),
+            ImplicitParam::ConstraintForce(plate, 1),
+        ],
+        observations: ImplicitObservations::default(),
+    };
+    observe(&mut problem, &quantities)?;
+    check_problem("newmark cantilever, force-controlled plate", &problem)
+}
+
 /// The simulated time of the Newmark cantilever (s): the scene's 5 time steps of 0.04 s.
 const NEWMARK_DURATION: f64 = 0.2;
 
@@ -381,6 +425,7 @@ pub fn run(size: Size, dir: &Path) -> Result<CaseReport, VerifyError> {
         j2_footing()?,
         force_footing()?,
         newmark(newmark_steps)?,
+        newmark_plate(newmark_steps)?,
         clay_footing()?,
         consolidation::<2>(
             "consolidation (u–p)",

@@ -740,6 +740,17 @@ impl<const D: usize> StepSystem<D> {
         out
     }
 
+    /// `−∂R[c.dof]/∂F` of the force `F` of the force-controlled component `c`: `ℓ` (its load
+    /// factor) in a quasi-static or coupled step, `2ℓ` in a Newmark step, whose residual
+    /// `f_int(Δu) + f_int(0) − 2 f_ext + …` holds the external force once directly and once
+    /// through the start force `rₙ = f_ext − f_int(0)`.
+    pub fn controlled_rate(&self, c: &Controlled) -> f64 {
+        match self.inertia {
+            Some(_) => 2.0 * c.factor,
+            None => c.factor,
+        }
+    }
+
     /// Makes this a Newmark step of size `dt` (see [`Inertia`]): assembles the consistent
     /// mass, the grid momentum `pₙ = Σ_p m_p N_ip v_p` and the start-of-step force
     /// `rₙ = f_ext − f_int(0)`. `Err` names a particle whose start state has no stress (a

@@ -351,8 +351,9 @@ fn reverse_from<const D: usize>(
 }
 
 /// The shares of the constraints' forces in `params`: a force-controlled component puts
-/// `f_ext = ℓ F` (load factor `ℓ`) on its shared unknown ([`loam_implicit::system::Controlled`]), whose
-/// weight in `ψ` is the adjoint `λ` there, so `dψ/dF = ℓ λ_dof`.
+/// `f_ext = ℓ F` (load factor `ℓ`) on its shared unknown ([`loam_implicit::system::Controlled`]),
+/// which enters `−R` with the weight `c = 1` (Newmark: 2, [`StepSystem::controlled_rate`]);
+/// its weight in `ψ` is `c λ` there, so `dψ/dF = c ℓ λ_dof`.
 pub(super) fn add_controlled_shares<const D: usize>(
     system: &StepSystem<D>,
     lambda: &[f64],
@@ -362,7 +363,7 @@ pub(super) fn add_controlled_shares<const D: usize>(
     for (g, q) in grad.iter_mut().zip(params) {
         if let ImplicitParam::ConstraintForce(k, a) = *q {
             for c in (system.controlled.iter()).filter(|c| c.constraint == k && c.component == a) {
-                *g += lambda[c.dof] * c.factor;
+                *g += lambda[c.dof] * system.controlled_rate(c);
             }
         }
     }

@@ -73,35 +73,10 @@ impl<const D: usize> ImplicitProblem<D> {
     /// # Errors
     /// A parameter or an observation that does not fit (named by its field).
     pub fn validate(&self) -> Result<(), AdjointError> {
-        self.check_supported()?;
         for p in &self.params {
             p.value(&self.config, &self.initial)?;
         }
         self.observations.validate(&self.config, &self.initial)
-    }
-
-    /// Refuses force-controlled constraints in Newmark dynamics (the reverse of the mass
-    /// solve knows the grid's own unknowns, not a rigid group's shared one). In a
-    /// quasi-static or coupled run a force-controlled group is one shared unknown that the
-    /// reverse pass gathers and scatters like any other, and its force a constant load.
-    fn check_supported(&self) -> Result<(), AdjointError> {
-        if self.config.dynamics.is_none() {
-            return Ok(());
-        }
-        if let Some(i) = self
-            .config
-            .constraints
-            .iter()
-            .position(|k| k.force.iter().any(Option::is_some))
-        {
-            return Err(AdjointError::Unsupported {
-                what: format!("constraints[{i}].force"),
-                why: "the implicit adjoint of Newmark dynamics knows prescribed displacements, \
-                      not force-controlled rigid groups"
-                    .into(),
-            });
-        }
-        Ok(())
     }
 
     /// The parameters' values in the scene.
@@ -123,7 +98,6 @@ impl<const D: usize> ImplicitProblem<D> {
         &self,
         theta: &[f64],
     ) -> Result<(ImplicitConfig<D>, Particles<f64, D>), AdjointError> {
-        self.check_supported()?;
         let mut config = self.config.clone();
         let mut particles = self.initial.clone();
         for (p, &v) in self.params.iter().zip(theta) {

@@ -249,9 +249,10 @@ pub fn model_tangents<const D: usize>(
     Ok(tangents)
 }
 
-/// Adds `ḟ_ext` of a constraint's force to `r_dot` (`ṙ = −Ṙ`, `R = f_int − f_ext`): the force
-/// `F` of a force-controlled component acts on its shared unknown as `ℓ F` at load factor `ℓ`
-/// ([`loam_implicit::system::Controlled`]).
+/// Adds `−∂R/∂F` of a constraint's force to `r_dot` (`ṙ = −Ṙ`): the force `F` of a
+/// force-controlled component acts on its shared unknown as `ℓ F` at load factor `ℓ`
+/// ([`loam_implicit::system::Controlled`]), twice in a Newmark step
+/// ([`StepSystem::controlled_rate`]).
 pub(super) fn add_controlled_rate<const D: usize>(
     system: &StepSystem<D>,
     param: ImplicitParam,
@@ -259,7 +260,7 @@ pub(super) fn add_controlled_rate<const D: usize>(
 ) {
     if let ImplicitParam::ConstraintForce(k, a) = param {
         for c in (system.controlled.iter()).filter(|c| c.constraint == k && c.component == a) {
-            r_dot[c.dof] += c.factor;
+            r_dot[c.dof] += system.controlled_rate(c);
         }
     }
 }
