@@ -156,12 +156,23 @@ fn check_problem<const D: usize>(
     })
 }
 
-/// The cantilever's check (`name`): E, ν, the tip load and the density, for a loss over
-/// `quantities` and the clamp's vertical reaction after the last step.
+/// The cantilever's unknowns: E, ν, the tip load and the density.
+fn cantilever_params() -> Vec<ImplicitParam> {
+    vec![
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Poisson),
+        ImplicitParam::PointLoad(0, 1),
+        ImplicitParam::Material(0, MaterialField::Density),
+    ]
+}
+
+/// The cantilever's check (`name`) with respect to `params`, for a loss over `quantities`
+/// and the clamp's vertical reaction after the last step.
 fn check_cantilever(
     name: &'static str,
     config: ImplicitConfig<2>,
     initial: Particles<f64, 2>,
+    params: Vec<ImplicitParam>,
     mut quantities: Vec<(usize, Quantity, f64)>,
 ) -> Result<Outcome, VerifyError> {
     let reaction = Quantity::Reaction {
@@ -173,12 +184,7 @@ fn check_cantilever(
     let mut problem = ImplicitProblem {
         config,
         initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Poisson),
-            ImplicitParam::PointLoad(0, 1),
-            ImplicitParam::Material(0, MaterialField::Density),
-        ],
+        params,
         observations: ImplicitObservations::default(),
     };
     observe(&mut problem, &quantities)?;
@@ -200,7 +206,13 @@ fn cantilever(load_steps: usize) -> Result<Outcome, VerifyError> {
             quantities.push((step, quantity, 0.01));
         }
     }
-    check_cantilever("cantilever", config, initial, quantities)
+    check_cantilever(
+        "cantilever",
+        config,
+        initial,
+        cantilever_params(),
+        quantities,
+    )
 }
 
 /// A footing scene `file` (`label`) with respect to `params`: the footing load after every
@@ -351,31 +363,40 @@ fn consolidation<const D: usize>(
     check_problem(label, &problem)
 }
 
-/// The cantilever in Newmark dynamics over the scene's 0.2 s in `steps` time steps: E, ν, the
-/// tip load, the density.
-fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
+/// The Newmark cantilever over the scene's 0.2 s in `steps` time steps, and its loss's
+/// quantities: the tip's deflection and velocity after every time step.
+fn newmark_setup(
+    steps: usize,
+) -> (
+    ImplicitConfig<2>,
+    Particles<f64, 2>,
+    Vec<(usize, Quantity, f64)>,
+) {
     let (mut config, initial) = setup("implicit_cantilever_newmark", steps);
     config.dynamics = Some(NEWMARK_DURATION / steps as f64);
     let tip = config.point_loads[0].particle;
     let mut quantities = Vec::new();
     for step in 1..=steps {
-        let deflection = Quantity::displacement(tip, 1);
-        let velocity = Quantity::velocity(tip, 1);
-        quantities.push((step, deflection, 0.01));
-        quantities.push((step, velocity, 0.1));
+        quantities.push((step, Quantity::displacement(tip, 1), 0.01));
+        quantities.push((step, Quantity::velocity(tip, 1), 0.1));
     }
-    check_cantilever("newmark cantilever", config, initial, quantities)
+    (config, initial, quantities)
+}
+
+/// The cantilever in Newmark dynamics: E, ν, the tip load, the density.
+fn newmark(steps: usize) -> Result<Outcome, VerifyError> {
+    let (config, initial, quantities) = newmark_setup(steps);
+    let params = cantilever_params();
+    check_cantilever("newmark cantilever", config, initial, params, quantities)
 }
 
 /// The Newmark cantilever with its tip load carried by a rigid plate instead of the point
 /// load: the nodes at x = 2.25 and 2.5 m (the beam's end and the column beyond it), y = 2 …
 /// 2.5 m, share one vertical unknown that carries the load (force-controlled). E, the density
 /// and the plate's force, which a Newmark step's residual holds twice (directly and through
-/// its start force); the loss tracks the tip's deflection and velocity after every time step
-/// and the clamp's vertical reaction after the last.
+/// its start force).
 fn newmark_plate(steps: usize) -> Result<Outcome, VerifyError> {
-    let (mut config, initial) = setup("implicit_cantilever_newmark", steps);
-    config.dynamics = Some(NEWMARK_DURATION / steps as f64);
+    let (mut config, initial, quantities) = newmark_setup(steps);
     let load = config.point_loads.remove(0);
     config.constraints.push(NodeConstraint {
         lo: [2.2, 1.9],
@@ -383,29 +404,13 @@ fn newmark_plate(steps: usize) -> Result<Outcome, VerifyError> {
         displacement: [None, None],
         force: [None, Some(load.force[1])],
     });
-    let plate = config.constraints.len() - 1;
-    let mut quantities = Vec::new();
-    for step in 1..=steps {
-        quantities.push((step, Quantity::displacement(load.particle, 1), 0.01));
-        quantities.push((step, Quantity::velocity(load.particle, 1), 0.1));
-    }
-    let reaction = Quantity::Reaction {
-        constraint: 0,
-        component: 1,
-    };
-    quantities.push((steps, reaction, 100.0));
-    let mut problem = ImplicitProblem {
-        config,
-        initial,
-        params: vec![
-            ImplicitParam::Material(0, MaterialField::Young),
-            ImplicitParam::Material(0, MaterialField::Density),
-            ImplicitParam::ConstraintForce(plate, 1),
-        ],
-        observations: ImplicitObservations::default(),
-    };
-    observe(&mut problem, &quantities)?;
-    check_problem("newmark cantilever, force-controlled plate", &problem)
+    let params = vec![
+        ImplicitParam::Material(0, MaterialField::Young),
+        ImplicitParam::Material(0, MaterialField::Density),
+        ImplicitParam::ConstraintForce(config.constraints.len() - 1, 1),
+    ];
+    let name = "newmark cantilever, force-controlled plate";
+    check_cantilever(name, config, initial, params, quantities)
 }
 
 /// The simulated time of the Newmark cantilever (s): the scene's 5 time steps of 0.04 s.
