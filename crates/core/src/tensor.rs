@@ -78,6 +78,24 @@ pub fn from3<T: Scalar, const D: usize>(m: &Matrix3<T>) -> Tensor<T, D> {
     Tensor::<T, D>::from_fn(|i, j| m[(i, j)])
 }
 
+/// The product `a b`, `(a b)_ij = Σ_k a_ik b_kj`, summed in a plain loop in the order of `k`.
+///
+/// nalgebra's generic product computes `α a b + β c` and also multiplies by its `α = 1`,
+/// which for a many-lane dual is one more full product per term; the sums are the same.
+#[inline]
+pub fn product<T: Scalar, const R: usize, const K: usize, const C: usize>(
+    a: &SMatrix<T, R, K>,
+    b: &SMatrix<T, K, C>,
+) -> SMatrix<T, R, C> {
+    SMatrix::from_fn(|i, j| {
+        let mut sum = a[(i, 0)] * b[(0, j)];
+        for k in 1..K {
+            sum += a[(i, k)] * b[(k, j)];
+        }
+        sum
+    })
+}
+
 /// Converts a tensor of one scalar type to another through the real parts (drops derivatives).
 #[inline]
 pub fn real<T: Scalar, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> SMatrix<f64, R, C> {

@@ -63,7 +63,7 @@ use crate::dofs::NodeDof;
 use crate::kernel::stress_update;
 use crate::linear::SparseMatrix;
 use crate::system::{CHUNK, Inverted, Materials, Placed, StepSystem};
-use loam_core::tensor::{Tensor, Vector, det, inverse};
+use loam_core::tensor::{Tensor, Vector, det, inverse, product};
 use loam_core::{Material, Scalar};
 use nalgebra::Matrix3;
 use num_dual::DualSVec64;
@@ -261,8 +261,7 @@ pub fn coupled_update<T: Scalar, const D: usize>(
     let volume =
         (content - fluid.carried) * T::cst(scale) + excess * fluid.leakage * T::cst(scale * dt);
     let mobility = hydraulic.permeability.factor(dj * jn)? * hydraulic.mobility;
-    let flux = dfinv
-        * (dfinv.transpose() * grad_p_hat)
+    let flux = product(&dfinv, &product(&dfinv.transpose(), grad_p_hat))
         * (dj * mobility * vn * T::cst(scale * scale * dt));
     Some(Coupled {
         momentum,
@@ -596,8 +595,9 @@ impl<const D: usize> StepSystem<D> {
         let fields = D + 1;
         let mut local: Vec<Option<CoupledTangent<L>>> = Vec::new();
         let mut order: Vec<usize> = Vec::new();
-        let mut placed: Vec<Placed> = Vec::new();
-        let mut weights: Vec<Weights> = Vec::new();
+        // The group's free node components: their index in the dense block, and placed.
+        let mut placed: Vec<(usize, Placed)> = Vec::new();
+        let mut shapes: Vec<(f64, Vector<f64, D>)> = Vec::new();
         let mut dense: Vec<f64> = Vec::new();
         let base = |p: usize| self.frozen[p].stencil.base;
         for start in (0..n).step_by(CHUNK) {
@@ -615,44 +615,38 @@ impl<const D: usize> StepSystem<D> {
             order.extend(start..end);
             order.sort_by_key(|&p| base(p));
             for group in order.chunk_by(|&a, &b| base(a) == base(b)) {
-                // The unknowns of the group's nodes, placed once.
+                // The unknowns of the group's nodes, placed once; the dense block holds every
+                // node component of the stencil, free or not.
                 placed.clear();
+                let mut nodes = 0;
                 self.frozen[group[0]].stencil.for_each(|node| {
                     for c in 0..fields {
                         if let NodeDof::Free { dof, sign } = self.dofs.get(node.flat, c) {
-                            placed.push(self.place(dof, sign));
+                            placed.push((nodes * fields + c, self.place(dof, sign)));
                         }
                     }
+                    nodes += 1;
                 });
-                let m = placed.len();
+                let m = nodes * fields;
                 dense.clear();
                 dense.resize(m * m, 0.0);
                 for &p in group {
                     let a = local[p - start].as_ref().expect("checked above");
-                    self.coupled_local_weights(p, &mut weights);
-                    add_local_block(a, &placed, &weights, &mut dense);
+                    shapes.clear();
+                    self.frozen[p]
+                        .stencil
+                        .for_each(|n| shapes.push((n.weight, n.gradient)));
+                    add_local_block::<D, L>(a, &shapes, &mut dense);
                 }
-                for (col, block) in placed.iter().zip(dense.chunks_exact(m)) {
-                    for (row, kv) in placed.iter().zip(block) {
-                        k.values[self.slot_placed(row, col)] += kv;
+                for (j, col) in &placed {
+                    let block = &dense[j * m..(j + 1) * m];
+                    for (i, row) in &placed {
+                        k.values[self.slot_placed(row, col)] += row.sign * col.sign * block[*i];
                     }
                 }
             }
         }
         Ok(())
-    }
-
-    /// The weights ([`Weights`]) of every node component of particle `p`'s stencil that is
-    /// an unknown, in stencil order, into `weights`.
-    fn coupled_local_weights(&self, p: usize, weights: &mut Vec<Weights>) {
-        weights.clear();
-        self.frozen[p].stencil.for_each(|n| {
-            for c in 0..=D {
-                if let NodeDof::Free { .. } = self.dofs.get(n.flat, c) {
-                    weights.push(Weights::of::<D>(c, n.weight, &n.gradient));
-                }
-            }
-        });
     }
 
     /// The kernel's derivative for particle `p` with all `L` inputs seeded.
@@ -781,69 +775,57 @@ impl<const D: usize> StepSystem<D> {
 
 /// Adds one particle's `K_{(i,r),(j,c)} = Σ_{o,z} B_i(r)_o A_{oz} B_j(c)_z` (the kernel's
 /// derivative `A`, `L × L` row-major, between the shape-function weights `B` of the row and
-/// column unknowns, signs included) to the dense block `dense` over the unknowns `placed`,
-/// column by column. The weights of a node component over the kernel's inputs are also
-/// those over its outputs: `∂_d N` on `ΔF_cd` for a displacement component `c`, `N` on `p̂`
-/// and `∂_d N` on `∇p̂_d` for the pressure.
-fn add_local_block<const L: usize>(
+/// column node components) to the dense block `dense`, column-major over every node component
+/// `(i, r)` of the stencil (index `i (D + 1) + r`; `shapes` holds `(N_i, ∇N_i)` per node). The
+/// weights of a node component over the kernel's inputs are also those over its outputs:
+/// `∂_d N` on `ΔF_cd` for a displacement component `c`, `N` on `p̂` and `∂_d N` on `∇p̂_d` for
+/// the pressure (inputs in the order `ΔF` row by row, `p̂`, `∇p̂`: `L = D² + 1 + D`).
+///
+/// Per column node `j` it forms `C_j = A B_jᵀ` (`L × (D + 1)`), then per row node `i` the
+/// block `B_i C_j`, in loops of fixed length: the sums are those of the sparse weights, in
+/// the same order, without index tables.
+fn add_local_block<const D: usize, const L: usize>(
     a: &CoupledTangent<L>,
-    placed: &[Placed],
-    weights: &[Weights],
+    shapes: &[(f64, Vector<f64, D>)],
     dense: &mut [f64],
 ) {
-    let mut v = [0.0; L];
-    for ((col, bj), block) in placed
-        .iter()
-        .zip(weights)
-        .zip(dense.chunks_exact_mut(placed.len()))
-    {
-        // A B_j(c): one column of outputs.
-        v.iter_mut().for_each(|x| *x = 0.0);
-        for (&z, &bz) in bj.index[..bj.len].iter().zip(&bj.value) {
-            for (vo, ao) in v.iter_mut().zip(a) {
-                *vo += ao[z] * bz;
+    debug_assert_eq!(L, coupled_lanes(D));
+    let fields = D + 1;
+    let m = shapes.len() * fields;
+    // c[o][c]: output o of A times the weights of component c of node j.
+    let mut c = [[0.0; 4]; L];
+    for (j, (wj, gj)) in shapes.iter().enumerate() {
+        for (co, ao) in c.iter_mut().zip(a) {
+            for (comp, cv) in co.iter_mut().enumerate().take(D) {
+                let mut v = 0.0;
+                for e in 0..D {
+                    v += ao[comp * D + e] * gj[e];
+                }
+                *cv = v;
+            }
+            let mut v = 0.0 + ao[D * D] * wj;
+            for e in 0..D {
+                v += ao[D * D + 1 + e] * gj[e];
+            }
+            co[D] = v;
+        }
+        for comp in 0..fields {
+            let column = &mut dense[(j * fields + comp) * m..(j * fields + comp + 1) * m];
+            for ((wi, gi), rows) in shapes.iter().zip(column.chunks_exact_mut(fields)) {
+                for (r, kv) in rows.iter_mut().enumerate().take(D) {
+                    let mut s = 0.0;
+                    for d in 0..D {
+                        s += gi[d] * c[r * D + d][comp];
+                    }
+                    *kv += s;
+                }
+                let mut s = 0.0 + wi * c[D * D][comp];
+                for d in 0..D {
+                    s += gi[d] * c[D * D + 1 + d][comp];
+                }
+                rows[D] += s;
             }
         }
-        for ((row, bi), kv) in placed.iter().zip(weights).zip(block) {
-            let s: f64 = (bi.index[..bi.len].iter().zip(&bi.value))
-                .map(|(&o, &b)| b * v[o])
-                .sum();
-            *kv += row.sign * col.sign * s;
-        }
-    }
-}
-
-/// The weights of one node component over the coupled kernel's inputs or outputs (at most
-/// `D + 1` of them), without allocating.
-#[derive(Clone, Copy)]
-struct Weights {
-    index: [usize; 4],
-    value: [f64; 4],
-    len: usize,
-}
-
-impl Weights {
-    /// Component `c` of a node with shape function `w` and gradient `g`: `ΔF_cd` (or the
-    /// momentum row `c`) with `∂_d N`, or for the pressure `p̂` with `N` and `∇p̂_d` with
-    /// `∂_d N`.
-    fn of<const D: usize>(c: usize, w: f64, g: &Vector<f64, D>) -> Self {
-        let mut out = Self {
-            index: [0; 4],
-            value: [0.0; 4],
-            len: 0,
-        };
-        let mut push = |i: usize, v: f64| {
-            out.index[out.len] = i;
-            out.value[out.len] = v;
-            out.len += 1;
-        };
-        if c < D {
-            (0..D).for_each(|d| push(c * D + d, g[d]));
-        } else {
-            push(D * D, w);
-            (0..D).for_each(|d| push(D * D + 1 + d, g[d]));
-        }
-        out
     }
 }
 

@@ -12,7 +12,7 @@
 //! The same code runs with `f64` (residual) and with dual numbers (tangents).
 
 use loam_core::constitutive::MaterialState;
-use loam_core::tensor::{Tensor, det, from3, inverse, to3};
+use loam_core::tensor::{Tensor, det, from3, inverse, product, to3};
 use loam_core::{Material, Scalar, Stencil};
 use nalgebra::Matrix3;
 
@@ -84,9 +84,13 @@ pub fn stress_update<T: Scalar, const D: usize>(
     if det(delta_f).re() <= 0.0 {
         return None;
     }
-    let f = delta_f * f_n;
+    let f = product(delta_f, f_n);
     let (tau, state) =
         material.kirchhoff_update(&to3(delta_f, T::one()), &to3(&f, T::one()), state);
     let dfinv_t = inverse(delta_f)?.transpose();
-    Some((from3::<T, D>(&tau) * dfinv_t * volume0, tau, state))
+    Some((
+        product(&from3::<T, D>(&tau), &dfinv_t) * volume0,
+        tau,
+        state,
+    ))
 }

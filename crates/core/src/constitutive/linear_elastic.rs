@@ -2,6 +2,7 @@
 
 use super::{Hyperelastic, Lame};
 use crate::scalar::Scalar;
+use crate::tensor::product;
 use nalgebra::Matrix3;
 
 /// Linear elasticity on the small-strain tensor `ε = ½(F + Fᵀ) − I`:
@@ -33,7 +34,7 @@ impl<T: Scalar> Hyperelastic<T> for LinearElastic<T> {
     }
 
     fn kirchhoff_stress(&self, f: &Matrix3<T>) -> Matrix3<T> {
-        self.small_strain_stress(f) * f.transpose()
+        product(&self.small_strain_stress(f), &f.transpose())
     }
 
     fn cauchy_stress(&self, f: &Matrix3<T>) -> Matrix3<T> {

@@ -36,13 +36,12 @@ use super::inertia::InertiaWeights;
 use super::kernel::{
     Loads, ParticleState, Setting, carries_history, mass_index, state_len, velocity_index,
 };
-use loam_core::Scalar;
 use loam_core::constitutive::{HISTORY_LEN, MaterialState, Model};
 use loam_core::stencil::particle_half_width;
-use loam_core::tensor::{Tensor, Vector, det, from3, inverse, to3};
+use loam_core::tensor::{Tensor, Vector, det, from3, inverse, product, to3};
 use loam_core::{Material, Stencil};
 use loam_implicit::kernel::stress_update;
-use nalgebra::{Matrix3, SMatrix, SVector};
+use nalgebra::{Matrix3, SVector};
 use num_dual::{Derivative, Dual64, DualSVec64};
 
 /// The weights of a particle's step outputs in `ψₚ` (module docs).
@@ -534,25 +533,11 @@ fn composed_jacobian<const L: usize, const M: usize, const D: usize>(
     Some(jacobian_rows(&s, history.as_ref()))
 }
 
-/// `a b` summed in a plain loop: nalgebra's generic product also multiplies by its `α = 1`
-/// (and `β`), each a full product of the many-lane duals.
-fn product<T: Scalar, const R: usize, const K: usize, const C: usize>(
-    a: &SMatrix<T, R, K>,
-    b: &SMatrix<T, K, C>,
-) -> SMatrix<T, R, C> {
-    SMatrix::from_fn(|i, j| {
-        let mut sum = a[(i, 0)] * b[(0, j)];
-        for k in 1..K {
-            sum += a[(i, k)] * b[(k, j)];
-        }
-        sum
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::kernel::{lift_loads, particle_step};
     use super::*;
+    use loam_core::Scalar;
     use loam_core::constitutive::{Hencky, J2, Lame};
     use loam_core::{Grid, Shape};
 
