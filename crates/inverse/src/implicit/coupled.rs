@@ -36,11 +36,15 @@
 //!      its rows, which `J` is assembled from, and of the end excess and history
 //!      ([`SumsJacobian`]); the right-hand side `∂ψ/∂(Δu, p̂)|_{λ=0}` is that derivative
 //!      contracted with the weights `ψ` puts on them ([`Local::sums_partial`]);
-//!   2. *the final pass*, with `λ`: the whole step with the state components the step reads
-//!      and the excess seeded (8 lanes for a 2D particle without history, at most
-//!      [`LANES`] a time), the sums held; their partials are again pass 1's derivative
-//!      contracted, now with `λ`'s weights. Each parameter's share is one `Dual64`
-//!      evaluation with the parameter seeded;
+//!   2. *the final pass*, with `λ`: the sums' partials are again pass 1's derivative
+//!      contracted, now with `λ`'s weights; the state's follow from the step split where it
+//!      is linear ([`Local::partials`]): the kernel's start (`Fⁿ`, history, excess, the
+//!      position through the hydrostatic pressure) by multi-lane duals with the stencil held
+//!      (7 lanes for a 2D particle without history, at most [`LANES`] a time), the stencil
+//!      `(xₚ, Fₚ) ↦ (N_i, ∇N_i)` by one more (the rows and sums are linear in it, so its
+//!      weights are closed form), the mass in closed form. Each parameter's share is one
+//!      `Dual64` evaluation of the kernel with the parameter seeded, plus the loads' share
+//!      in closed form;
 //! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
 //!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
 //!
@@ -55,9 +59,12 @@
 //! The row scale `s = G_ref/h` is held in both: the physical solution does not depend on it
 //! (it scales the pressure unknowns and the fluid rows alike), so it carries no derivative.
 
-use super::kernel::{Loads, ParticleState, Setting, carries_history, lift_loads, state_len};
+use super::kernel::{
+    Loads, ParticleState, Setting, carries_history, lift_loads, mass_index, state_len,
+};
 use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
+use super::pullback::{Node, pull_geometry, stencil_jacobian};
 use super::record::{Replay, SubStep, Trajectory};
 use super::seeds::StepSeeds;
 use crate::error::AdjointError;
@@ -78,7 +85,7 @@ use rayon::prelude::*;
 pub const LANES: usize = 16;
 
 /// The final pass's lanes for a particle with at most this many differentiated inputs (the
-/// state of a 2D particle without history: position, `Fⁿ`, mass and excess): a dual's cost
+/// state of a 2D particle without history: position, `Fⁿ` and excess, 7): a dual's cost
 /// grows with its lanes, not with those seeded.
 const NARROW_LANES: usize = 8;
 
@@ -212,10 +219,6 @@ impl<T: Scalar + From<f64>, const D: usize> StencilSums<T, D> {
 /// The particle's part of a coupled sub-step with the stencil sums that `sums` gives for its
 /// stencil ([`StencilSums::of`] for the nodal unknowns); `None` where the particle inverts.
 #[allow(clippy::too_many_arguments)]
-// Inlined into the final pass's lane loop, the kernel's duals were moved by `memcpy` (6.7
-// million calls, 0.28 G instructions over the consolidation example's reverse pass);
-// called, they are not.
-#[inline(never)]
 pub fn particle_step<T: Scalar + From<f64>, const D: usize>(
     setting: &Setting<'_, D>,
     fluid: &FluidSetting<'_, D>,
@@ -332,53 +335,6 @@ pub struct CoupledCotangent<'a, const D: usize> {
     pub scale: f64,
 }
 
-impl<const D: usize> CoupledCotangent<'_, D> {
-    /// `ψₚ` of a particle's step.
-    pub fn psi<T: Scalar>(&self, step: &CoupledParticle<T, D>) -> T {
-        let mut psi = T::zero();
-        let mut b_p = T::zero();
-        for n in &step.nodes {
-            let (a, c, b) = (
-                self.internal[n.flat],
-                self.external[n.flat],
-                self.fluid[n.flat],
-            );
-            for k in 0..D {
-                psi += n.internal[k] * T::cst(a[k]) + n.external[k] * T::cst(c[k]);
-            }
-            psi += (n.fluid - n.inflow) * T::cst(b);
-            b_p += n.weight * T::cst(b);
-        }
-        let e = &step.end;
-        let f = e.f.transpose();
-        let values = (e.x.iter())
-            .chain(f.iter())
-            .copied()
-            .chain(e.history.components())
-            .chain(e.v.iter().copied())
-            .chain(std::iter::once(e.mass));
-        for (v, w) in values.zip(self.end) {
-            if *w != 0.0 {
-                psi += v * T::cst(*w);
-            }
-        }
-        for (v, w) in [
-            (step.content, self.content),
-            (step.increment, self.increment),
-        ] {
-            if w != 0.0 {
-                psi += v * T::cst(w);
-            }
-        }
-        let (m, b_bar) = self.patch;
-        psi + step.excess * T::cst(self.excess)
-            + step.stabilisation
-                * (step.stabilised - T::cst(m))
-                * (b_p - T::cst(b_bar))
-                * T::cst(self.scale)
-    }
-}
-
 /// Everything fixed about one particle in one coupled sub-step.
 struct Local<'a, const D: usize> {
     setting: Setting<'a, D>,
@@ -467,7 +423,8 @@ impl<const D: usize> Local<'_, D> {
     }
 
     /// The differentiated inputs of the final pass: the state's components that the step
-    /// reads (not the velocity, nor the history of a material that carries none, nor in 2D
+    /// reads (not the velocity, nor the mass, which enters through the load alone
+    /// ([`Local::partials`]), nor the history of a material that carries none, nor in 2D
     /// the history tensor's out-of-plane entries `(a, 2)`, `(2, a)` with `a < 2`), and the
     /// excess. The previous step's `ΔΞⁿ` and `Δp_eⁿ` are not among them
     /// ([`Local::carried_partials`]), nor are the stencil sums: their partials follow from pass 1's
@@ -490,7 +447,7 @@ impl<const D: usize> Local<'_, D> {
                     .filter(|&k| self.carries && in_plane(k))
                     .map(|k| h0 + k),
             )
-            .chain([state_len(D) - 1, state_len(D)])
+            .chain([state_len(D)])
             .collect()
     }
 
@@ -649,27 +606,148 @@ impl<const D: usize> Local<'_, D> {
         Some((a, jacobian, (stabilised, frozen.weight.re)))
     }
 
+    /// The particle's stencil at its start state with its derivative by `(x, F)`
+    /// ([`stencil_jacobian`]), the stencil sums at the unknowns of `z`, and the weights `ψₚ`
+    /// puts on the kernel's rows.
+    fn pulled(&self, z: &[f64], cot: &CoupledCotangent<'_, D>) -> Pulled<D> {
+        let u = self.unknowns(z);
+        let state = Self::state_of(z);
+        let (nodes, geometry) = match D {
+            2 => stencil_jacobian::<6, D>(&self.setting, &state, &u),
+            3 => stencil_jacobian::<12, D>(&self.setting, &state, &u),
+            _ => unreachable!("D is 2 or 3"),
+        };
+        let pressures: Vec<f64> = nodes.iter().map(|n| u(n.flat, D)).collect();
+        let mut out = Pulled {
+            delta_f: Tensor::<f64, D>::identity(),
+            p_hat: 0.0,
+            grad: Vector::<f64, D>::zeros(),
+            m_bar: Tensor::<f64, D>::zeros(),
+            b_p: 0.0,
+            flux_bar: Vector::<f64, D>::zeros(),
+            external: Vector::<f64, D>::zeros(),
+            nodes: Vec::new(),
+            geometry,
+            pressures: Vec::new(),
+        };
+        for (n, &p) in nodes.iter().zip(&pressures) {
+            out.delta_f += n.du * n.gradient.transpose();
+            out.p_hat += n.weight * p;
+            out.grad += n.gradient * p;
+            out.m_bar += cot.internal[n.flat] * n.gradient.transpose();
+            out.b_p += cot.fluid[n.flat] * n.weight;
+            out.flux_bar += n.gradient * cot.fluid[n.flat];
+            out.external += cot.external[n.flat] * n.weight;
+        }
+        out.nodes = nodes;
+        out.pressures = pressures;
+        out
+    }
+
+    /// The part of `ψₚ` that the kernel's start moves with the stencil held (`pulled`): the
+    /// start state and excess of `z` through [`frozen`] and [`coupled_update`], the outputs
+    /// weighted as `ψₚ` weighs them through the rows (`M̄ = Σ_i a_i ⊗ ∇N_i` on the momentum,
+    /// `Bₚ = Σ_i b_i N_i` on the volume, `Σ_i b_i ∇N_i` on the flux), the end state (but
+    /// the velocity and mass, which pass through), the end excess, the increment, the
+    /// fluid-content change and the stabilisation's term. Also returns the real parts of
+    /// `(M, volume, flux, wₚ (Δpₚ − m))`.
+    fn kernel_psi<T: Scalar + From<f64>>(
+        &self,
+        pulled: &Pulled<D>,
+        cot: &CoupledCotangent<'_, D>,
+        z: &[T],
+        material: &Material<T>,
+        hydraulic: &Hydraulic<T>,
+    ) -> Option<(T, KernelReal<D>)> {
+        let start = Self::state_of(z);
+        let inputs = Self::fluid_of(z);
+        let frozen = frozen(
+            &self.setting,
+            &self.fluid,
+            material,
+            hydraulic,
+            &start,
+            &inputs,
+        );
+        let g = pulled.delta_f.map(T::cst);
+        let c = coupled_update(
+            material,
+            &CoupledStart {
+                f_n: &start.f,
+                history: &start.history,
+                volume0: self.setting.volume0,
+                fluid: &frozen,
+            },
+            hydraulic,
+            self.fluid.dt,
+            self.fluid.scale,
+            &g,
+            T::cst(pulled.p_hat),
+            &pulled.grad.map(T::cst),
+        )?;
+        let (m, b_bar) = cot.patch;
+        let stabilised = c.excess - inputs.excess - frozen.carried_increment;
+        let mut psi = c.volume * T::cst(pulled.b_p) + c.excess * T::cst(cot.excess + cot.increment)
+            - inputs.excess * T::cst(cot.increment)
+            + c.content * T::cst(cot.content)
+            + frozen.weight * (stabilised - T::cst(m)) * T::cst(cot.scale * (pulled.b_p - b_bar));
+        for r in 0..D {
+            psi += c.flux[r] * T::cst(pulled.flux_bar[r]) + start.x[r] * T::cst(cot.end[r]);
+            for k in 0..D {
+                psi += c.momentum[(r, k)] * T::cst(pulled.m_bar[(r, k)]);
+                let end_f = (0..D).fold(T::zero(), |e, j| e + g[(r, j)] * start.f[(j, k)]);
+                psi += end_f * T::cst(cot.end[D + r * D + k]);
+            }
+        }
+        if self.carries {
+            let h0 = D + D * D;
+            let weights = &cot.end[h0..h0 + loam_core::constitutive::HISTORY_LEN];
+            for (v, &w) in c.state.components().iter().zip(weights) {
+                if w != 0.0 {
+                    psi += *v * T::cst(w);
+                }
+            }
+        }
+        let real = (
+            c.momentum.map(|v| v.re()),
+            c.volume.re(),
+            c.flux.map(|v| v.re()),
+            frozen.weight.re() * (stabilised.re() - m),
+        );
+        Some((psi, real))
+    }
+
     /// The partials of `ψₚ` by the inputs `lanes` (state components and excess, by index)
-    /// with the unknowns held, by `L`-lane duals, `L` at a time; the entries of the lanes
-    /// not differentiated, and the stencil sums', are zero. Returns the partials (the state's
-    /// components, the excess, then the [`coupled_lanes`] sums) and the step of the last
-    /// chunk.
+    /// with the unknowns held, from `sums_bar = ∂ψₚ/∂(ΔF, p̂, ∇ⁿp̂)` ([`Local::sums_partial`])
+    /// and the step split where it is linear:
+    ///
+    /// - [`Local::kernel_psi`] by `L`-lane duals, `L` lanes at a time;
+    /// - the stencil `(xₚ, Fₚ) ↦ (N_i, ∇N_i)`, differentiated in `pulled`, weighted by
+    ///
+    /// ```text
+    /// N̄_i  = c_i·q + b_i (volume − Δt s Q) + x̄'·Δu_i + p̂̄ p̂_i + s wₚ (Δpₚ − m) b_i
+    /// ∇N̄_i = Mᵀ a_i + b_i flux + ΔF̄ᵀ Δu_i + ∇ⁿp̂̄ p̂_i
+    /// ```
+    ///
+    ///   (the rows and the sums are linear in `(N_i, ∇N_i)`);
+    /// - the mass, which enters through `q` alone: `m̄ = m̄' + λ_g Σ_i N_i c_i·g`.
+    ///
+    /// Returns the partials (the state's components, the excess, then zeros for the
+    /// [`coupled_lanes`] sums); the entries of the lanes not differentiated are zero.
+    #[allow(clippy::too_many_arguments)]
     fn partials<const L: usize>(
         &self,
+        pulled: &Pulled<D>,
         z: &[f64],
         lanes: &[usize],
         mats: &[Material<DualSVec64<L>>],
         hydraulic: &Hydraulic<DualSVec64<L>>,
         cot: &CoupledCotangent<'_, D>,
-    ) -> Option<(Vec<f64>, CoupledParticle<DualSVec64<L>, D>)> {
-        let loads = Loads {
-            gravity: self.loads.gravity.map(DualSVec64::from_re),
-            point: self.loads.point.map(DualSVec64::from_re),
-            balance: self.loads.balance.map(DualSVec64::from_re),
-        };
+        sums_bar: &[f64],
+    ) -> Option<Vec<f64>> {
         let sums = Self::UNKNOWNS;
         let mut dz = vec![0.0; sums + coupled_lanes(D)];
-        let mut last = None;
+        let mut real = None;
         for chunk in lanes.chunks(L) {
             let seed = |k: usize| -> Option<DualSVec64<L>> {
                 let l = chunk.iter().position(|&j| j == k)?;
@@ -683,26 +761,68 @@ impl<const D: usize> Local<'_, D> {
                     None => DualSVec64::from_re(v),
                 })
                 .collect();
-            let u = self.unknowns(z);
-            let step = particle_step(
-                &self.setting,
-                &self.fluid,
-                &mats[self.material],
-                hydraulic,
-                &Self::state_of(&seeded),
-                &Self::fluid_of(&seeded),
-                &loads,
-                |stencil| StencilSums::of(stencil, |f, c| DualSVec64::from_re(u(f, c))),
-            )?;
-            let psi = cot.psi(&step);
+            let (psi, r) =
+                self.kernel_psi(pulled, cot, &seeded, &mats[self.material], hydraulic)?;
             if let Some(e) = psi.eps.0.as_ref() {
                 for (l, &k) in chunk.iter().enumerate() {
                     dz[k] = e[l];
                 }
             }
-            last = Some(step);
+            real.get_or_insert(r);
         }
-        Some((dz, last?))
+        let (momentum, volume, flux, stabilisation) = real?;
+        let mass = z[mass_index(D)];
+        let q = self.loads.gravity * (mass * self.setting.gravity_factor)
+            + self.loads.point * self.setting.load_factor
+            + self.loads.balance;
+        let scale = cot.scale;
+        let inflow = self.fluid.dt * scale * self.fluid.inflow;
+        let x_end = Vector::<f64, D>::from_fn(|a, _| cot.end[a]);
+        let df_bar = Tensor::<f64, D>::from_fn(|r, c| sums_bar[r * D + c]);
+        let p_bar = sums_bar[D * D];
+        let grad_bar = Vector::<f64, D>::from_fn(|a, _| sums_bar[D * D + 1 + a]);
+        let h0 = D + D * D;
+        pull_geometry(&pulled.nodes, &pulled.geometry, &mut dz[..h0], |i, n| {
+            let (a, b, p) = (cot.internal[n.flat], cot.fluid[n.flat], pulled.pressures[i]);
+            let n_bar = cot.external[n.flat].dot(&q)
+                + b * (volume - inflow + scale * stabilisation)
+                + x_end.dot(&n.du)
+                + p_bar * p;
+            let g_bar =
+                momentum.transpose() * a + flux * b + df_bar.transpose() * n.du + grad_bar * p;
+            (n_bar, g_bar)
+        });
+        let mi = mass_index(D);
+        dz[mi] =
+            cot.end[mi] + self.setting.gravity_factor * pulled.external.dot(&self.loads.gravity);
+        Some(dz)
+    }
+
+    /// `∂ψₚ/∂θ` for a parameter `θ` seeded in `seeded`: [`Local::kernel_psi`] with the
+    /// material and hydraulic properties seeded, plus `Σ_i N_i c_i·∂q/∂θ` through the loads.
+    fn share(
+        &self,
+        pulled: &Pulled<D>,
+        z: &[f64],
+        seeded: &Seeded<D>,
+        cot: &CoupledCotangent<'_, D>,
+    ) -> Option<f64> {
+        let held: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
+        let (psi, _) = self.kernel_psi(pulled, cot, &held, &seeded.material, &seeded.hydraulic)?;
+        let loads = &seeded.loads;
+        let mass = z[mass_index(D)] * self.setting.gravity_factor;
+        let q_dot = (0..D).map(|a| {
+            loads.gravity[a].eps * mass
+                + loads.point[a].eps * self.setting.load_factor
+                + loads.balance[a].eps
+        });
+        Some(
+            psi.eps
+                + q_dot
+                    .zip(pulled.external.iter())
+                    .map(|(q, c)| q * c)
+                    .sum::<f64>(),
+        )
     }
 
     /// `∂ψₚ/∂z` (inputs order) from the partials `dz` ([`Local::partials`]) by the chain rule
@@ -743,6 +863,33 @@ struct SumsJacobian {
     content: Vec<f64>,
     history: Vec<f64>,
 }
+
+/// A particle's stencil and sums in the final pass ([`Local::pulled`]).
+struct Pulled<const D: usize> {
+    /// The stencil's nodes with their increments `Δu_i`.
+    nodes: Vec<Node<D>>,
+    /// The stencil's derivative by `(x, F)` ([`stencil_jacobian`]).
+    geometry: Vec<f64>,
+    /// `p̂_i` per node.
+    pressures: Vec<f64>,
+    /// `ΔF`.
+    delta_f: Tensor<f64, D>,
+    /// `p̂`.
+    p_hat: f64,
+    /// `∇ⁿp̂`.
+    grad: Vector<f64, D>,
+    /// `M̄ = Σ_i a_i ⊗ ∇N_i`.
+    m_bar: Tensor<f64, D>,
+    /// `Bₚ = Σ_i b_i N_i`.
+    b_p: f64,
+    /// `Σ_i b_i ∇N_i`.
+    flux_bar: Vector<f64, D>,
+    /// `Σ_i N_i c_i`.
+    external: Vector<f64, D>,
+}
+
+/// The real parts [`Local::kernel_psi`] returns: `(M, volume, flux, wₚ (Δpₚ − m))`.
+type KernelReal<const D: usize> = (Tensor<f64, D>, f64, Vector<f64, D>, f64);
 
 /// The per-particle settings of a coupled sub-step.
 fn locals<'a, const D: usize>(
@@ -1079,14 +1226,15 @@ pub fn reverse<const D: usize>(
                     scale: l.fluid.scale,
                 };
                 let lanes = l.lanes();
+                let sums = l.sums_partial(&jacobians[p], &cot, increments[p].1);
+                let pulled = l.pulled(z, &cot);
                 let mut dz = if lanes.len() <= NARROW_LANES {
                     let h = &narrow_hydraulic[l.material];
-                    l.partials(z, &lanes, &narrow, h, &cot)?.0
+                    l.partials(&pulled, z, &lanes, &narrow, h, &cot, &sums)?
                 } else {
-                    l.partials(z, &lanes, &mats, &hydraulic[l.material], &cot)?
-                        .0
+                    let h = &hydraulic[l.material];
+                    l.partials(&pulled, z, &lanes, &mats, h, &cot, &sums)?
                 };
-                let sums = l.sums_partial(&jacobians[p], &cot, increments[p].1);
                 dz[Local::<D>::UNKNOWNS..].copy_from_slice(&sums);
                 let k = state_len(D);
                 (dz[k + 1], dz[k + 2]) = l.carried_partials(&cot, increments[p].1);
@@ -1112,9 +1260,7 @@ pub fn reverse<const D: usize>(
                         }
                         _ => {
                             let s = Seeded::new(*q, config, fluid, l, p, &balance_rates[j]);
-                            let z: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
-                            cot.psi(&l.step(&z, &s.material, &s.hydraulic, &s.loads)?)
-                                .eps
+                            l.share(&pulled, z, &s, &cot)?
                         }
                     };
                 }

@@ -89,16 +89,20 @@ impl LaneMaterials {
 
 /// One stencil node of a linearised particle.
 #[derive(Clone, Copy, Debug)]
-struct Node<const D: usize> {
-    flat: usize,
-    weight: f64,
-    gradient: Vector<f64, D>,
-    du: Vector<f64, D>,
+pub(super) struct Node<const D: usize> {
+    /// Flat grid index.
+    pub(super) flat: usize,
+    /// `N_i(xₚ)`.
+    pub(super) weight: f64,
+    /// `∇N_i(xₚ)`.
+    pub(super) gradient: Vector<f64, D>,
+    /// `Δu_i`.
+    pub(super) du: Vector<f64, D>,
 }
 
 /// Lanes of the stencil's derivative: `xₚ` (`D`), then `Fₚ` row by row (`D²`), the order of
 /// the first `D + D²` components of [`ParticleState::components`].
-const fn geometry_lanes(d: usize) -> usize {
+pub(super) const fn geometry_lanes(d: usize) -> usize {
     d + d * d
 }
 
@@ -307,22 +311,16 @@ impl<const D: usize> Linearisation<D> {
             (cot.inertia).map(|w| w.pull(&self.weights(), self.mass, &self.velocity, &v_end));
         let mut out = vec![0.0; state_len(D)];
         out[..D].copy_from_slice(&cot.end[..D]);
-        for (k, (n, dn)) in (self.nodes.iter())
-            .zip(self.geometry.chunks_exact(geo * (1 + D)))
-            .enumerate()
-        {
+        pull_geometry(&self.nodes, &self.geometry, &mut out[..geo], |k, n| {
             let a = cot.internal[n.flat];
             let n_bar = cot.external[n.flat].dot(&q)
                 + x_end.dot(&n.du)
                 + inertia.as_ref().map_or(0.0, |i| i.weights[k]);
-            let grad_bar = self.stress.transpose() * a + g_bar.transpose() * n.du;
-            for (k, o) in out[..geo].iter_mut().enumerate() {
-                *o += n_bar * dn[k]
-                    + (0..D)
-                        .map(|b| grad_bar[b] * dn[(1 + b) * geo + k])
-                        .sum::<f64>();
-            }
-        }
+            (
+                n_bar,
+                self.stress.transpose() * a + g_bar.transpose() * n.du,
+            )
+        });
         for r in 0..D {
             for c in 0..D {
                 out[D + r * D + c] += f_bar[(r, c)];
@@ -366,7 +364,7 @@ impl<const D: usize> Linearisation<D> {
 
 /// The stencil of `state` with its derivatives by `(x, F)` from one evaluation with `L` =
 /// [`geometry_lanes`] lanes, and the increments `du` on its nodes.
-fn stencil_jacobian<const L: usize, const D: usize>(
+pub(super) fn stencil_jacobian<const L: usize, const D: usize>(
     setting: &Setting<'_, D>,
     state: &ParticleState<f64, D>,
     du: impl Fn(usize, usize) -> f64,
@@ -392,6 +390,31 @@ fn stencil_jacobian<const L: usize, const D: usize>(
         }
     });
     (nodes, geometry)
+}
+
+/// Adds `Σ_i (N̄_i ∂N_i/∂(x, F) + ∇N̄_i·∂∇N_i/∂(x, F))` to `out` (the partials by `(x, F)`,
+/// [`geometry_lanes`] of them), with `(N̄_i, ∇N̄_i) = bars(i, node i)` and the stencil's
+/// derivative `geometry` from [`stencil_jacobian`].
+pub(super) fn pull_geometry<const D: usize>(
+    nodes: &[Node<D>],
+    geometry: &[f64],
+    out: &mut [f64],
+    mut bars: impl FnMut(usize, &Node<D>) -> (f64, Vector<f64, D>),
+) {
+    let geo = geometry_lanes(D);
+    for (i, (n, dn)) in nodes
+        .iter()
+        .zip(geometry.chunks_exact(geo * (1 + D)))
+        .enumerate()
+    {
+        let (n_bar, grad_bar) = bars(i, n);
+        for (k, o) in out[..geo].iter_mut().enumerate() {
+            *o += n_bar * dn[k]
+                + (0..D)
+                    .map(|b| grad_bar[b] * dn[(1 + b) * geo + k])
+                    .sum::<f64>();
+        }
+    }
 }
 
 /// `S = V⁰τΔF⁻ᵀ` and `J_C` (rows `S` then, with a history, `h'`; columns
