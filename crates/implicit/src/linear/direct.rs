@@ -1,30 +1,16 @@
 //! Sparse direct solvers: faer's LU (partial pivoting, COLAMD ordering) and LLᵀ (AMD ordering),
 //! with the symbolic analysis done once per pattern.
-//!
-//! Both are always supernodal ([`SUPERNODAL`]). faer chooses between its simplicial
-//! (column-by-column) and supernodal factorisations from the estimated flops per nonzero of
-//! the factor, and takes the simplicial one below 40. The tangents here have every node's
-//! 2–4 unknowns in one column structure, so their supernodes are at least that wide even
-//! where the fill is small (a one-cell column, a 64-particle beam), and the supernodal
-//! factorisation with its dense kernels took fewer instructions on every scene measured:
-//! 3.8× fewer for the LU of a 64-particle beam, 1.4× for Terzaghi's column, 1.4× for a
-//! Cholesky of the beam (`docs/performance.md`, *Direct solves always supernodal*). On the
-//! larger scenes faer already picked the supernodal one.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::LuError;
-use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
-    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+    SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use faer::sparse::linalg::lu::{LuSymbolicParams, NumericLu, SymbolicLu, factorize_symbolic_lu};
+use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::{Conj, MatMut, Side};
 
 use super::{LinearError, Orientation, PAR, SparseMatrix, SparsePattern};
-
-/// The supernodal factorisation for every pattern (module docs).
-const SUPERNODAL: SupernodalThreshold = SupernodalThreshold::FORCE_SUPERNODAL;
 
 /// faer's symbolic and numeric LU; the numeric part is refilled by every solve.
 #[derive(Debug)]
@@ -38,11 +24,7 @@ impl Lu {
 
     /// Symbolic analysis (column ordering, elimination structure) of `pattern`.
     pub(super) fn analyse(pattern: &SparsePattern) -> Result<Self, LinearError> {
-        let params = LuSymbolicParams {
-            supernodal_flop_ratio_threshold: SUPERNODAL,
-            ..Default::default()
-        };
-        let symbolic = factorize_symbolic_lu(pattern.symbolic().as_ref(), params)
+        let symbolic = factorize_symbolic_lu(pattern.symbolic().as_ref(), Default::default())
             .map_err(|e| backend_error(Self::METHOD, e))?;
         Ok(Self {
             symbolic,
@@ -110,10 +92,7 @@ impl Cholesky {
             pattern.symbolic().as_ref(),
             Side::Lower,
             SymmetricOrdering::Amd,
-            CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SUPERNODAL,
-                ..Default::default()
-            },
+            Default::default(),
         )
         .map_err(|e| backend_error(Self::METHOD, e))?;
         let l_values = vec![0.0; symbolic.len_val()];
