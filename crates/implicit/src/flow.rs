@@ -444,15 +444,20 @@ impl<const D: usize> StepSystem<D> {
     /// `a_i = Σ_p w_p N_ip` per patch (over the union of its particles' stencils), added to
     /// `k`.
     fn add_stabilisation_tangent(&self, k: &mut SparseMatrix) {
-        let m = self.fluid().stabilisation.get_or_init(|| {
-            let mut m = SparseMatrix::zeros(self.pattern.clone());
-            self.assemble_stabilisation(&mut m);
-            m
-        });
+        let m = self.stabilisation_tangent();
         k.values
             .iter_mut()
             .zip(&m.values)
             .for_each(|(k, m)| *k += m);
+    }
+
+    /// The stabilisation's tangent, assembled by the first call of the step.
+    fn stabilisation_tangent(&self) -> &SparseMatrix {
+        self.fluid().stabilisation.get_or_init(|| {
+            let mut m = SparseMatrix::zeros(self.pattern.clone());
+            self.assemble_stabilisation(&mut m);
+            m
+        })
     }
 
     /// The pressure mass matrix of the step, `M_ij = Σ_p w_p N_i(x_p) N_j(x_p)` over the free
@@ -579,6 +584,54 @@ impl<const D: usize> StepSystem<D> {
         self.assemble_coupled_local::<L>(local, &mut k)?;
         self.add_stabilisation_tangent(&mut k);
         Ok(k)
+    }
+
+    /// The coupled tangent `K` that [`StepSystem::coupled_tangent_from`] assembles from the
+    /// kernel derivatives `local` (one per particle), as the operator `v ↦ Kᵀ v`
+    /// ([`CoupledTransposed`]), without assembling it.
+    ///
+    /// # Panics
+    /// On a step without pore fluid, or `local` of the wrong length.
+    pub fn coupled_tangent_transposed<const L: usize>(
+        &self,
+        local: Vec<CoupledTangent<L>>,
+    ) -> CoupledTransposed<D, L> {
+        debug_assert_eq!(L, coupled_lanes(D));
+        assert_eq!(
+            local.len(),
+            self.frozen.len(),
+            "one kernel derivative per particle"
+        );
+        let mut offsets = Vec::with_capacity(local.len() + 1);
+        offsets.push(0);
+        let mut nodes = Vec::new();
+        for frozen in &self.frozen {
+            frozen.stencil.for_each(|n| {
+                let unknowns =
+                    std::array::from_fn(|c| match (c <= D).then(|| self.dofs.get(n.flat, c)) {
+                        Some(NodeDof::Free { dof, sign }) => (dof, sign),
+                        _ => (0, 0.0),
+                    });
+                nodes.push((n.weight, n.gradient, unknowns));
+            });
+            offsets.push(nodes.len());
+        }
+        let m = self.stabilisation_tangent();
+        let (col_ptr, row_idx) = (m.pattern.col_ptr(), m.pattern.row_idx());
+        let mut stabilisation = Vec::new();
+        for j in 0..m.pattern.n() {
+            for k in col_ptr[j]..col_ptr[j + 1] {
+                if m.values[k] != 0.0 {
+                    stabilisation.push((row_idx[k], j, m.values[k]));
+                }
+            }
+        }
+        CoupledTransposed {
+            local,
+            offsets,
+            nodes,
+            stabilisation,
+        }
     }
 
     /// Adds every particle's part of the coupled tangent to `k`. The kernel's derivatives are
@@ -770,6 +823,90 @@ impl<const D: usize> StepSystem<D> {
             )?;
         }
         Ok(())
+    }
+}
+
+/// A stencil node of [`CoupledTransposed`]: `N`, `∇N`, and per component `c ≤ D` its free
+/// unknown and sign (unknown 0 with sign zero where the component is not free: its products
+/// add nothing, and there are no branches).
+type TransposedNode<const D: usize> = (f64, Vector<f64, D>, [(usize, f64); 4]);
+
+/// The coupled tangent `K` of a step as the operator `v ↦ Kᵀ v`
+/// ([`StepSystem::coupled_tangent_transposed`]): per particle `Kₚᵀ v = Bᵀ Aₚᵀ B v` on its
+/// stencil's unknowns (`B` the shape-function weights of [`add_local_block`]: `∂_e N_j` on
+/// `ΔF_ce`, `N_j` on `p̂`, `∂_e N_j` on `∇p̂_e`), plus the stabilisation's `Sᵀ v`. About
+/// `L² + 4 (D + 1) D · 3^D` products per particle, against the `((D + 1) 3^D)²` entries of its
+/// dense block in an assembly, with the shape functions and the unknowns' places looked up
+/// once. Particles and entries are summed in order, so the product does not depend on the
+/// threads.
+#[derive(Clone, Debug)]
+pub struct CoupledTransposed<const D: usize, const L: usize> {
+    /// Per particle, the kernel's derivative `A`.
+    local: Vec<CoupledTangent<L>>,
+    /// Particle `p`'s stencil nodes are `nodes[offsets[p]..offsets[p + 1]]`.
+    offsets: Vec<usize>,
+    /// The stencil nodes of every particle.
+    nodes: Vec<TransposedNode<D>>,
+    /// The stabilisation's nonzero entries `(row, column, value)`, column by column.
+    stabilisation: Vec<(usize, usize, f64)>,
+}
+
+impl<const D: usize, const L: usize> CoupledTransposed<D, L> {
+    /// The derivative `A` of particle `p`'s kernel.
+    pub fn local(&self, p: usize) -> &CoupledTangent<L> {
+        &self.local[p]
+    }
+
+    /// `y = Kᵀ v`.
+    ///
+    /// # Panics
+    /// If `v` or `y` is shorter than the step's unknowns.
+    pub fn apply(&self, v: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+        for &(i, j, s) in &self.stabilisation {
+            y[j] += s * v[i];
+        }
+        for (a, window) in self.local.iter().zip(self.offsets.windows(2)) {
+            let nodes = &self.nodes[window[0]..window[1]];
+            // t = B v, the stencil sums of v.
+            let mut t = [0.0; L];
+            for (weight, gradient, unknowns) in nodes {
+                for (c, &(dof, sign)) in unknowns.iter().enumerate().take(D) {
+                    let u = sign * v[dof];
+                    for e in 0..D {
+                        t[c * D + e] += u * gradient[e];
+                    }
+                }
+                let u = unknowns[D].1 * v[unknowns[D].0];
+                t[D * D] += u * weight;
+                for e in 0..D {
+                    t[D * D + 1 + e] += u * gradient[e];
+                }
+            }
+            // w = Aᵀ t.
+            let mut w = [0.0; L];
+            for (ao, to) in a.iter().zip(&t) {
+                for (wz, az) in w.iter_mut().zip(ao) {
+                    *wz += az * to;
+                }
+            }
+            // y += Bᵀ w on the free node components.
+            for (weight, gradient, unknowns) in nodes {
+                for (c, &(dof, sign)) in unknowns.iter().enumerate().take(D) {
+                    let mut s = 0.0;
+                    for e in 0..D {
+                        s += w[c * D + e] * gradient[e];
+                    }
+                    y[dof] += sign * s;
+                }
+                let (dof, sign) = unknowns[D];
+                let mut s = w[D * D] * weight;
+                for e in 0..D {
+                    s += w[D * D + 1 + e] * gradient[e];
+                }
+                y[dof] += sign * s;
+            }
+        }
     }
 }
 

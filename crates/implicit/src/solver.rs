@@ -4,7 +4,7 @@
 use crate::dofs::{DofMap, NodeDof};
 use crate::flow::{Flow, FlowFrozen, PoreFluid, TimeIntegration};
 use crate::kernel::Frozen;
-use crate::linear::{LinearSolver, LinearSolverKind};
+use crate::linear::{LinearSolver, LinearSolverKind, SparseMatrix};
 use crate::newton::{NewtonReport, NewtonSettings, solve};
 use crate::system::{Controlled, Inverted, Materials, ParticleUpdate, StepSystem, Structure};
 use loam_core::stencil::particle_half_width;
@@ -172,6 +172,12 @@ pub struct AcceptedStep<'a, const D: usize> {
     pub solution: &'a [f64],
     /// What a BDF2 step read of the step before it (`None` for every other step).
     pub history: Option<&'a FluidHistory>,
+    /// The linear solver of its Newton iterations, holding (for LU) the factors of the last
+    /// tangent ([`LinearSolver::factorisation`]).
+    pub linear: &'a LinearSolver,
+    /// A coupled step's stabilisation tangent, a constant of the step
+    /// ([`crate::flow::Flow::stabilisation`]), once a tangent has assembled it.
+    pub stabilisation: Option<&'a SparseMatrix>,
 }
 
 /// Lets every node that particles reach but that is too weakly supported to take part in the
@@ -866,6 +872,8 @@ impl<const D: usize> ImplicitSolver<D> {
                 .as_ref()
                 .filter(|f| f.carry != 0.0)
                 .and(self.fluid_history.as_ref()),
+            linear: &self.linear,
+            stabilisation: system.flow.as_ref().and_then(|f| f.stabilisation.get()),
         });
         if let Some(fluid) = &self.config.pore_fluid
             && fluid.time_integration == TimeIntegration::Bdf2

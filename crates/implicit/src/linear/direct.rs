@@ -7,16 +7,19 @@ use faer::sparse::linalg::LuError;
 use faer::sparse::linalg::cholesky::{
     SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use faer::sparse::linalg::lu::{NumericLu, SymbolicLu, factorize_symbolic_lu};
+use faer::sparse::linalg::lu::{LuRef, NumericLu, SymbolicLu, factorize_symbolic_lu};
 use faer::{Conj, MatMut, Side};
 
 use super::{LinearError, Orientation, PAR, SparseMatrix, SparsePattern};
 
-/// faer's symbolic and numeric LU; the numeric part is refilled by every solve.
-#[derive(Debug)]
+/// faer's symbolic and numeric LU; the numeric part is refilled by every solve and kept for
+/// [`Lu::apply`] until the next one.
+#[derive(Clone, Debug)]
 pub(super) struct Lu {
     symbolic: SymbolicLu<usize>,
     numeric: NumericLu<usize, f64>,
+    /// Whether `numeric` holds the factors of a matrix (none before the first solve).
+    factored: bool,
 }
 
 impl Lu {
@@ -29,7 +32,13 @@ impl Lu {
         Ok(Self {
             symbolic,
             numeric: NumericLu::new(),
+            factored: false,
         })
+    }
+
+    /// Whether the factors of a matrix are held.
+    pub(super) fn factored(&self) -> bool {
+        self.factored
     }
 
     /// Numeric factorisation of `a`, then `x = A⁻¹ b` (or `A⁻ᵀ b`).
@@ -42,20 +51,16 @@ impl Lu {
     ) -> Result<(), LinearError> {
         let mut buffer = workspace(
             Self::METHOD,
-            StackReq::any_of(&[
-                self.symbolic
-                    .factorize_numeric_lu_scratch::<f64>(PAR, Default::default()),
-                self.symbolic.solve_in_place_scratch::<f64>(1, PAR),
-            ]),
+            self.symbolic
+                .factorize_numeric_lu_scratch::<f64>(PAR, Default::default()),
         )?;
-        let stack = MemStack::new(&mut buffer);
-        let lu = self
-            .symbolic
+        self.factored = false;
+        self.symbolic
             .factorize_numeric_lu(
                 &mut self.numeric,
                 a.as_faer(),
                 PAR,
-                stack,
+                MemStack::new(&mut buffer),
                 Default::default(),
             )
             .map_err(|e| match e {
@@ -65,7 +70,28 @@ impl Lu {
                 },
                 LuError::Generic(e) => backend_error(Self::METHOD, e),
             })?;
-        let rhs = rhs_view(b, x);
+        self.factored = true;
+        x.copy_from_slice(b);
+        self.apply(x, orientation)
+    }
+
+    /// `z ← A⁻¹ z` (or `A⁻ᵀ z`) with the factors of the last matrix [`Lu::solve`] factorised.
+    ///
+    /// # Panics
+    /// If no matrix was factorised ([`Lu::factored`]).
+    pub(super) fn apply(&self, z: &mut [f64], orientation: Orientation) -> Result<(), LinearError> {
+        assert!(self.factored, "LU applied before a factorisation");
+        let scratch = match orientation {
+            Orientation::Plain => self.symbolic.solve_in_place_scratch::<f64>(1, PAR),
+            Orientation::Transposed => self
+                .symbolic
+                .solve_transpose_in_place_scratch::<f64>(1, PAR),
+        };
+        let mut buffer = workspace(Self::METHOD, scratch)?;
+        let stack = MemStack::new(&mut buffer);
+        let lu = LuRef::new_unchecked(&self.symbolic, &self.numeric);
+        let n = z.len();
+        let rhs = MatMut::from_column_major_slice_mut(z, n, 1);
         match orientation {
             Orientation::Plain => lu.solve_in_place_with_conj(Conj::No, rhs, PAR, stack),
             Orientation::Transposed => {

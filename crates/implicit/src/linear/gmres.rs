@@ -24,32 +24,26 @@
 //! Right preconditioning makes the minimised residual the true one, `b − A x`, so the
 //! stopping rule is the same as the other solvers'.
 
-use super::krylov::{KrylovParams, not_converged};
-use super::precond::PrecondState;
-use super::{LinearError, Orientation, SparseMatrix};
+use super::krylov::KrylovParams;
+use super::{LinearError, residual_norm};
 
 /// Krylov steps per restart cycle: the basis takes `(RESTART + 1) n` numbers, 51 vectors
 /// (64 MB at 157,000 unknowns). The block-preconditioned coupled systems of drained steps
 /// converge within one cycle (15–35 iterations); undrained steps take two or three.
 pub const RESTART: usize = 50;
 
-/// Solves `A x = b` (or `Aᵀ x = b`) with GMRES(`RESTART`) right-preconditioned by `state`
-/// (which must already hold the preconditioner of `a`). Returns the iteration count (the
-/// number of products with `A M⁻¹`).
+/// Solves `A x = b` with GMRES(`RESTART`) right-preconditioned by `precondition`
+/// (`z ← M⁻¹ z`), `A` given by its product `apply(v, out)`: `out = A v` (for a transposed
+/// system, the transposed matrix's product and preconditioner). Returns the iteration count
+/// (the number of products with `A M⁻¹`).
 pub(super) fn solve(
-    state: &PrecondState,
-    a: &SparseMatrix,
+    apply: impl Fn(&[f64], &mut [f64]),
+    precondition: impl Fn(&mut [f64]) -> Result<(), LinearError>,
     b: &[f64],
     x: &mut [f64],
-    orientation: Orientation,
     params: KrylovParams,
 ) -> Result<usize, LinearError> {
     let n = b.len();
-    let apply = |v: &[f64], out: &mut [f64]| match orientation {
-        Orientation::Plain => a.mul_vec(v, out),
-        Orientation::Transposed => a.mul_vec_transpose(v, out),
-    };
-    let precondition = |z: &mut [f64]| state.solve_in_place(&a.pattern, orientation, z);
     let target = params.rel_tol * norm(b);
     x.fill(0.0);
     let mut iterations = 0;
@@ -61,7 +55,12 @@ pub(super) fn solve(
             return Ok(iterations);
         }
         if iterations >= params.max_iter {
-            return Err(not_converged(a, b, x, orientation, params));
+            return Err(LinearError::NotConverged {
+                method: params.method,
+                iterations: params.max_iter,
+                relative_residual: residual_norm(&apply, b, x) / norm(b),
+                target: params.rel_tol,
+            });
         }
         // Arnoldi on A M⁻¹ from v₁ = r/β, with the Givens rotations (c_i, s_i) applied to each
         // new column of H̄ and to g = β e₁ as they come.
@@ -71,7 +70,7 @@ pub(super) fn solve(
         let mut g = vec![beta];
         while h.len() < RESTART && iterations < params.max_iter {
             let mut z = basis[h.len()].clone();
-            precondition(&mut z);
+            precondition(&mut z)?;
             apply(&z, &mut w);
             iterations += 1;
             let mut column: Vec<f64> = Vec::with_capacity(basis.len() + 1);
@@ -120,7 +119,7 @@ pub(super) fn solve(
         for (v, yj) in basis.iter().zip(&y) {
             update.iter_mut().zip(v).for_each(|(u, v)| *u += yj * v);
         }
-        precondition(&mut update);
+        precondition(&mut update)?;
         x.iter_mut().zip(&update).for_each(|(x, u)| *x += u);
         apply(x, &mut w);
         r.iter_mut()

@@ -362,6 +362,21 @@ impl LinearSolver {
         self.solve_oriented(a, b, x, Orientation::Transposed)
     }
 
+    /// The LU factors of the last matrix this solver factorised, kept past the next
+    /// factorisation (`None` unless the method is LU and a matrix was factorised).
+    pub fn factorisation(&self) -> Option<Factorisation> {
+        match &self.analysis {
+            Some(Analysis {
+                pattern,
+                backend: Backend::Lu(lu),
+            }) if lu.factored() => Some(Factorisation {
+                pattern: Arc::clone(pattern),
+                lu: lu.clone(),
+            }),
+            _ => None,
+        }
+    }
+
     fn solve_oriented(
         &mut self,
         a: &SparseMatrix,
@@ -406,12 +421,21 @@ impl LinearSolver {
             }
             Backend::Krylov(method, state, params) => {
                 state.factorize(a, near_nullspace.as_deref(), block_split.as_deref())?;
-                let solve = match method {
-                    Krylov::Cg => krylov::solve_cg,
-                    Krylov::Bicgstab => krylov::solve_bicgstab,
-                    Krylov::Gmres => gmres::solve,
-                };
-                solve(state, a, b, x, orientation, *params)?
+                match method {
+                    Krylov::Cg => krylov::solve_cg(state, a, b, x, orientation, *params)?,
+                    Krylov::Bicgstab => {
+                        krylov::solve_bicgstab(state, a, b, x, orientation, *params)?
+                    }
+                    Krylov::Gmres => {
+                        let precondition = |z: &mut [f64]| {
+                            state.solve_in_place(&a.pattern, orientation, z);
+                            Ok(())
+                        };
+                        let apply =
+                            |v: &[f64], out: &mut [f64]| a.mul_oriented(v, out, orientation);
+                        gmres::solve(apply, precondition, b, x, *params)?
+                    }
+                }
             }
         };
 
@@ -482,6 +506,77 @@ impl LinearSolver {
     }
 }
 
+/// Relative residual `‖b − Aᵀx‖/‖b‖` at which [`Factorisation::solve_transpose`] stops:
+/// about what a direct solve leaves on the implicit tangents (1e-16 to 1e-14), so that a
+/// gradient through it agrees with one through a direct solve to the digits the checks
+/// compare.
+pub const NEAR_REL_TOL: f64 = 1e-14;
+
+/// Iterations [`Factorisation::solve_transpose`] allows: the last Newton tangent of a
+/// converged step differs from the converged one by a perturbation of the size of the last
+/// correction (or of low rank, where particles changed between elastic and plastic), so
+/// GMRES preconditioned by its factors needs a few (1 to 4 on the coupled examples).
+pub const NEAR_MAX_ITER: usize = 20;
+
+/// The LU factors of one matrix, kept past its solve ([`LinearSolver::factorisation`]) to
+/// precondition solves with nearby matrices of the same sparsity structure
+/// ([`Factorisation::solve_transpose`]).
+#[derive(Clone, Debug)]
+pub struct Factorisation {
+    pattern: Arc<SparsePattern>,
+    lu: direct::Lu,
+}
+
+impl Factorisation {
+    /// Number of unknowns.
+    pub fn n(&self) -> usize {
+        self.pattern.n()
+    }
+
+    /// Solves `Aᵀ x = b` by GMRES right-preconditioned with these factors (`M⁻ᵀ`), for an
+    /// `A` on `pattern` close to the factorised matrix (the last Newton tangent of a step
+    /// whose adjoint takes the tangent at the converged state) and given by its transposed
+    /// product `apply_transpose(v, out)`: `out = Aᵀ v`. A few products and solves replace a
+    /// factorisation, and `A` need not be assembled. Returns the iteration count, or `None`
+    /// (with `x` unspecified) where the factors are of another structure or GMRES does not
+    /// reach [`NEAR_REL_TOL`] in [`NEAR_MAX_ITER`] iterations: the caller then solves `A`
+    /// itself.
+    ///
+    /// # Errors
+    /// A right-hand side that is not finite.
+    pub fn solve_transpose(
+        &self,
+        pattern: &Arc<SparsePattern>,
+        apply_transpose: impl Fn(&[f64], &mut [f64]),
+        b: &[f64],
+        x: &mut [f64],
+    ) -> Result<Option<usize>, LinearError> {
+        if !self.fits(pattern) {
+            return Ok(None);
+        }
+        check_finite("right-hand side", b)?;
+        let params = KrylovParams {
+            method: "GMRES+LU of a nearby matrix",
+            rel_tol: NEAR_REL_TOL,
+            max_iter: NEAR_MAX_ITER,
+        };
+        let precondition = |z: &mut [f64]| self.lu.apply(z, Orientation::Transposed);
+        match gmres::solve(apply_transpose, precondition, b, x, params) {
+            Ok(iterations) => Ok(Some(iterations)),
+            Err(LinearError::NotConverged { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Whether `pattern` is the structure these factors were computed on.
+    fn fits(&self, pattern: &Arc<SparsePattern>) -> bool {
+        Arc::ptr_eq(&self.pattern, pattern)
+            || (self.pattern.n() == pattern.n()
+                && self.pattern.col_ptr() == pattern.col_ptr()
+                && self.pattern.row_idx() == pattern.row_idx())
+    }
+}
+
 /// Fails on the first NaN or infinity of `values`.
 fn check_finite(what: &'static str, values: &[f64]) -> Result<(), LinearError> {
     match values.iter().position(|v| !v.is_finite()) {
@@ -492,21 +587,22 @@ fn check_finite(what: &'static str, values: &[f64]) -> Result<(), LinearError> {
 
 /// `‖b − op(A) x‖ / ‖b‖`, or `‖b − op(A) x‖` when `b = 0`.
 fn relative_residual(a: &SparseMatrix, b: &[f64], x: &[f64], orientation: Orientation) -> f64 {
-    let mut ax = vec![0.0; b.len()];
-    match orientation {
-        Orientation::Plain => a.mul_vec(x, &mut ax),
-        Orientation::Transposed => a.mul_vec_transpose(x, &mut ax),
-    }
-    let residual = ax
-        .iter()
-        .zip(b)
-        .map(|(ax, b)| (b - ax).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let residual = residual_norm(|v, out| a.mul_oriented(v, out, orientation), b, x);
     let b_norm = b.iter().map(|b| b * b).sum::<f64>().sqrt();
     if b_norm > 0.0 {
         residual / b_norm
     } else {
         residual
     }
+}
+
+/// `‖b − A x‖` for `A` given by its product `apply(v, out)`: `out = A v`.
+fn residual_norm(apply: impl Fn(&[f64], &mut [f64]), b: &[f64], x: &[f64]) -> f64 {
+    let mut ax = vec![0.0; b.len()];
+    apply(x, &mut ax);
+    ax.iter()
+        .zip(b)
+        .map(|(ax, b)| (b - ax).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }

@@ -3,6 +3,7 @@
 use std::fmt;
 use std::sync::Arc;
 
+use super::Orientation;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 use rayon::slice::ParallelSliceMut;
 
@@ -147,6 +148,14 @@ impl SparseMatrix {
             panic!("entry ({row}, {col}) is not in the sparsity pattern");
         };
         self.values[k] += v;
+    }
+
+    /// `y = A x` or `y = Aᵀ x`.
+    pub(super) fn mul_oriented(&self, x: &[f64], y: &mut [f64], orientation: Orientation) {
+        match orientation {
+            Orientation::Plain => self.mul_vec(x, y),
+            Orientation::Transposed => self.mul_vec_transpose(x, y),
+        }
     }
 
     /// `y = A x`.

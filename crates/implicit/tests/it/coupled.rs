@@ -3,7 +3,10 @@
 
 use loam_core::tensor::Vector;
 use loam_core::{Boundary, Grid, Material, ModelKind, Particles, Shape, Wall, WallKind};
-use loam_implicit::flow::{Hydraulic, Permeability, PoreFluid, Schedule, TimeIntegration};
+use loam_implicit::flow::{
+    CoupledTangent, Hydraulic, Permeability, PoreFluid, Schedule, TimeIntegration,
+};
+use loam_implicit::system::StepSystem;
 use loam_implicit::{ImplicitConfig, ImplicitSolver, NewtonSettings};
 
 /// Deterministic pseudo-random numbers in [−1, 1).
@@ -83,16 +86,25 @@ fn block<const D: usize>(
     (config, particles)
 }
 
-/// The coupled tangent, per-particle and colour-seeded, against central differences of the
-/// residual at a random trial state (displacement increments of ~1 % strain, pressures of
-/// ~10 kPa) of the second step (Δt = 10 s), with the stabilisation on.
-fn check_coupled_tangent<const D: usize>(material: Material<f64>, shape: Shape) {
+/// The solver of [`block`] (stabilisation on) and the system of its second step (Δt = 10 s).
+fn second_step<const D: usize>(
+    material: Material<f64>,
+    shape: Shape,
+) -> (ImplicitSolver<D>, Particles<f64, D>, StepSystem<D>) {
     let (config, particles) = block::<D>(material, shape, true);
     let solver = ImplicitSolver::new(config, &particles).expect("valid");
     let progress = 1.0 / solver.config().load_steps as f64;
     let system = solver
         .system(&particles, progress, 2.0 * progress)
         .expect("system");
+    (solver, particles, system)
+}
+
+/// The coupled tangent, per-particle and colour-seeded, against central differences of the
+/// residual at a random trial state (displacement increments of ~1 % strain, pressures of
+/// ~10 kPa) of the second step (Δt = 10 s), with the stabilisation on.
+fn check_coupled_tangent<const D: usize>(material: Material<f64>, shape: Shape) {
+    let (solver, _, system) = second_step::<D>(material, shape);
     assert!(system.flow.as_ref().is_some_and(|f| f.dt == 10.0));
     let mats = solver.materials();
     let mut seed = 99;
@@ -416,4 +428,105 @@ fn bdf2_converges_at_second_order_in_time() {
             "BDF2 {bdf2:?} against backward Euler {euler:?}"
         );
     }
+}
+
+/// The coupled tangent as the operator `v ↦ Kᵀ v` (what the adjoint's solves multiply by)
+/// against the transposed product of the assembled tangent, for arbitrary kernel derivatives
+/// `Aₚ` (the operator is linear in them, so arbitrary ones test every entry's path) on the
+/// saturated block with the stabilisation on.
+fn check_transposed_operator<const D: usize, const L: usize>() {
+    let elastic = Material::elastic(ModelKind::LinearElastic, 20e6, 0.3, 1800.0);
+    let (_, particles, system) = second_step::<D>(elastic, Shape::QuadraticBspline);
+    let mut seed = 5;
+    let local: Vec<CoupledTangent<L>> = (0..particles.len())
+        .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| 1e6 * rng(&mut seed))))
+        .collect();
+    let k = system
+        .coupled_tangent_from::<L>(|p| Some(local[p]))
+        .expect("assembled");
+    let operator = system.coupled_tangent_transposed(local);
+    let v: Vec<f64> = (0..system.len()).map(|_| rng(&mut seed)).collect();
+    let (mut assembled, mut free) = (vec![0.0; v.len()], vec![1.0; v.len()]);
+    k.mul_vec_transpose(&v, &mut assembled);
+    operator.apply(&v, &mut free);
+    let scale = assembled.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+    let worst = (assembled.iter().zip(&free)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    println!(
+        "{D}D: max |Kᵀv| {scale:.3e}, operator vs assembled {:.1e}",
+        worst / scale
+    );
+    assert!(scale > 0.0);
+    // The same products summed in another order: round-off of sums of ~100 terms.
+    assert!(worst <= 1e-13 * scale, "{worst:e} vs {scale:e}");
+}
+
+#[test]
+fn the_transposed_tangent_operator_is_the_assembled_tangent() {
+    check_transposed_operator::<2, 7>();
+    check_transposed_operator::<3, 13>();
+}
+
+/// The adjoint's solve `Kᵀλ = b` by GMRES preconditioned with the LU factors of a nearby
+/// tangent (a Newton iterate 1 % of an increment away, as the last correction of a step),
+/// against a direct solve with `K` itself; and a preconditioner of another matrix, which
+/// must be declined rather than return a poor solution.
+#[test]
+fn the_factors_of_a_nearby_tangent_solve_the_adjoint_system() {
+    use loam_implicit::linear::{LinearSolver, LinearSolverKind, NEAR_REL_TOL};
+    let hencky = Material::elastic(ModelKind::Hencky, 20e6, 0.3, 1800.0);
+    let (solver, _, system) = second_step::<2>(hencky, Shape::QuadraticBspline);
+    let mats = solver.materials();
+    let n = system.len();
+    let mut seed = 11;
+    let scale = |d: usize| {
+        if system.dofs.owner_of(d).1 < 2 {
+            2.5e-3
+        } else {
+            1e4 / system.flow.as_ref().unwrap().scale
+        }
+    };
+    let x: Vec<f64> = (0..n).map(|d| scale(d) * rng(&mut seed)).collect();
+    let near_x: Vec<f64> = (x.iter().enumerate())
+        .map(|(d, x)| x + 1e-2 * scale(d) * rng(&mut seed))
+        .collect();
+    let b: Vec<f64> = (0..n).map(|_| rng(&mut seed)).collect();
+    let k = system.tangent_local(&x, mats).expect("tangent");
+    let mut direct = LinearSolver::new(LinearSolverKind::Lu);
+    let mut exact = vec![0.0; n];
+    direct.solve_transpose(&k, &b, &mut exact).expect("direct");
+    let product = |v: &[f64], out: &mut [f64]| k.mul_vec_transpose(v, out);
+    let factors = |m: &loam_implicit::linear::SparseMatrix| {
+        let mut lu = LinearSolver::new(LinearSolverKind::Lu);
+        lu.solve(m, &b, &mut vec![0.0; n]).expect("factorised");
+        lu.factorisation().expect("LU keeps its factors")
+    };
+    let mut lambda = vec![0.0; n];
+    let iterations = factors(&system.tangent_local(&near_x, mats).expect("tangent"))
+        .solve_transpose(&k.pattern, product, &b, &mut lambda)
+        .expect("finite")
+        .expect("converges");
+    let norm = |v: &[f64]| v.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let mut r = vec![0.0; n];
+    k.mul_vec_transpose(&lambda, &mut r);
+    r.iter_mut().zip(&b).for_each(|(r, b)| *r = b - *r);
+    let difference: Vec<f64> = lambda.iter().zip(&exact).map(|(a, e)| a - e).collect();
+    let error = norm(&difference) / norm(&exact);
+    println!(
+        "{n} unknowns: {iterations} iterations, relative residual {:.1e}, vs direct {error:.1e}",
+        norm(&r) / norm(&b)
+    );
+    // A 1 % change of the increment changes K by a small fraction of itself, and each
+    // iteration gains about three decades (5 to reach 1e-14 here).
+    assert!((1..=10).contains(&iterations), "{iterations} iterations");
+    // The stopping rule, checked on the true residual (GMRES's estimate can drift from it by
+    // round-off).
+    assert!(norm(&r) <= 10.0 * NEAR_REL_TOL * norm(&b));
+    // Both solutions within the round-off that the tangent's conditioning amplifies.
+    assert!(error <= 1e-10, "{error:e}");
+    // Factors of the tangent with every entry scaled at random by 0.5 to 1.5, a perturbation
+    // of full rank: GMRES is not given the iterations it would need, and says so.
+    let mut far = k.clone();
+    (far.values.iter_mut()).for_each(|v| *v *= 1.0 + 0.5 * rng(&mut seed));
+    let declined = factors(&far).solve_transpose(&k.pattern, product, &b, &mut lambda);
+    assert!(matches!(declined, Ok(None)), "{declined:?}");
 }

@@ -241,13 +241,17 @@ fn reverse_from<const D: usize>(
             let k = system
                 .tangent_from(|p| Some(linearised[p].tangent()))
                 .map_err(|e| inverted(e.particle))?;
-            linear
-                .solve_transpose(&k, &rhs, &mut lambda)
-                .map_err(|source| AdjointError::Linear {
-                    step: sub.step,
-                    what: "adjoint",
-                    source,
-                })?;
+            let failed = |source| AdjointError::Linear {
+                step: sub.step,
+                what: "adjoint",
+                source,
+            };
+            let product = |v: &[f64], out: &mut [f64]| k.mul_vec_transpose(v, out);
+            if !(sub.solve_adjoint_near(&k.pattern, product, &rhs, &mut lambda)).map_err(failed)? {
+                linear
+                    .solve_transpose(&k, &rhs, &mut lambda)
+                    .map_err(failed)?;
+            }
         }
         // Nodal weights of ψ: a = r̄ − λ on the internal force, c = λ (Newmark: 2λ) on the
         // external one, −λ on the start force's f_int(0).

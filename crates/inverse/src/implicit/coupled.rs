@@ -1040,8 +1040,8 @@ struct Held<'a, const D: usize> {
     excess: &'a [f64],
     /// `ΔΞ̄` and `Δp̄` per particle (what the next BDF2 step makes of them).
     carried: &'a [(f64, f64)],
-    /// The load step (for errors).
-    step: usize,
+    /// The sub-step (its load step for errors, its kept factors for the adjoint solve).
+    sub: &'a SubStep<D>,
 }
 
 /// A sub-step's adjoint `λ` with each particle's `(Δpₚ, wₚ)` and the derivative of its step
@@ -1092,7 +1092,7 @@ impl<const D: usize> Held<'_, D> {
             })
             .collect();
         let linearised: Vec<Linear<L>> = (linearised.into_iter().enumerate())
-            .map(|(p, s)| s.ok_or_else(|| inverted(self.step, p)))
+            .map(|(p, s)| s.ok_or_else(|| inverted(self.sub.step, p)))
             .collect::<Result<_, _>>()?;
         let mut rhs = vec![0.0; system.len()];
         for (l, (g, ..)) in self.local.iter().zip(&linearised) {
@@ -1100,16 +1100,25 @@ impl<const D: usize> Held<'_, D> {
         }
         let mut lambda = vec![0.0; system.len()];
         if rhs.iter().any(|v| *v != 0.0) {
-            let k = system
-                .coupled_tangent_from::<L>(|p| Some(linearised[p].1))
-                .map_err(|e| inverted(self.step, e.particle))?;
-            linear
-                .solve_transpose(&k, &rhs, &mut lambda)
-                .map_err(|source| AdjointError::Linear {
-                    step: self.step,
-                    what: "adjoint",
-                    source,
-                })?;
+            let failed = |source| AdjointError::Linear {
+                step: self.sub.step,
+                what: "adjoint",
+                source,
+            };
+            let tangent =
+                system.coupled_tangent_transposed(linearised.iter().map(|l| l.1).collect());
+            let product = |v: &[f64], out: &mut [f64]| tangent.apply(v, out);
+            let near = (self.sub)
+                .solve_adjoint_near(&system.pattern, product, &rhs, &mut lambda)
+                .map_err(failed)?;
+            if !near {
+                let k = system
+                    .coupled_tangent_from::<L>(|p| Some(*tangent.local(p)))
+                    .map_err(|e| inverted(self.sub.step, e.particle))?;
+                linear
+                    .solve_transpose(&k, &rhs, &mut lambda)
+                    .map_err(failed)?;
+            }
         }
         let (increments, jacobians) = linearised.into_iter().map(|l| (l.2, l.3)).unzip();
         Ok((lambda, increments, jacobians))
@@ -1184,7 +1193,7 @@ pub fn reverse<const D: usize>(
             end: &sbar,
             excess: &ebar,
             carried: &carried,
-            step: sub.step,
+            sub,
         };
         let (lambda, increments, jacobians) = match D {
             2 => held.adjoint::<7>(&solver.materials().dual7, fluid, &mut linear)?,

@@ -34,7 +34,7 @@ pub mod tangent;
 pub use identify::Identifiability;
 pub use observe::{ImplicitObservations, Observation, Quantity};
 pub use params::ImplicitParam;
-pub use record::{Schedule, Trajectory, run_recorded};
+pub use record::{Schedule, Trajectory, run_for_gradient, run_recorded};
 
 use crate::error::AdjointError;
 use loam_core::Particles;
@@ -135,7 +135,7 @@ impl<const D: usize> ImplicitProblem<D> {
         self.validate()?;
         let (config, particles) = self.setup(theta)?;
         let clock = Instant::now();
-        let run = run_recorded(&config, &particles, None)?;
+        let run = run_for_gradient(&config, &particles)?;
         let forward_seconds = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let gradient =

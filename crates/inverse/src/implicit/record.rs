@@ -5,8 +5,10 @@ use crate::error::AdjointError;
 use loam_core::Particles;
 use loam_core::constitutive::MaterialState;
 use loam_core::tensor::{Tensor, Vector};
+use loam_implicit::linear::{Factorisation, LinearError, SparseMatrix, SparsePattern};
 use loam_implicit::system::StepSystem;
 use loam_implicit::{FluidHistory, ImplicitConfig, ImplicitSolver};
+use std::sync::Arc;
 
 /// One accepted (sub-)step: the particle state at its start, its load factors and its
 /// converged unknowns. A load step cut into halves is the sequence of its accepted sub-steps.
@@ -32,6 +34,12 @@ pub struct SubStep<const D: usize> {
     pub solution: Vec<f64>,
     /// What it read of the sub-step before it as a BDF2 step (`None` for every other step).
     pub fluid_history: Option<FluidHistory>,
+    /// The LU factors of its last Newton tangent, kept by [`run_for_gradient`] to
+    /// precondition its adjoint solve ([`SubStep::solve_adjoint_near`]); `None` otherwise.
+    pub factorisation: Option<Factorisation>,
+    /// The values of its stabilisation tangent, kept with the factors (a constant of the
+    /// step that its replay would otherwise assemble again); `None` otherwise.
+    pub stabilisation: Option<Vec<f64>>,
 }
 
 /// A recorded implicit run (quasi-static or Newmark): per accepted sub-step what its reverse needs, and the
@@ -79,6 +87,31 @@ impl<const D: usize> SubStep<D> {
         }
     }
 
+    /// Solves its adjoint system `Kᵀλ = rhs` (`K` its tangent at the converged unknowns, on
+    /// `pattern`, given by the product `apply_transpose(v, out)`: `out = Kᵀ v`) by GMRES
+    /// preconditioned with the kept factors of its last Newton tangent
+    /// ([`Factorisation::solve_transpose`]): the two differ by the last correction, so a few
+    /// products replace a factorisation. Returns whether it did; `false` (`lambda`
+    /// unspecified) without kept factors, or where GMRES does not converge: the caller then
+    /// solves `K` itself.
+    ///
+    /// # Errors
+    /// A right-hand side that is not finite.
+    pub fn solve_adjoint_near(
+        &self,
+        pattern: &Arc<SparsePattern>,
+        apply_transpose: impl Fn(&[f64], &mut [f64]),
+        rhs: &[f64],
+        lambda: &mut [f64],
+    ) -> Result<bool, LinearError> {
+        match &self.factorisation {
+            Some(near) => Ok(near
+                .solve_transpose(pattern, apply_transpose, rhs, lambda)?
+                .is_some()),
+            None => Ok(false),
+        }
+    }
+
     /// Whether this is the last sub-step of its load step within `substeps` at index `i`.
     pub fn ends_step(substeps: &[SubStep<D>], i: usize) -> bool {
         substeps
@@ -110,6 +143,33 @@ impl<const D: usize> Trajectory<D> {
 /// Newton iterations a replayed sub-step may take (at least).
 pub const REPLAY_ITERATIONS: usize = 100;
 
+/// Unknowns, summed over the sub-steps, whose LU factors [`run_for_gradient`] keeps; the
+/// sub-steps beyond it factorise their adjoint systems afresh. The consolidation example's
+/// factors (2D, 346 unknowns a sub-step) take 1.9 kB per unknown, so this is ~200 MB of
+/// such factors; larger and 3D systems fill more per unknown, hence also
+/// [`KEPT_PER_SUBSTEP`].
+pub const KEPT_UNKNOWNS: usize = 100_000;
+
+/// The largest sub-step (in unknowns) whose factors [`run_for_gradient`] keeps: the fill of
+/// a sparse LU grows faster than its size (in 3D as `n^{4/3}` at best), so a large system's
+/// factors are not copied once per sub-step.
+pub const KEPT_PER_SUBSTEP: usize = 10_000;
+
+/// [`run_recorded`] without a schedule, also keeping in each sub-step the LU factors of its
+/// last Newton tangent (sub-steps of at most [`KEPT_PER_SUBSTEP`] unknowns, while their
+/// unknowns sum to at most [`KEPT_UNKNOWNS`]) for the
+/// reverse pass's solves ([`SubStep::solve_adjoint_near`]). A run whose linear solver is not LU
+/// keeps none.
+///
+/// # Errors
+/// As [`run_recorded`].
+pub fn run_for_gradient<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+) -> Result<Trajectory<D>, AdjointError> {
+    record(config, initial, None, KEPT_UNKNOWNS)
+}
+
 /// Runs the loading (quasi-static or Newmark) of `config` from `initial`, recording every accepted
 /// sub-step. With a `schedule` the load steps are taken as its sub-steps, without cutting
 /// (`ImplicitSolver::step_planned`): the gradient is that of the run with the step sizes
@@ -123,6 +183,17 @@ pub fn run_recorded<const D: usize>(
     config: &ImplicitConfig<D>,
     initial: &Particles<f64, D>,
     schedule: Option<&Schedule>,
+) -> Result<Trajectory<D>, AdjointError> {
+    record(config, initial, schedule, 0)
+}
+
+/// [`run_recorded`], keeping the last tangent's factors of the sub-steps while their
+/// unknowns sum to at most `keep`.
+fn record<const D: usize>(
+    config: &ImplicitConfig<D>,
+    initial: &Particles<f64, D>,
+    schedule: Option<&Schedule>,
+    mut keep: usize,
 ) -> Result<Trajectory<D>, AdjointError> {
     if let Some(s) = schedule.filter(|s| s.len() != config.load_steps) {
         return Err(AdjointError::Unsupported {
@@ -149,7 +220,15 @@ pub fn run_recorded<const D: usize>(
     };
     while !solver.finished() {
         let substeps = &mut out.substeps;
+        let keep = &mut keep;
         let record = |a: loam_implicit::AcceptedStep<'_, D>| {
+            let factorisation = (a.solution.len() <= (*keep).min(KEPT_PER_SUBSTEP))
+                .then(|| a.linear.factorisation())
+                .flatten();
+            *keep -= factorisation.as_ref().map_or(0, Factorisation::n);
+            let stabilisation = (factorisation.is_some())
+                .then(|| a.stabilisation.map(|m| m.values.clone()))
+                .flatten();
             substeps.push(SubStep {
                 step: a.step,
                 from: a.from,
@@ -161,6 +240,8 @@ pub fn run_recorded<const D: usize>(
                 pore_pressure: a.start.pore_pressure.clone(),
                 solution: a.solution.to_vec(),
                 fluid_history: a.history.cloned(),
+                factorisation,
+                stabilisation,
             });
         };
         let report = match schedule {
@@ -207,6 +288,18 @@ impl<'a, const D: usize> Replay<'a, D> {
             sub.to,
             sub.fluid_history.as_ref(),
         )?;
+        // The stabilisation tangent the forward run assembled on the same structure.
+        if let (Some(flow), Some(values)) = (&system.flow, &sub.stabilisation)
+            && values.len() == system.pattern.nnz()
+        {
+            let kept = SparseMatrix {
+                pattern: system.pattern.clone(),
+                values: values.clone(),
+            };
+            flow.stabilisation
+                .set(kept)
+                .expect("a fresh system's stabilisation is unset");
+        }
         let mut point = vec![Vector::<f64, D>::zeros(); initial.len()];
         for l in &config.point_loads {
             point[l.particle] += Vector::<f64, D>::from(l.force);
