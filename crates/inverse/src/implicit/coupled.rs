@@ -39,12 +39,13 @@
 //!   2. *the final pass*, with `λ`: the sums' partials are again pass 1's derivative
 //!      contracted, now with `λ`'s weights; the state's follow from the step split where it
 //!      is linear ([`Local::partials`]): the kernel's start (`Fⁿ`, history, excess, the
-//!      position through the hydrostatic pressure) by multi-lane duals with the stencil held
-//!      (7 lanes for a 2D particle without history, at most [`LANES`] a time), the stencil
+//!      vertical position through the hydrostatic pressure below a water table) by
+//!      multi-lane duals with the stencil held (5 lanes for a 2D particle without history
+//!      above the water table, 6 below it, at most [`LANES`] a time), the stencil
 //!      `(xₚ, Fₚ) ↦ (N_i, ∇N_i)` by one more (the rows and sums are linear in it, so its
-//!      weights are closed form), the mass in closed form. Each parameter's share is one
-//!      `Dual64` evaluation of the kernel with the parameter seeded, plus the loads' share
-//!      in closed form;
+//!      weights are closed form), the end position `x' = x + Δx` and the mass in closed
+//!      form. Each parameter's share is one `Dual64` evaluation of the kernel with the
+//!      parameter seeded, plus the loads' share in closed form;
 //! - the forward-mode pass ([`model_tangents`], the oracle) evaluates the same kernel with
 //!   `Dual64` states and parameters, solves `J u̇ = −Ṙ` and carries `ṡ'`, `ṗ_e'` forward.
 //!
@@ -85,9 +86,9 @@ use rayon::prelude::*;
 pub const LANES: usize = 16;
 
 /// The final pass's lanes for a particle with at most this many differentiated inputs (the
-/// state of a 2D particle without history: position, `Fⁿ` and excess, 7): a dual's cost
-/// grows with its lanes, not with those seeded.
-const NARROW_LANES: usize = 8;
+/// state of a 2D particle without history: `Fⁿ`, the excess and below a water table the
+/// vertical position, 5 or 6): a dual's cost grows with its lanes, not with those seeded.
+const NARROW_LANES: usize = 6;
 
 /// What one particle sees of the pore fluid in a sub-step, besides its state.
 #[derive(Clone, Copy, Debug)]
@@ -381,9 +382,20 @@ impl<const D: usize> Local<'_, D> {
 
     /// The unknowns of input vector `z` as `u(flat, c)`.
     fn unknowns<'s, T: Scalar>(&'s self, z: &'s [T]) -> impl Fn(usize, usize) -> T + 's {
-        move |flat: usize, c: usize| match self.flats.iter().position(|&f| f == flat) {
-            Some(k) => z[Self::UNKNOWNS + k * (D + 1) + c],
-            None => T::zero(),
+        // A stencil visits its nodes in the order of `flats`, each for several components,
+        // so the node asked for is nearly always the last one found or the next.
+        let last = std::cell::Cell::new(0);
+        move |flat: usize, c: usize| {
+            let k = (last.get()..self.flats.len().min(last.get() + 2))
+                .find(|&k| self.flats[k] == flat)
+                .or_else(|| self.flats.iter().position(|&f| f == flat));
+            match k {
+                Some(k) => {
+                    last.set(k);
+                    z[Self::UNKNOWNS + k * (D + 1) + c]
+                }
+                None => T::zero(),
+            }
         }
     }
 
@@ -426,9 +438,12 @@ impl<const D: usize> Local<'_, D> {
     /// reads (not the velocity, nor the mass, which enters through the load alone
     /// ([`Local::partials`]), nor the history of a material that carries none, nor in 2D
     /// the history tensor's out-of-plane entries `(a, 2)`, `(2, a)` with `a < 2`), and the
-    /// excess. The previous step's `ΔΞⁿ` and `Δp_eⁿ` are not among them
-    /// ([`Local::carried_partials`]), nor are the stencil sums: their partials follow from pass 1's
-    /// derivative ([`Local::sums_partial`]).
+    /// excess. The kernel reads the position only through the hydrostatic pressure
+    /// `p_h(x_D)`, so of the position only `x_D` below the water table is differentiated
+    /// (its other partials are the end position's weights, [`Local::partials`]). The
+    /// previous step's `ΔΞⁿ` and `Δp_eⁿ` are not among them ([`Local::carried_partials`]),
+    /// nor are the stencil sums: their partials follow from pass 1's derivative
+    /// ([`Local::sums_partial`]).
     ///
     /// A plane-strain history tensor (the elastic left Cauchy–Green tensor of every model
     /// that carries one) keeps those entries zero, and their end values do not move with any
@@ -441,7 +456,10 @@ impl<const D: usize> Local<'_, D> {
             let (r, c) = ((k - 1) / 3, (k - 1) % 3);
             D == 3 || k == 0 || k == hl - 1 || (r < D && c < D) || (r == 2 && c == 2)
         };
-        (0..h0)
+        let below = self.fluid.hydrostatic_slope(&self.state.x) != 0.0;
+        (D - 1..D)
+            .filter(|_| below)
+            .chain(D..h0)
             .chain(
                 (0..hl)
                     .filter(|&k| self.carries && in_plane(k))
@@ -555,7 +573,8 @@ impl<const D: usize> Local<'_, D> {
             e[l] = 1.0;
             DualSVec64::new(v, Derivative::some(e))
         };
-        let state = Self::state_of(&z.iter().copied().map(lift).collect::<Vec<_>>());
+        let lifted: Vec<DualSVec64<L>> = z[..Self::UNKNOWNS].iter().copied().map(lift).collect();
+        let state = Self::state_of(&lifted);
         let real = StencilSums::of(&self.setting.stencil(&Self::state_of(z)), self.unknowns(z));
         let delta_f =
             Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seeded(real.delta_f[(r, c)], r * D + c));
@@ -563,7 +582,7 @@ impl<const D: usize> Local<'_, D> {
         let grad =
             Vector::<DualSVec64<L>, D>::from_fn(|r, _| seeded(real.grad_p_hat[r], D * D + 1 + r));
         let material = &mats[self.material];
-        let inputs = Self::fluid_of(&z.iter().copied().map(lift).collect::<Vec<_>>());
+        let inputs = Self::fluid_of(&lifted);
         let frozen = frozen(
             &self.setting,
             &self.fluid,
@@ -730,10 +749,14 @@ impl<const D: usize> Local<'_, D> {
     /// ```
     ///
     ///   (the rows and the sums are linear in `(N_i, ∇N_i)`);
+    /// - the position where it is not among the lanes (above the water table, and `x_a`,
+    ///   `a < D`, everywhere), which the kernel does not read: `x̄ = x̄'`, the end position's
+    ///   weight (`x' = x + Δx`);
     /// - the mass, which enters through `q` alone: `m̄ = m̄' + λ_g Σ_i N_i c_i·g`.
     ///
     /// Returns the partials (the state's components, the excess, then zeros for the
-    /// [`coupled_lanes`] sums); the entries of the lanes not differentiated are zero.
+    /// [`coupled_lanes`] sums); the entries of the other inputs not differentiated are
+    /// zero.
     #[allow(clippy::too_many_arguments)]
     fn partials<const L: usize>(
         &self,
@@ -771,6 +794,9 @@ impl<const D: usize> Local<'_, D> {
             real.get_or_insert(r);
         }
         let (momentum, volume, flux, stabilisation) = real?;
+        for a in (0..D).filter(|a| !lanes.contains(a)) {
+            dz[a] = cot.end[a];
+        }
         let mass = z[mass_index(D)];
         let q = self.loads.gravity * (mass * self.setting.gravity_factor)
             + self.loads.point * self.setting.load_factor
@@ -804,12 +830,12 @@ impl<const D: usize> Local<'_, D> {
         &self,
         pulled: &Pulled<D>,
         z: &[f64],
-        seeded: &Seeded<D>,
+        seeded: &SeededProperties,
+        loads: &Loads<Dual64, D>,
         cot: &CoupledCotangent<'_, D>,
     ) -> Option<f64> {
         let held: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
         let (psi, _) = self.kernel_psi(pulled, cot, &held, &seeded.material, &seeded.hydraulic)?;
-        let loads = &seeded.loads;
         let mass = z[mass_index(D)] * self.setting.gravity_factor;
         let q_dot = (0..D).map(|a| {
             loads.gravity[a].eps * mass
@@ -913,8 +939,10 @@ fn locals<'a, const D: usize>(
         .map(|p| {
             let setting = replay.setting(p);
             let state = replay.state(p);
-            let (mut flats, mut shape) = (Vec::new(), Vec::new());
-            setting.stencil(&state).for_each(|n| {
+            let stencil = setting.stencil(&state);
+            let mut flats = Vec::with_capacity(stencil.len());
+            let mut shape = Vec::with_capacity(stencil.len());
+            stencil.for_each(|n| {
                 flats.push(n.flat);
                 shape.push((n.weight, n.gradient));
             });
@@ -978,46 +1006,65 @@ fn patch_constants<const D: usize>(
     out
 }
 
-/// The parameters' lifts for one particle: its material and hydraulic properties and its
-/// loads as `Dual64`, with `param` seeded where it acts on them.
-struct Seeded<const D: usize> {
+/// A parameter's lifts of one material's constitutive and hydraulic properties as `Dual64`,
+/// seeded where it acts on them; the same for every particle of the material, so built once
+/// per run.
+struct SeededProperties {
     material: Material<Dual64>,
     hydraulic: Hydraulic<Dual64>,
-    loads: Loads<Dual64, D>,
 }
 
-impl<const D: usize> Seeded<D> {
-    fn new(
+impl SeededProperties {
+    fn new<const D: usize>(
         param: ImplicitParam,
         config: &ImplicitConfig<D>,
         fluid: &PoreFluid<D>,
-        local: &Local<'_, D>,
-        p: usize,
-        balance_rate: &[Vector<f64, D>],
+        k: usize,
     ) -> Self {
-        let k = local.material;
-        let material = param
-            .seeded_material(k, &config.materials[k])
-            .unwrap_or_else(|| config.materials[k].lift());
-        let mut loads = lift_loads(&local.loads);
-        match param {
-            ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
-            ImplicitParam::PointLoad(j, a) if config.point_loads[j].particle == p => {
-                loads.point[a].eps = 1.0
-            }
-            _ => {}
-        }
-        if let Some(rate) = balance_rate.get(p) {
-            for a in 0..D {
-                loads.balance[a].eps = rate[a];
-            }
-        }
         Self {
-            material,
+            material: param
+                .seeded_material(k, &config.materials[k])
+                .unwrap_or_else(|| config.materials[k].lift()),
             hydraulic: param.seeded_hydraulic(fluid, k),
-            loads,
         }
     }
+
+    /// Per material of `config`.
+    fn per_material<const D: usize>(
+        param: ImplicitParam,
+        config: &ImplicitConfig<D>,
+        fluid: &PoreFluid<D>,
+    ) -> Vec<Self> {
+        (0..config.materials.len())
+            .map(|k| Self::new(param, config, fluid, k))
+            .collect()
+    }
+}
+
+/// A parameter's lift of particle `p`'s loads as `Dual64`, seeded where it acts on them
+/// (`balance_rate`: the rate of the balance of each particle's initial stress, empty where
+/// the parameter does not move it).
+fn seeded_loads<const D: usize>(
+    param: ImplicitParam,
+    config: &ImplicitConfig<D>,
+    loads: &Loads<f64, D>,
+    p: usize,
+    balance_rate: &[Vector<f64, D>],
+) -> Loads<Dual64, D> {
+    let mut loads = lift_loads(loads);
+    match param {
+        ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
+        ImplicitParam::PointLoad(j, a) if config.point_loads[j].particle == p => {
+            loads.point[a].eps = 1.0
+        }
+        _ => {}
+    }
+    if let Some(rate) = balance_rate.get(p) {
+        for a in 0..D {
+            loads.balance[a].eps = rate[a];
+        }
+    }
+    loads
 }
 
 /// Particle `particle` inverted in sub-step `step`.
@@ -1151,6 +1198,9 @@ pub fn reverse<const D: usize>(
     let balance_rates: Vec<Vec<Vector<f64, D>>> = (params.iter())
         .map(|q| q.balance_tangent(config, initial))
         .collect::<Result<_, _>>()?;
+    let seeded: Vec<Vec<SeededProperties>> = (params.iter())
+        .map(|&q| SeededProperties::per_material(q, config, fluid))
+        .collect();
     let zeros = vec![Vector::<f64, D>::zeros(); nodes];
     let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
     let mut sbar = vec![vec![0.0; state_len(D)]; n];
@@ -1268,8 +1318,8 @@ pub fn reverse<const D: usize>(
                                 .sum()
                         }
                         _ => {
-                            let s = Seeded::new(*q, config, fluid, l, p, &balance_rates[j]);
-                            l.share(&pulled, z, &s, &cot)?
+                            let loads = seeded_loads(*q, config, &l.loads, p, &balance_rates[j]);
+                            l.share(&pulled, z, &seeded[j][l.material], &loads, &cot)?
                         }
                     };
                 }
@@ -1328,6 +1378,7 @@ pub fn model_tangents<const D: usize>(
     // The derivatives of each particle's `(ΔΞ, Δp)` over the last sub-step.
     let mut carried_dot = vec![(0.0, 0.0); n];
     let balance_rate = param.balance_tangent(config, initial)?;
+    let seeded = SeededProperties::per_material(param, config, fluid);
     let mut linear = loam_implicit::linear::LinearSolver::new(config.newton.linear);
     let mut tangents = vec![0.0; observations.items.len()];
     for (i, sub) in run.substeps.iter().enumerate() {
@@ -1352,7 +1403,7 @@ pub fn model_tangents<const D: usize>(
                 .into_par_iter()
                 .map(|p| {
                     let l = &local[p];
-                    let s = Seeded::new(param, config, fluid, l, p, &balance_rate);
+                    let loads = seeded_loads(param, config, &l.loads, p, &balance_rate);
                     let mut z: Vec<Dual64> = (l.state.components().iter().zip(&sdot[p]))
                         .map(|(&v, &t)| Dual64::new(v, t))
                         .collect();
@@ -1370,7 +1421,8 @@ pub fn model_tangents<const D: usize>(
                             z.push(Dual64::new(system.dofs.value(f, c, &sub.solution), eps));
                         }
                     }
-                    l.step(&z, &s.material, &s.hydraulic, &s.loads)
+                    let s = &seeded[l.material];
+                    l.step(&z, &s.material, &s.hydraulic, &loads)
                 })
                 .collect();
             (steps.into_iter().enumerate())

@@ -39,7 +39,7 @@ use super::kernel::{
 use loam_core::constitutive::{HISTORY_LEN, MaterialState, Model};
 use loam_core::stencil::particle_half_width;
 use loam_core::tensor::{Tensor, Vector, det, from3, inverse, product, to3};
-use loam_core::{Material, Stencil};
+use loam_core::{Material, Shape, Stencil};
 use loam_implicit::kernel::stress_update;
 use nalgebra::{Matrix3, SVector};
 use num_dual::{Derivative, Dual64, DualSVec64};
@@ -362,19 +362,46 @@ impl<const D: usize> Linearisation<D> {
     }
 }
 
-/// The stencil of `state` with its derivatives by `(x, F)` from one evaluation with `L` =
-/// [`geometry_lanes`] lanes, and the increments `du` on its nodes.
+/// The stencil of `state` with its derivatives by `(x, F)` ([`geometry_lanes`] `= L` of
+/// them), and the increments `du` on its nodes. Only cpGIMP's half-width follows `F`
+/// ([`particle_half_width`]): its stencil is evaluated with all `L` lanes seeded, every other
+/// shape's with the `D` lanes of `x` alone (a dual's cost grows with its lanes), the
+/// derivatives by `F` then zero.
 pub(super) fn stencil_jacobian<const L: usize, const D: usize>(
     setting: &Setting<'_, D>,
     state: &ParticleState<f64, D>,
     du: impl Fn(usize, usize) -> f64,
 ) -> (Vec<Node<D>>, Vec<f64>) {
+    if setting.shape == Shape::Cpgimp {
+        stencil_lanes::<L, L, D>(setting, state, du)
+    } else {
+        stencil_lanes::<D, L, D>(setting, state, du)
+    }
+}
+
+/// [`stencil_jacobian`] from one evaluation with the first `K` of its `L` lanes seeded
+/// (`K = D`: `x` alone).
+fn stencil_lanes<const K: usize, const L: usize, const D: usize>(
+    setting: &Setting<'_, D>,
+    state: &ParticleState<f64, D>,
+    du: impl Fn(usize, usize) -> f64,
+) -> (Vec<Node<D>>, Vec<f64>) {
     let grid = setting.grid;
-    let x = Vector::<DualSVec64<L>, D>::from_fn(|a, _| seed(state.x[a], a));
-    let f = Tensor::<DualSVec64<L>, D>::from_fn(|r, c| seed(state.f[(r, c)], D + r * D + c));
+    let seeded = |v: f64, k: usize| {
+        if k < K {
+            seed::<K>(v, k)
+        } else {
+            DualSVec64::from_re(v)
+        }
+    };
+    let x = Vector::<DualSVec64<K>, D>::from_fn(|a, _| seeded(state.x[a], a));
+    let f = Tensor::<DualSVec64<K>, D>::from_fn(|r, c| seeded(state.f[(r, c)], D + r * D + c));
     let hw0 = setting.half_width0.map(DualSVec64::from_re);
     let hw = particle_half_width(setting.shape, grid.h, &hw0, &f);
     let stencil = Stencil::new(setting.shape, grid, &x, &hw);
+    let lanes = |v: &DualSVec64<K>| -> [f64; L] {
+        std::array::from_fn(|k| if k < K { lane(v, k) } else { 0.0 })
+    };
     let mut nodes = Vec::with_capacity(stencil.len());
     let mut geometry = Vec::with_capacity(stencil.len() * L * (1 + D));
     stencil.for_each(|n| {
@@ -384,9 +411,9 @@ pub(super) fn stencil_jacobian<const L: usize, const D: usize>(
             gradient: n.gradient.map(|v| v.re),
             du: Vector::<f64, D>::from_fn(|a, _| du(n.flat, a)),
         });
-        geometry.extend((0..L).map(|k| lane(&n.weight, k)));
+        geometry.extend(lanes(&n.weight));
         for b in 0..D {
-            geometry.extend((0..L).map(|k| lane(&n.gradient[b], k)));
+            geometry.extend(lanes(&n.gradient[b]));
         }
     });
     (nodes, geometry)
@@ -639,6 +666,46 @@ mod tests {
             }),
         };
         check_against_duals(real, (1e6, 0.3), hencky);
+    }
+
+    /// The stencil's derivative by `(x, F)` with `x`'s lanes alone seeded is the one with
+    /// every lane seeded for each shape whose half-width does not follow `F` (every entry
+    /// the same to the bit: the lanes do not mix), and cpGIMP's, which follows `F`, has
+    /// derivatives by `F` that the `x` lanes alone would drop.
+    #[test]
+    fn only_cpgimp_stencils_are_differentiated_by_f() {
+        let grid = Grid::<2>::new([0.0, 0.0], [8, 8], 0.25, 2);
+        let state = ParticleState {
+            x: Vector::<f64, 2>::new(1.03, 0.97),
+            f: Tensor::<f64, 2>::new(1.4, 0.1, -0.05, 0.9),
+            history: MaterialState::default(),
+            v: Vector::<f64, 2>::zeros(),
+            mass: 1.0,
+        };
+        let du = |flat: usize, a: usize| 1e-3 * (flat + a) as f64;
+        for shape in Shape::ALL {
+            let setting = Setting {
+                grid: &grid,
+                shape,
+                half_width0: Vector::<f64, 2>::new(0.0625, 0.0625),
+                volume0: 0.0039,
+                load_factor: 1.0,
+                gravity_factor: 1.0,
+            };
+            let (nodes, geometry) = stencil_jacobian::<6, 2>(&setting, &state, du);
+            let (all_nodes, all) = stencil_lanes::<6, 6, 2>(&setting, &state, du);
+            let by_f = all
+                .chunks(6)
+                .map(|c| c[2..].iter().fold(0.0_f64, |m, v| m.max(v.abs())));
+            let by_f = by_f.fold(0.0_f64, f64::max);
+            assert_eq!(nodes.len(), all_nodes.len());
+            if shape == Shape::Cpgimp {
+                assert!(by_f > 1e-3, "cpGIMP's stencil follows F: {by_f:e}");
+            } else {
+                assert_eq!(by_f, 0.0, "{shape:?}");
+            }
+            assert_eq!(geometry, all, "{shape:?}");
+        }
     }
 
     /// The products of [`Linearisation`] for material `real` against `Dual64` evaluations;
