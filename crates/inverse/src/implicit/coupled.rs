@@ -60,9 +60,7 @@
 //! The row scale `s = G_ref/h` is held in both: the physical solution does not depend on it
 //! (it scales the pressure unknowns and the fluid rows alike), so it carries no derivative.
 
-use super::kernel::{
-    Loads, ParticleState, Setting, carries_history, lift_loads, mass_index, state_len,
-};
+use super::kernel::{Loads, ParticleState, Setting, carries_history, mass_index, state_len};
 use super::observe::{ImplicitObservations, Quantity};
 use super::params::ImplicitParam;
 use super::pullback::{Node, pull_geometry, stencil_jacobian};
@@ -1041,32 +1039,6 @@ impl SeededProperties {
     }
 }
 
-/// A parameter's lift of particle `p`'s loads as `Dual64`, seeded where it acts on them
-/// (`balance_rate`: the rate of the balance of each particle's initial stress, empty where
-/// the parameter does not move it).
-fn seeded_loads<const D: usize>(
-    param: ImplicitParam,
-    config: &ImplicitConfig<D>,
-    loads: &Loads<f64, D>,
-    p: usize,
-    balance_rate: &[Vector<f64, D>],
-) -> Loads<Dual64, D> {
-    let mut loads = lift_loads(loads);
-    match param {
-        ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
-        ImplicitParam::PointLoad(j, a) if config.point_loads[j].particle == p => {
-            loads.point[a].eps = 1.0
-        }
-        _ => {}
-    }
-    if let Some(rate) = balance_rate.get(p) {
-        for a in 0..D {
-            loads.balance[a].eps = rate[a];
-        }
-    }
-    loads
-}
-
 /// Particle `particle` inverted in sub-step `step`.
 fn inverted(step: usize, particle: usize) -> AdjointError {
     AdjointError::Implicit(ImplicitError::InvalidState { step, particle })
@@ -1318,7 +1290,7 @@ pub fn reverse<const D: usize>(
                                 .sum()
                         }
                         _ => {
-                            let loads = seeded_loads(*q, config, &l.loads, p, &balance_rates[j]);
+                            let loads = q.seeded_loads(config, &l.loads, p, &balance_rates[j]);
                             l.share(&pulled, z, &seeded[j][l.material], &loads, &cot)?
                         }
                     };
@@ -1403,7 +1375,7 @@ pub fn model_tangents<const D: usize>(
                 .into_par_iter()
                 .map(|p| {
                     let l = &local[p];
-                    let loads = seeded_loads(param, config, &l.loads, p, &balance_rate);
+                    let loads = param.seeded_loads(config, &l.loads, p, &balance_rate);
                     let mut z: Vec<Dual64> = (l.state.components().iter().zip(&sdot[p]))
                         .map(|(&v, &t)| Dual64::new(v, t))
                         .collect();

@@ -1,6 +1,6 @@
 //! The parameters of an implicit run a gradient is taken with respect to.
 
-use super::kernel::{mass_index, state_len};
+use super::kernel::{Loads, lift_loads, mass_index, state_len};
 use crate::error::AdjointError;
 use crate::k0::K0State;
 use crate::params::{MaterialField, no_such_constant, seed_material, set_material};
@@ -279,6 +279,32 @@ impl ImplicitParam {
             ))
         })?;
         Ok((fluid, h))
+    }
+
+    /// Particle `p`'s loads lifted to `Dual64`, with this parameter seeded where it acts on
+    /// them: gravity `∂g/∂g_a`, the point load on `p`, and the balance of the initial
+    /// stress at its rate `balance_rate[p]` (empty where the parameter does not move it).
+    pub fn seeded_loads<const D: usize>(
+        &self,
+        config: &ImplicitConfig<D>,
+        loads: &Loads<f64, D>,
+        p: usize,
+        balance_rate: &[Vector<f64, D>],
+    ) -> Loads<Dual64, D> {
+        let mut loads = lift_loads(loads);
+        match *self {
+            Self::Gravity(a) => loads.gravity[a].eps = 1.0,
+            Self::PointLoad(j, a) if config.point_loads[j].particle == p => {
+                loads.point[a].eps = 1.0
+            }
+            _ => {}
+        }
+        if let Some(rate) = balance_rate.get(p) {
+            for a in 0..D {
+                loads.balance[a].eps = rate[a];
+            }
+        }
+        loads
     }
 
     /// Material `k`'s hydraulic properties lifted to `Dual64`, with the mobility seeded

@@ -96,50 +96,37 @@ pub fn model_tangents<const D: usize>(
         };
         // Every particle's step with the unknowns' derivative parts `free` (per unknown), at
         // the converged increments or (`start`) with the unknowns at zero.
-        let evaluate = |free: &[f64],
-                        start: bool|
-         -> Result<Vec<ParticleStep<Dual64, D>>, AdjointError> {
-            let steps: Vec<Option<ParticleStep<Dual64, D>>> = (0..n)
-                .into_par_iter()
-                .map(|p| {
-                    let mut loads = super::kernel::lift_loads(&replay.loads(p));
-                    match param {
-                        ImplicitParam::Gravity(a) => loads.gravity[a].eps = 1.0,
-                        ImplicitParam::PointLoad(k, a) if config.point_loads[k].particle == p => {
-                            loads.point[a].eps = 1.0
-                        }
-                        _ => {}
-                    }
-                    if let Some(rate) = balance_rate.get(p) {
-                        for a in 0..D {
-                            loads.balance[a].eps = rate[a];
-                        }
-                    }
-                    let du = |f: usize, a: usize| {
-                        let eps = match system.dofs.get(f, a) {
-                            NodeDof::Free { dof, sign } => sign * free[dof],
-                            _ => rate.as_ref().map_or(0.0, |r| r[f][a]),
+        let evaluate =
+            |free: &[f64], start: bool| -> Result<Vec<ParticleStep<Dual64, D>>, AdjointError> {
+                let steps: Vec<Option<ParticleStep<Dual64, D>>> = (0..n)
+                    .into_par_iter()
+                    .map(|p| {
+                        let loads = param.seeded_loads(config, &replay.loads(p), p, &balance_rate);
+                        let du = |f: usize, a: usize| {
+                            let eps = match system.dofs.get(f, a) {
+                                NodeDof::Free { dof, sign } => sign * free[dof],
+                                _ => rate.as_ref().map_or(0.0, |r| r[f][a]),
+                            };
+                            let re = if start {
+                                replay.du_start(f, a)
+                            } else {
+                                replay.du(f, a)
+                            };
+                            Dual64::new(re, eps)
                         };
-                        let re = if start {
-                            replay.du_start(f, a)
-                        } else {
-                            replay.du(f, a)
-                        };
-                        Dual64::new(re, eps)
-                    };
-                    particle_step(
-                        &replay.setting(p),
-                        &materials[initial.material[p] as usize],
-                        &replay.state(p).dual(&sdot[p]),
-                        &loads,
-                        du,
-                    )
-                })
-                .collect();
-            (steps.into_iter().enumerate())
-                .map(|(p, s)| s.ok_or_else(|| inverted(p)))
-                .collect()
-        };
+                        particle_step(
+                            &replay.setting(p),
+                            &materials[initial.material[p] as usize],
+                            &replay.state(p).dual(&sdot[p]),
+                            &loads,
+                            du,
+                        )
+                    })
+                    .collect();
+                (steps.into_iter().enumerate())
+                    .map(|(p, s)| s.ok_or_else(|| inverted(p)))
+                    .collect()
+            };
         // Ṙ with the unknowns held, then J Δu̇ = −Ṙ.
         let held = evaluate(&vec![0.0; system.len()], false)?;
         let mut r_dot = vec![0.0; system.len()];
