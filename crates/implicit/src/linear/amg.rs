@@ -52,9 +52,10 @@
 //! # What it buys
 //!
 //! On the linear-elastic test systems of this module (Q1 elements, a clamped face) CG+AMG
-//! needs 10–13 iterations to a relative residual of 1e-8 from 528 to 103,488 unknowns, where
-//! CG+ILU(0) needs 21–80. On an MPM tangent (quadratic B-splines, 2³ particles per cell, a
-//! block under gravity) it needs about 110 at both 3,255 and 18,399 unknowns, against 28 and
+//! needs 8–9 iterations to a relative residual of 1e-8 from 528 to 19,152 unknowns (10–13
+//! from 528 to 103,488 with one sweep per cycle), where CG+ILU(0) needs 21–80. On an MPM
+//! tangent (quadratic B-splines, 2³ particles per cell, a block under gravity; one sweep per
+//! cycle) it needed about 110 at both 3,255 and 18,399 unknowns, against 28 and
 //! 51 for ILU(0): the nodes at the free surface whose particle support is a small fraction of
 //! a cell ([`ImplicitConfig::min_node_support`](crate::ImplicitConfig::min_node_support))
 //! carry low-energy local modes that neither the rigid-body coarse space nor a point smoother
@@ -63,11 +64,24 @@
 //!
 //! # Application: a V-cycle
 //!
-//! `z = M⁻¹ r` is one V(1,1)-cycle from a zero guess: a forward Gauss–Seidel sweep on each
-//! level before the coarse correction `x ← x + P A_c⁻¹ Pᵀ (b − A x)` (recursively) and a
-//! backward sweep after it. For a symmetric positive definite `A` the backward sweep is the
+//! `z = M⁻¹ r` is one V(ν,ν)-cycle from a zero guess: `ν` forward Gauss–Seidel sweeps on each
+//! level before the coarse correction `x ← x + P A_c⁻¹ Pᵀ (b − A x)` (recursively) and `ν`
+//! backward sweeps after it. For a symmetric positive definite `A` the backward sweep is the
 //! adjoint of the forward one and `A_c` is symmetric positive definite, so `M⁻¹` is symmetric
-//! positive definite and serves CG. The transpose `M⁻ᵀ` (adjoint systems) is the same cycle
+//! positive definite and serves CG. Each sweep is a contraction in the energy norm, so the
+//! cycle's error propagator `E_ν` satisfies `‖E_(ν+1)‖_A ≤ ‖E_ν‖_A`: more sweeps never slow
+//! the convergence, they only cost more per cycle.
+//!
+//! `ν` is a parameter of the hierarchy. The displacement systems use [`SWEEPS`] = 2: MPM
+//! stiffness matrices with quadratic B-splines couple nodes two cells apart (5^D stencils),
+//! and one sweep leaves much of the error the coarse space does not hold. CG iterations to
+//! 1e-8 and wall time of `loam run` (2-core Intel Xeon; `docs/performance.md`, *Two
+//! smoothing sweeps*), one sweep → two: a 1 m cube under its own weight at 32³ cells, linear
+//! shape functions, 12 → 9 (4.20 → 4.16 s); the same at 16³ cells with quadratic B-splines,
+//! 23 → 16 (2.62 → 2.56 s); the Hencky block of `benches/scenes/hencky_block_3d_27k.toml`
+//! (a free surface, ten load steps) with CG+AMG, 22.5–23.5 → 15.5–16 per Newton iteration
+//! (36.4 → 35.6 s). In the u–p block preconditioner ([`super::block`]) the effect is
+//! larger, because the displacement cycle's error is amplified there by the Schur block's. The transpose `M⁻ᵀ` (adjoint systems) is the same cycle
 //! on the transposed operators `Aᵀ, A_cᵀ, …` with the same `P`: from the error propagator
 //! `E = (I − (D+U)⁻¹A)(I − P A_c⁻¹ Pᵀ A)(I − (D+L)⁻¹A)` and `M⁻¹ = (I − E) A⁻¹` follows
 //! `M⁻ᵀ = (I − E′) A⁻ᵀ` with `E′ = (I − (D+Lᵀ)⁻¹Aᵀ)(I − P A_c⁻ᵀ Pᵀ Aᵀ)(I − (D+Uᵀ)⁻¹Aᵀ)`, and
@@ -91,6 +105,10 @@ use super::{LinearError, Orientation, PAR, SparseMatrix};
 /// Strength threshold `θ` of the finest level: node `J` is strongly connected to node `I` on
 /// level `l` when `‖A_IJ‖_F > θ 2^(−l) √(‖A_II‖_F ‖A_JJ‖_F)`.
 pub const STRENGTH_THRESHOLD: f64 = 0.08;
+
+/// Gauss–Seidel sweeps `ν` before and after each coarse correction of the V-cycle of the
+/// displacement (elasticity) systems (module documentation, "Application: a V-cycle").
+pub const SWEEPS: usize = 2;
 
 /// Largest number of unknowns of the coarsest level, solved by a dense LU.
 pub const COARSE_SIZE: usize = 500;
@@ -257,20 +275,26 @@ struct CoarseLu {
 pub(super) struct Amg {
     levels: Vec<Level>,
     coarse: CoarseLu,
+    /// Gauss–Seidel sweeps before and after each coarse correction.
+    sweeps: usize,
 }
 
 impl Amg {
     /// Builds the hierarchy of `a` with `near_nullspace` (the constant vector, unknown by
     /// unknown, when `None`) and the strength threshold `theta` of the finest level
-    /// ([`STRENGTH_THRESHOLD`] for the displacement systems; module documentation, step 1).
+    /// ([`STRENGTH_THRESHOLD`] for the displacement systems; module documentation, step 1),
+    /// to be applied as a V(`sweeps`, `sweeps`)-cycle ([`SWEEPS`] for the displacement
+    /// systems; module documentation, "Application: a V-cycle").
     ///
     /// # Panics
-    /// If `near_nullspace` does not have the size of `a`.
+    /// If `near_nullspace` does not have the size of `a`, or `sweeps` is zero.
     pub(super) fn new(
         a: &SparseMatrix,
         near_nullspace: Option<&NearNullspace>,
         theta: f64,
+        sweeps: usize,
     ) -> Result<Self, LinearError> {
+        assert!(sweeps > 0, "a V-cycle needs at least one smoothing sweep");
         let n = a.pattern.n();
         let fallback;
         let near_nullspace = match near_nullspace {
@@ -305,7 +329,11 @@ impl Amg {
             ns = coarse_ns;
         }
         let coarse = CoarseLu::new(op.as_ref())?;
-        Ok(Self { levels, coarse })
+        Ok(Self {
+            levels,
+            coarse,
+            sweeps,
+        })
     }
 
     /// `z ← M⁻¹ z` (or `M⁻ᵀ z`): one V-cycle from a zero guess.
@@ -321,7 +349,9 @@ impl Amg {
         };
         let rows = level.rows(orientation);
         let mut x = vec![0.0; b.len()];
-        gauss_seidel(rows, &level.inv_diag, b, &mut x, Sweep::Forward);
+        for _ in 0..self.sweeps {
+            gauss_seidel(rows, &level.inv_diag, b, &mut x, Sweep::Forward);
+        }
         let p = level.p.as_ref();
         let r: Vec<f64> = (0..b.len()).map(|i| b[i] - row_dot(rows, i, &x)).collect();
         let r_c: Vec<f64> = (0..p.ncols()).map(|j| row_dot(p, j, &r)).collect();
@@ -331,7 +361,9 @@ impl Amg {
                 x[i] += pij * xj;
             }
         }
-        gauss_seidel(rows, &level.inv_diag, b, &mut x, Sweep::Backward);
+        for _ in 0..self.sweeps {
+            gauss_seidel(rows, &level.inv_diag, b, &mut x, Sweep::Backward);
+        }
         x
     }
 }

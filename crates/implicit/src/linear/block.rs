@@ -27,10 +27,11 @@
 //!     [  0     S̃   ]
 //! ```
 //!
-//! with `Ã_uu⁻¹` one V-cycle of the smoothed-aggregation AMG ([`super::amg`]) of `A_uu`, built
-//! with the rigid-body modes of the displacement unknowns, and `S̃⁻¹` one V-cycle of the same
-//! AMG with the constant near-nullspace and a lower strength threshold
-//! ([`SCHUR_STRENGTH_THRESHOLD`], below) of the approximate Schur complement
+//! with `Ã_uu⁻¹` one V(2,2)-cycle of the smoothed-aggregation AMG ([`super::amg`]) of `A_uu`,
+//! built with the rigid-body modes of the displacement unknowns, and `S̃⁻¹` one V(3,3)-cycle
+//! ([`SCHUR_SWEEPS`], "Smoothing" below) of the same AMG with the constant near-nullspace and a
+//! lower strength threshold ([`SCHUR_STRENGTH_THRESHOLD`], below) of the approximate Schur
+//! complement
 //!
 //! ```text
 //! S̃ = A_pp + D^½ M̂ D^½,    D = −diag(A_pu D_uu⁻¹ A_up),   D_uu = diag(A_uu),
@@ -81,9 +82,11 @@
 //! steps at `κ` = 1e-12 m²/(Pa·s) 38 → 23 and 85 → 40; Terzaghi's column (2D, quadratic
 //! B-splines) 27 → 12, and 15.5 → 8 in the consolidation steps; the Q1–Q1 systems of
 //! `block_tests` 27 → 19 (2D) and 33 → 18 (3D). Scaling the whole augmentation by 0.5 … 2 moved the counts by at most 15 %
-//! (its optimum is near 1); solving with `S̃` exactly (a dense LU instead of the V-cycle)
-//! took 36 instead of 41 (quadratic cube), so what is left to the exact Schur complement is
-//! the approximation, not its V-cycle.
+//! (its optimum is near 1), and replacing `D` by one multiple of the mass diagonal changed
+//! nothing. The approximation is close: on the undrained tangent of that quadratic cube at
+//! 8³ cells (648 pressures, dense matrices) the eigenvalues of `S̃⁻¹ S` are real and lie in
+//! [0.45, 1.0], and with both blocks solved exactly GMRES needs 14 iterations (5 in a step of
+//! 5 s at `κ` = 1e-7). What the count loses beyond that is in the two V-cycles ("Smoothing").
 //!
 //! An AMG V-cycle with the constant near-nullspace rather than ILU(0) solves with `S̃`: on the
 //! Q1–Q1 test systems of this module (`block_tests`) GMRES with ILU(0) on `S̃` needed 19 → 34
@@ -123,6 +126,31 @@
 //! before (`docs/performance.md`). The undrained step, where `S̃` is the stabilisation and
 //! its diagonal augmentation, takes about as many iterations as before (0–4 % more).
 //!
+//! # Smoothing
+//!
+//! Both cycles smooth more than the AMG's single sweep before and after each coarse
+//! correction: `Ã_uu⁻¹` with [`SWEEPS`] = 2 Gauss–Seidel sweeps each way (as every
+//! displacement hierarchy, [`super::amg`]), `S̃⁻¹` with [`SCHUR_SWEEPS`] = 3. In the undrained
+//! limit `S̃` is mass-like: the constant near-nullspace holds its largest modes, not its
+//! smallest, so its coarse correction does little and the sweeps carry the cycle. GMRES
+//! iterations per Newton iteration on the quadratic cube of
+//! `benches/scenes/consolidation_block_3d_16.toml` (16³ cells; the undrained step, then the
+//! four steps of 5 s), and the wall time of `loam run` (2-core Intel Xeon,
+//! `docs/performance.md`, *Two and three smoothing sweeps in the block preconditioner*):
+//!
+//! | sweeps `A_uu`, `S̃` | `κ` = 1e-12 m²/(Pa·s) | `κ` = 1e-4 | wall, 1e-12 / 1e-4 |
+//! |---|---|---|---|
+//! | 1, 1 (before) | 42.3; 42, 38.5, 38.5, 38.5 | 42.3; 24.5, 27, 32, 33 | 45.0 / 35.2 s |
+//! | 2, 2 | 27; 27, 25, 25, 25 | 27; 17, 18.5, 22, 23 | 40.3 / 32.3 s |
+//! | 2, 3 (now) | 23.3; 23, 21.5, 22, 22 | 23.3; 16, 18, 22, 23 | 38.9 / 32.2 s |
+//! | 3, 3 | 22; 21.5, 20.5, 20.5, 20.5 | 22; 13.5, 15, 18, 19 | 42.3 / 32.1 s |
+//!
+//! With 2 and 3 the count spans 16–23.3 across the eight decades of mobility from 1e-12 to
+//! 1e-4 (1.46×; it was 24.5–42.3, 1.73×), and the runs are 9–14 % faster: the sweeps cost
+//! less than the iterations they save (a sweep of `S̃` costs about a quarter of one of
+//! `A_uu`). A third sweep of `A_uu` lowers the drained count more than the undrained one
+//! (1.63×) and costs about what it saves.
+//!
 //! # The transposed solve
 //!
 //! The adjoint systems `Aᵀ x = b` are preconditioned by `Mᵀ`, block lower-triangular:
@@ -135,7 +163,7 @@
 
 use std::sync::Arc;
 
-use super::amg::{Amg, NearNullspace, STRENGTH_THRESHOLD};
+use super::amg::{Amg, NearNullspace, STRENGTH_THRESHOLD, SWEEPS};
 use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
 /// Name used in errors.
@@ -144,6 +172,10 @@ const NAME: &str = "block";
 /// Strength threshold `θ` of the finest level of the AMG of `S̃` (module documentation, "The
 /// AMG of the Schur block"); the displacement block keeps [`STRENGTH_THRESHOLD`].
 pub const SCHUR_STRENGTH_THRESHOLD: f64 = 0.02;
+
+/// Gauss–Seidel sweeps before and after each coarse correction of the V-cycle of `S̃`
+/// (module documentation, "Smoothing"); the displacement block uses [`SWEEPS`].
+pub const SCHUR_SWEEPS: usize = 3;
 
 /// Which unknowns of a coupled system are displacements and which are pore pressures, and the
 /// rigid-body modes of the displacements: what
@@ -328,14 +360,15 @@ impl DiagonalBlock {
     }
 
     /// Builds the AMG of the block's values with `near_nullspace` (the constant vector when
-    /// `None`) and the strength threshold `theta`.
+    /// `None`), the strength threshold `theta` and `sweeps` smoothing sweeps.
     fn factorize(
         &mut self,
         near_nullspace: Option<&NearNullspace>,
         theta: f64,
+        sweeps: usize,
     ) -> Result<(), LinearError> {
         self.inverse = None;
-        self.inverse = Some(Amg::new(&self.matrix, near_nullspace, theta)?);
+        self.inverse = Some(Amg::new(&self.matrix, near_nullspace, theta, sweeps)?);
         Ok(())
     }
 
@@ -415,8 +448,8 @@ impl Block {
             .collect();
         schur.fill(a);
         schur.augment(&augmentation, &split.pressure_mass);
-        uu.factorize(Some(&split.displacement_modes), STRENGTH_THRESHOLD)?;
-        schur.factorize(None, SCHUR_STRENGTH_THRESHOLD)?;
+        uu.factorize(Some(&split.displacement_modes), STRENGTH_THRESHOLD, SWEEPS)?;
+        schur.factorize(None, SCHUR_STRENGTH_THRESHOLD, SCHUR_SWEEPS)?;
         Ok(Self {
             u,
             p,

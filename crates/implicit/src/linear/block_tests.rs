@@ -279,7 +279,8 @@ fn iteration_counts<const D: usize>(sizes: [usize; 2], mobilities: &[f64]) -> Ve
 /// most a factor 1.5, at every mobility from 1e-12 to 1e-4 m²/(Pa·s), plain and transposed;
 /// and across those eight decades, where the pressure block changes from the stabilisation
 /// alone to a Laplacian 10⁹ times larger, the count varies by at most a factor 2.2 (measured:
-/// 10–20 in 2D, 12–20 in 3D; with the Schur augmentation's diagonal alone it was 13–30).
+/// 8–16 in 2D, 8–14 in 3D; 10–20 and 12–20 with one smoothing sweep per cycle, and 13–30 with
+/// the Schur augmentation's diagonal alone).
 #[test]
 fn block_iteration_counts_do_not_grow_with_the_mesh_or_the_mobility() {
     let mobilities = [1e-12, 1e-10, 1e-8, 1e-6, 1e-4];

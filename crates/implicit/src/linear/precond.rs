@@ -2,7 +2,7 @@
 //! AMG and the u–p block preconditioner, with solves by `M` and by `Mᵀ` (for the transposed
 //! systems of the adjoints).
 
-use super::amg::{Amg, NearNullspace, STRENGTH_THRESHOLD};
+use super::amg::{Amg, NearNullspace, STRENGTH_THRESHOLD, SWEEPS};
 use super::block::{Block, BlockSplit};
 use super::{LinearError, Orientation, SparseMatrix, SparsePattern};
 
@@ -117,7 +117,7 @@ impl PrecondState {
             Self::Amg(hierarchy) => {
                 // Free the old hierarchy before building the new one.
                 *hierarchy = None;
-                *hierarchy = Some(Amg::new(a, near_nullspace, STRENGTH_THRESHOLD)?);
+                *hierarchy = Some(Amg::new(a, near_nullspace, STRENGTH_THRESHOLD, SWEEPS)?);
                 Ok(())
             }
             Self::Block(blocks) => {
