@@ -75,8 +75,8 @@
 //! `ν` is a parameter of the hierarchy. The displacement systems use [`SWEEPS`] = 2: MPM
 //! stiffness matrices with quadratic B-splines couple nodes two cells apart (5^D stencils),
 //! and one sweep leaves much of the error the coarse space does not hold. CG iterations to
-//! 1e-8 and wall time of `loam run` (2-core Intel Xeon; `docs/performance.md`, *Two
-//! smoothing sweeps*), one sweep → two: a 1 m cube under its own weight at 32³ cells, linear
+//! 1e-8 and wall time of `loam run` (2-core Intel Xeon; `docs/performance.md`, *Two and
+//! three smoothing sweeps in the block preconditioner*), one sweep → two: a 1 m cube under its own weight at 32³ cells, linear
 //! shape functions, 12 → 9 (4.20 → 4.16 s); the same at 16³ cells with quadratic B-splines,
 //! 23 → 16 (2.62 → 2.56 s); the Hencky block of `benches/scenes/hencky_block_3d_27k.toml`
 //! (a free surface, ten load steps) with CG+AMG, 22.5–23.5 → 15.5–16 per Newton iteration
