@@ -72,21 +72,24 @@
 //! cycle's error propagator `E_ν` satisfies `‖E_(ν+1)‖_A ≤ ‖E_ν‖_A`: more sweeps never slow
 //! the convergence, they only cost more per cycle.
 //!
+//! The transpose `M⁻ᵀ` (adjoint systems) is the same cycle on the transposed operators
+//! `Aᵀ, A_cᵀ, …` with the same `P`: from the error propagator (here with `ν = 1`)
+//! `E = (I − (D+U)⁻¹A)(I − P A_c⁻¹ Pᵀ A)(I − (D+L)⁻¹A)` and `M⁻¹ = (I − E) A⁻¹` follows
+//! `M⁻ᵀ = (I − E′) A⁻ᵀ` with `E′ = (I − (D+Lᵀ)⁻¹Aᵀ)(I − P A_c⁻ᵀ Pᵀ Aᵀ)(I − (D+Uᵀ)⁻¹Aᵀ)`, and
+//! `D + Uᵀ`, `D + Lᵀ` are the lower and upper triangles of `Aᵀ`: forward Gauss–Seidel on `Aᵀ`
+//! before, backward after (`ν` of each for a V(ν,ν)-cycle).
+//!
 //! `ν` is a parameter of the hierarchy. The displacement systems use [`SWEEPS`] = 2: MPM
 //! stiffness matrices with quadratic B-splines couple nodes two cells apart (5^D stencils),
 //! and one sweep leaves much of the error the coarse space does not hold. CG iterations to
 //! 1e-8 and wall time of `loam run` (2-core Intel Xeon; `docs/performance.md`, *Two and
-//! three smoothing sweeps in the block preconditioner*), one sweep → two: a 1 m cube under its own weight at 32³ cells, linear
-//! shape functions, 12 → 9 (4.20 → 4.16 s); the same at 16³ cells with quadratic B-splines,
-//! 23 → 16 (2.62 → 2.56 s); the Hencky block of `benches/scenes/hencky_block_3d_27k.toml`
-//! (a free surface, ten load steps) with CG+AMG, 22.5–23.5 → 15.5–16 per Newton iteration
-//! (36.4 → 35.6 s). In the u–p block preconditioner ([`super::block`]) the effect is
-//! larger, because the displacement cycle's error is amplified there by the Schur block's. The transpose `M⁻ᵀ` (adjoint systems) is the same cycle
-//! on the transposed operators `Aᵀ, A_cᵀ, …` with the same `P`: from the error propagator
-//! `E = (I − (D+U)⁻¹A)(I − P A_c⁻¹ Pᵀ A)(I − (D+L)⁻¹A)` and `M⁻¹ = (I − E) A⁻¹` follows
-//! `M⁻ᵀ = (I − E′) A⁻ᵀ` with `E′ = (I − (D+Lᵀ)⁻¹Aᵀ)(I − P A_c⁻ᵀ Pᵀ Aᵀ)(I − (D+Uᵀ)⁻¹Aᵀ)`, and
-//! `D + Uᵀ`, `D + Lᵀ` are the lower and upper triangles of `Aᵀ`: forward Gauss–Seidel on `Aᵀ`
-//! before, backward after.
+//! three smoothing sweeps in the block preconditioner*), one sweep → two: a 1 m cube under
+//! its own weight at 32³ cells, linear shape functions, 12 → 9 (4.20 → 4.16 s); the same at
+//! 16³ cells with quadratic B-splines, 23 → 16 (2.62 → 2.56 s); the Hencky block of
+//! `benches/scenes/hencky_block_3d_27k.toml` (a free surface, ten load steps) with CG+AMG,
+//! 22.5–23.5 → 15.5–16 per Newton iteration (36.4 → 35.6 s). In the u–p block preconditioner
+//! ([`super::block`]) the effect is larger, because the displacement cycle's error is
+//! amplified there by the Schur block's.
 //!
 //! Everything runs sequentially in a fixed order (no hash-map iteration, no parallel
 //! reduction), so the preconditioner has the same bits for any thread count.
